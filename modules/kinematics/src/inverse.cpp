@@ -1,0 +1,175 @@
+// Inverse kinematics: the paper's closed form (MODEL.md §6.2) and its exact refinement (§6.1).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "ignav/kinematics/solver.hpp"
+
+namespace ignav::kinematics {
+namespace {
+
+constexpr double kTwoPi = 6.28318530717958647692;
+// Targets this close outside a limit are treated as on it: FK of a joint at its limit must
+// invert to that limit despite rounding.
+constexpr double kLimitSlack_mm = 1e-9;
+
+double rotationFor(const Eigen::Vector3d& p) {
+  // θc = atan2(-x, y) mod 2π; on the axis any rotation reaches the point, take 0.
+  if (p.x() == 0.0 && p.y() == 0.0) return 0.0;
+  double theta = std::atan2(-p.x(), p.y());
+  if (theta < 0.0) theta += kTwoPi;
+  if (theta >= kTwoPi) theta -= kTwoPi;
+  return theta;
+}
+
+}  // namespace
+
+const char* toString(Reach reach) {
+  switch (reach) {
+    case Reach::kReachable:
+      return "reachable";
+    case Reach::kInsideMinRadius:
+      return "inside_min_radius";
+    case Reach::kBeyondMaxRadius:
+      return "beyond_max_radius";
+    case Reach::kTooShallow:
+      return "too_shallow";
+    case Reach::kTooDeep:
+      return "too_deep";
+  }
+  return "reachable";
+}
+
+double Kinematics::closedFormStylet_mm(double radius_mm) const {
+  const double R = instrument_.stylet_radius_mm;
+  const double phi = phi_rad_;
+  if (rigid_) {
+    // θd = 0: cos γ ≈ 1 - γ²/2 and cos ϕ ≈ 1 - ϕ²/2 in eq (10) give γ² = ϕ² + 2y/R.
+    const double gamma = std::sqrt(std::max(0.0, phi * phi + 2.0 * radius_mm / R));
+    return R * (gamma - phi);
+  }
+  // Eq (16), "+" branch (the denominator a/R - n² is negative).
+  const double m = cf_m_, n = cf_n_;
+  const double b = m * n - phi;
+  const double disc = b * b - cf_den_ * (phi * phi - m * m + 2.0 * radius_mm / R);
+  const double theta_d = (b + std::sqrt(std::max(0.0, disc))) / cf_den_;
+  return instrument_.stylet_curved_length_mm - instrument_.cannula_deflected_radius_mm * theta_d;
+}
+
+double Kinematics::styletForRadius_mm(double radius_mm) const {
+  const double zs_max = instrument_.stylet_travel_mm;
+  if (radius_mm <= r_min_mm_) return 0.0;
+  if (radius_mm >= r_max_mm_) return zs_max;
+  // r(zs) is strictly increasing (checked in create), so [lo, hi] always brackets the root.
+  // Newton from the closed form converges in 3-4 steps; a step leaving the bracket bisects.
+  double lo = 0.0, hi = zs_max;
+  double zs = std::clamp(closedFormStylet_mm(radius_mm), lo, hi);
+  for (int i = 0; i < 60; ++i) {
+    double r = 0.0, slope = 0.0;
+    radiusAndSlope(zs, r, slope);
+    const double f = r - radius_mm;
+    if (f == 0.0) return zs;
+    if (f < 0.0) {
+      lo = zs;
+    } else {
+      hi = zs;
+    }
+    double next = zs - f / slope;
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+    const double step = std::abs(next - zs);
+    zs = next;
+    if (step <= 1e-13 * (1.0 + zs) || hi - lo <= 1e-15 * zs_max) break;
+  }
+  return zs;
+}
+
+Expected<InverseSolution> Kinematics::inverse(const Eigen::Vector3d& p) const {
+  if (!p.allFinite()) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "target (%g, %g, %g) mm has a non-finite coordinate", p.x(),
+                  p.y(), p.z());
+    return makeError(ErrorCode::kInvalidArgument, buf);
+  }
+  InverseSolution s;
+  const double r = std::hypot(p.x(), p.y());
+  if (r < r_min_mm_ - kLimitSlack_mm) {
+    s.reach = Reach::kInsideMinRadius;
+    s.excess_mm = r_min_mm_ - r;
+    return s;
+  }
+  if (r > r_max_mm_ + kLimitSlack_mm) {
+    s.reach = Reach::kBeyondMaxRadius;
+    s.excess_mm = r - r_max_mm_;
+    return s;
+  }
+  s.joints.theta_c_rad = rotationFor(p);
+  s.joints.z_s_mm = styletForRadius_mm(r);
+  double zc = tipDepthAtHome_mm(s.joints.z_s_mm) - p.z();
+  const double zc_max = instrument_.cannula_travel_mm;
+  if (zc < -kLimitSlack_mm) {
+    s.reach = Reach::kTooShallow;
+    s.excess_mm = -zc;
+  } else if (zc > zc_max + kLimitSlack_mm) {
+    s.reach = Reach::kTooDeep;
+    s.excess_mm = zc - zc_max;
+  } else {
+    zc = std::clamp(zc, 0.0, zc_max);
+  }
+  s.joints.z_c_mm = zc;
+  return s;
+}
+
+Joints Kinematics::closedFormJoints(const Eigen::Vector3d& p) const {
+  Joints j;
+  j.theta_c_rad = rotationFor(p);
+  j.z_s_mm = closedFormStylet_mm(std::hypot(p.x(), p.y()));
+  // Corrected eq (17): zc = z0(zs) - z with the model of (7)-(8), i.e. without the exit offset.
+  j.z_c_mm = planar(j.z_s_mm, ExitOffset::kNone).z_mm - p.z();
+  return j;
+}
+
+ClosedFormSolution Kinematics::inverseClosedForm(const Eigen::Vector3d& p) const {
+  ClosedFormSolution s;
+  s.joints = closedFormJoints(p);
+  s.clipped_joints = s.joints;
+  s.clipped_joints.z_s_mm = std::clamp(s.joints.z_s_mm, 0.0, instrument_.stylet_travel_mm);
+  s.clipped_joints.z_c_mm = std::clamp(s.joints.z_c_mm, 0.0, instrument_.cannula_travel_mm);
+  s.clipped =
+      s.clipped_joints.z_s_mm != s.joints.z_s_mm || s.clipped_joints.z_c_mm != s.joints.z_c_mm;
+  s.error_mm = (forward(s.clipped_joints).tip_mm - p).norm();
+  return s;
+}
+
+std::string Kinematics::describe(const InverseSolution& s, const Eigen::Vector3d& p) const {
+  char buf[256];
+  const int n =
+      std::snprintf(buf, sizeof buf, "target (%.3f, %.3f, %.3f) mm ", p.x(), p.y(), p.z());
+  const size_t at = static_cast<size_t>(std::max(0, n));
+  switch (s.reach) {
+    case Reach::kReachable:
+      std::snprintf(buf + at, sizeof buf - at, "is reachable");
+      break;
+    case Reach::kInsideMinRadius:
+      std::snprintf(buf + at, sizeof buf - at,
+                    "is %.3f mm inside the minimum radius %.3f mm around the cannula axis",
+                    s.excess_mm, r_min_mm_);
+      break;
+    case Reach::kBeyondMaxRadius:
+      std::snprintf(buf + at, sizeof buf - at, "is %.3f mm beyond the maximum radius %.3f mm",
+                    s.excess_mm, r_max_mm_);
+      break;
+    case Reach::kTooShallow:
+      std::snprintf(buf + at, sizeof buf - at,
+                    "is %.3f mm too shallow: it needs cannula translation %.3f mm < 0", s.excess_mm,
+                    s.joints.z_c_mm);
+      break;
+    case Reach::kTooDeep:
+      std::snprintf(buf + at, sizeof buf - at,
+                    "is %.3f mm too deep: it needs cannula translation %.3f mm > travel %.3f mm",
+                    s.excess_mm, s.joints.z_c_mm, instrument_.cannula_travel_mm);
+      break;
+  }
+  return buf;
+}
+
+}  // namespace ignav::kinematics

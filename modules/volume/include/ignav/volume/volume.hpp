@@ -1,0 +1,85 @@
+// A CT volume: voxels stored once as int16 with a linear value mapping, and one geometry type
+// that maps voxel indices (IJK) to patient coordinates (LPS, mm), as DICOM, NRRD and 3D Slicer
+// define them.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ignav/core/expected.hpp"
+
+namespace ignav::volume {
+
+// Voxel (i, j, k) centre -> LPS: origin + direction * diag(spacing) * (i, j, k).
+// direction's columns are the unit i, j and k axes in LPS (DICOM: row direction, column
+// direction, slice normal), so it is orthonormal; its determinant may be -1.
+struct Geometry {
+  std::array<int, 3> dims{0, 0, 0};
+  Eigen::Vector3d spacing_mm = Eigen::Vector3d::Ones();
+  Eigen::Vector3d origin_lps_mm = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d direction = Eigen::Matrix3d::Identity();
+
+  Eigen::Matrix4d ijkToLps() const;
+  Eigen::Matrix4d lpsToIjk() const;
+  Eigen::Vector3d toLps(const Eigen::Vector3d& ijk) const;
+  Eigen::Vector3d toIjk(const Eigen::Vector3d& lps_mm) const;
+  std::size_t voxelCount() const;
+  // Dims positive, spacing finite and positive, origin finite, direction orthonormal
+  // (columns unit length and mutually perpendicular within 1e-4). `what` names the source.
+  Status validate(const std::string& what) const;
+};
+
+// Stored value v -> physical value (HU for CT): v * value_scale + value_offset. CT series with
+// RescaleSlope 1 store HU directly (scale 1, offset 0).
+class Volume {
+ public:
+  Geometry geometry;
+  std::vector<std::int16_t> voxels;  // i fastest, then j, then k
+  double value_scale = 1.0;
+  double value_offset = 0.0;
+  std::string modality;     // "CT", "MR", ... ("" when the file format has none)
+  std::string series_uid;   // DICOM SeriesInstanceUID, or "" for NRRD/MetaImage
+  std::string description;  // e.g. SeriesDescription or the file name
+
+  std::size_t index(int i, int j, int k) const {
+    return static_cast<std::size_t>(i) +
+           static_cast<std::size_t>(geometry.dims[0]) *
+               (static_cast<std::size_t>(j) +
+                static_cast<std::size_t>(geometry.dims[1]) * static_cast<std::size_t>(k));
+  }
+  bool contains(int i, int j, int k) const {
+    return i >= 0 && j >= 0 && k >= 0 && i < geometry.dims[0] && j < geometry.dims[1] &&
+           k < geometry.dims[2];
+  }
+  // Physical value of one voxel (no bounds check).
+  double valueAt(int i, int j, int k) const {
+    return voxels[index(i, j, k)] * value_scale + value_offset;
+  }
+  // Trilinear interpolation at a continuous IJK position; `outside` beyond the voxel centres'
+  // hull (no extrapolation).
+  double sampleIjk(const Eigen::Vector3d& ijk, double outside) const;
+  double sampleLps(const Eigen::Vector3d& lps_mm, double outside) const {
+    return sampleIjk(geometry.toIjk(lps_mm), outside);
+  }
+  // Physical min and max over all voxels.
+  std::pair<double, double> valueRange() const;
+};
+
+// Progress of long loads, for the server to publish: a stage name ("scan", "decode"), work done
+// and total (total 0 when unknown).
+struct Progress {
+  std::string stage;
+  std::size_t done = 0;
+  std::size_t total = 0;
+};
+using ProgressCallback = std::function<void(const Progress&)>;
+
+// The largest volume any reader accepts, so a corrupt header cannot ask for 10 GB.
+constexpr std::size_t kMaxVoxels = std::size_t{1} << 31;  // 4 GiB of int16
+
+}  // namespace ignav::volume

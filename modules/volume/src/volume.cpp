@@ -1,0 +1,102 @@
+#include "ignav/volume/volume.hpp"
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+namespace ignav::volume {
+
+Eigen::Matrix4d Geometry::ijkToLps() const {
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  m.topLeftCorner<3, 3>() = direction * spacing_mm.asDiagonal();
+  m.topRightCorner<3, 1>() = origin_lps_mm;
+  return m;
+}
+
+Eigen::Matrix4d Geometry::lpsToIjk() const {
+  // direction is orthonormal: invert without a general solve.
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  const Eigen::Matrix3d inv = spacing_mm.cwiseInverse().asDiagonal() * direction.transpose();
+  m.topLeftCorner<3, 3>() = inv;
+  m.topRightCorner<3, 1>() = -inv * origin_lps_mm;
+  return m;
+}
+
+Eigen::Vector3d Geometry::toLps(const Eigen::Vector3d& ijk) const {
+  return origin_lps_mm + direction * spacing_mm.cwiseProduct(ijk);
+}
+
+Eigen::Vector3d Geometry::toIjk(const Eigen::Vector3d& lps_mm) const {
+  return (direction.transpose() * (lps_mm - origin_lps_mm)).cwiseQuotient(spacing_mm);
+}
+
+std::size_t Geometry::voxelCount() const {
+  return static_cast<std::size_t>(std::max(0, dims[0])) *
+         static_cast<std::size_t>(std::max(0, dims[1])) *
+         static_cast<std::size_t>(std::max(0, dims[2]));
+}
+
+Status Geometry::validate(const std::string& what) const {
+  std::ostringstream m;
+  m << what << ": ";
+  if (dims[0] <= 0 || dims[1] <= 0 || dims[2] <= 0) {
+    m << "dimensions " << dims[0] << " x " << dims[1] << " x " << dims[2] << " must be positive";
+    return makeError(ErrorCode::kFormat, m.str());
+  }
+  if (voxelCount() > kMaxVoxels) {
+    m << "dimensions " << dims[0] << " x " << dims[1] << " x " << dims[2] << " exceed the limit of "
+      << kMaxVoxels << " voxels";
+    return makeError(ErrorCode::kFormat, m.str());
+  }
+  for (int a = 0; a < 3; ++a) {
+    if (!std::isfinite(spacing_mm[a]) || spacing_mm[a] <= 0.0) {
+      m << "spacing along axis "
+        << "ijk"[a] << " is " << spacing_mm[a] << " mm; must be positive";
+      return makeError(ErrorCode::kFormat, m.str());
+    }
+  }
+  if (!origin_lps_mm.allFinite() || !direction.allFinite()) {
+    m << "origin or direction has a non-finite value";
+    return makeError(ErrorCode::kFormat, m.str());
+  }
+  const Eigen::Matrix3d gram = direction.transpose() * direction;
+  const double off = (gram - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (off > 1e-4) {
+    m << "direction cosines are not orthonormal (|DᵀD - I| = " << off << ")";
+    return makeError(ErrorCode::kFormat, m.str());
+  }
+  return Ok{};
+}
+
+double Volume::sampleIjk(const Eigen::Vector3d& p, double outside) const {
+  const auto& d = geometry.dims;
+  if (!p.allFinite()) return outside;
+  const double x = p.x(), y = p.y(), z = p.z();
+  if (x < 0.0 || y < 0.0 || z < 0.0 || x > d[0] - 1 || y > d[1] - 1 || z > d[2] - 1) {
+    return outside;
+  }
+  const int i0 = std::min(static_cast<int>(x), std::max(0, d[0] - 2));
+  const int j0 = std::min(static_cast<int>(y), std::max(0, d[1] - 2));
+  const int k0 = std::min(static_cast<int>(z), std::max(0, d[2] - 2));
+  const int i1 = std::min(i0 + 1, d[0] - 1), j1 = std::min(j0 + 1, d[1] - 1),
+            k1 = std::min(k0 + 1, d[2] - 1);
+  const double fx = x - i0, fy = y - j0, fz = z - k0;
+  auto v = [&](int i, int j, int k) { return static_cast<double>(voxels[index(i, j, k)]); };
+  const double c00 = v(i0, j0, k0) * (1 - fx) + v(i1, j0, k0) * fx;
+  const double c10 = v(i0, j1, k0) * (1 - fx) + v(i1, j1, k0) * fx;
+  const double c01 = v(i0, j0, k1) * (1 - fx) + v(i1, j0, k1) * fx;
+  const double c11 = v(i0, j1, k1) * (1 - fx) + v(i1, j1, k1) * fx;
+  const double c0 = c00 * (1 - fy) + c10 * fy, c1 = c01 * (1 - fy) + c11 * fy;
+  return (c0 * (1 - fz) + c1 * fz) * value_scale + value_offset;
+}
+
+std::pair<double, double> Volume::valueRange() const {
+  if (voxels.empty()) return {0.0, 0.0};
+  const auto [lo, hi] = std::minmax_element(voxels.begin(), voxels.end());
+  const double a = *lo * value_scale + value_offset, b = *hi * value_scale + value_offset;
+  return {std::min(a, b), std::max(a, b)};
+}
+
+}  // namespace ignav::volume

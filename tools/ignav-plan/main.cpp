@@ -1,0 +1,269 @@
+// ignav-plan: the offline planner. JSON on stdout; errors on stderr with exit code 2 for bad
+// input and 1 for internal failures. No DDS, no server: the modules called directly.
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "ignav/config/robot_config.hpp"
+#include "ignav/kinematics/ik_study.hpp"
+#include "ignav/kinematics/workspace_map.hpp"
+#include "study_report.hpp"
+
+namespace {
+
+using ignav::config::Robot;
+using ignav::kinematics::Joints;
+using nlohmann::json;
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr int kExitBadInput = 2;
+constexpr int kExitInternal = 1;
+
+double deg(double rad) {
+  return rad * 180.0 / kPi;
+}
+
+// A user error: reported on stderr, exit code 2.
+struct BadInput {
+  std::string message;
+};
+
+Robot loadRobotOrThrow(const std::string& path) {
+  auto robot = ignav::config::loadRobot(path);
+  if (!robot) throw BadInput{robot.error().message};
+  return std::move(robot).value();
+}
+
+std::array<double, 3> parseTriple(const std::string& text, const std::string& what) {
+  std::array<double, 3> v{};
+  std::stringstream in(text);
+  std::string item;
+  size_t n = 0;
+  while (std::getline(in, item, ',')) {
+    if (n == 3) throw BadInput{what + ": expected 3 comma-separated numbers, got '" + text + "'"};
+    try {
+      size_t used = 0;
+      v[n] = std::stod(item, &used);
+      if (used != item.size()) throw std::invalid_argument(item);
+    } catch (const std::exception&) {
+      throw BadInput{what + ": '" + item + "' is not a number"};
+    }
+    if (!std::isfinite(v[n])) throw BadInput{what + ": '" + item + "' is not finite"};
+    ++n;
+  }
+  if (n != 3) throw BadInput{what + ": expected 3 comma-separated numbers, got '" + text + "'"};
+  return v;
+}
+
+json jointsJson(const Joints& j) {
+  return {{"theta_c_deg", deg(j.theta_c_rad)}, {"z_c_mm", j.z_c_mm}, {"z_s_mm", j.z_s_mm}};
+}
+
+json vec(const Eigen::Vector3d& p) {
+  return json::array({p.x(), p.y(), p.z()});
+}
+
+json forwardJson(const Robot& robot, const std::array<double, 3>& q) {
+  const Joints joints{q[0] * kPi / 180.0, q[1], q[2]};
+  const auto ok = robot.kinematics.checkJoints(joints);
+  if (!ok) throw BadInput{ok.error().message};
+  const auto pose = robot.kinematics.forward(joints);
+  return {{"tip_mm", vec(pose.tip_mm)},
+          {"approach_rad", pose.approach_rad},
+          {"cannula_tip_mm", vec(pose.cannula_tip_mm)}};
+}
+
+json inverseJson(const Robot& robot, const std::array<double, 3>& p) {
+  const Eigen::Vector3d target(p[0], p[1], p[2]);
+  const auto& kin = robot.kinematics;
+  const auto solution = kin.inverse(target);
+  if (!solution) throw BadInput{solution.error().message};
+  if (!solution->reachable()) {
+    return {{"reachable", false},
+            {"reason", ignav::kinematics::toString(solution->reach)},
+            {"message", kin.describe(*solution, target)}};
+  }
+  const Joints& j = solution->joints;
+  const auto steps = robot.transmission.toSteps(j);
+  const auto cf = kin.inverseClosedForm(target);
+  return {
+      {"reachable", true},
+      {"joints", jointsJson(j)},
+      {"steps", json::array({steps.steps.motor[0], steps.steps.motor[1], steps.steps.motor[2]})},
+      {"residual_mm", (kin.forward(j).tip_mm - target).norm()},
+      // What whole motor steps cost: the tip error at the joints the rounded steps produce.
+      {"step_quantisation_mm", (kin.forward(steps.achieved).tip_mm - target).norm()},
+      {"closed_form",
+       {{"joints", jointsJson(cf.joints)}, {"clipped", cf.clipped}, {"error_mm", cf.error_mm}}}};
+}
+
+int runBatch(const Robot& robot, const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw BadInput{path + ": cannot open"};
+  std::string line;
+  size_t line_no = 0;
+  bool any_bad = false;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    json out;
+    try {
+      const json case_ = json::parse(line);
+      if (!case_.is_object()) throw BadInput{"each line must be a JSON object"};
+      if (case_.contains("id")) out["id"] = case_["id"];
+      auto triple = [&](const char* key) {
+        const json& v = case_.at(key);
+        if (!v.is_array() || v.size() != 3)
+          throw BadInput{std::string(key) + ": expected [a, b, c]"};
+        std::array<double, 3> t{};
+        for (size_t i = 0; i < 3; ++i) {
+          if (!v[i].is_number())
+            throw BadInput{std::string(key) + ": element " + std::to_string(i) +
+                           " is not a number"};
+          t[i] = v[i].get<double>();
+        }
+        return t;
+      };
+      json result;
+      if (case_.contains("fk")) {
+        result = forwardJson(robot, triple("fk"));
+      } else if (case_.contains("ik")) {
+        result = inverseJson(robot, triple("ik"));
+      } else {
+        throw BadInput{"needs a key \"fk\": [theta_c_deg, z_c_mm, z_s_mm] or \"ik\": [x, y, z]"};
+      }
+      for (auto& [k, v] : result.items())
+        out[k] = v;
+    } catch (const BadInput& e) {
+      out["error"] = path + ":" + std::to_string(line_no) + ": " + e.message;
+      any_bad = true;
+    } catch (const json::exception& e) {
+      out["error"] = path + ":" + std::to_string(line_no) + ": " + e.what();
+      any_bad = true;
+    }
+    std::cout << out.dump() << '\n';
+  }
+  return any_bad ? kExitBadInput : 0;
+}
+
+json workspaceJson(const Robot& robot, double grid_mm, const std::string& ply) {
+  const auto w = robot.kinematics.workspace();
+  const auto map = ignav::kinematics::computeWorkspaceMap(robot.kinematics, grid_mm);
+  if (!map) throw BadInput{"--grid-mm: " + map.error().message};
+  if (!ply.empty()) {
+    const auto written = ignav::kinematics::writeWorkspacePly(*map, ply);
+    if (!written) throw BadInput{written.error().message};
+  }
+  return {{"phi_deg", deg(w.exit_angle_rad)},
+          {"e_phi_mm", w.exit_error_mm},
+          {"volume_paper_cm3", w.volume_paper_cm3},
+          {"volume_exact_cm3", w.volume_exact_cm3},
+          {"volume_sampled_cm3", map->sampledVolume_cm3()},
+          {"r_min_mm", w.r_min_mm},
+          {"r_max_mm", w.r_max_mm},
+          {"zone_diameter_paper_mm", w.zone_diameter_paper_mm},
+          {"grid_mm", grid_mm},
+          {"points", map->points_mm.size()}};
+}
+
+json studyJson(const Robot& robot, const std::string& out_dir) {
+  using ignav::kinematics::ExitOffset;
+  using ignav::kinematics::IkStudySet;
+  const IkStudySet sets[] = {
+      {"FK without offset (model of eqs 7-8), Rd = 550", ExitOffset::kNone, 550.0, 40.0, 40.0},
+      {"FK with lateral offset, Rd = 550", ExitOffset::kLateral, 550.0, 40.0, 40.0},
+      {"FK with axial offset, Rd = 550", ExitOffset::kAxial, 550.0, 40.0, 40.0},
+      {"no offset, Rd = 200", ExitOffset::kNone, 200.0, 40.0, 40.0},
+      {"no offset, Rd = 1000", ExitOffset::kNone, 1000.0, 40.0, 40.0},
+      {"no offset, Rd = 5000", ExitOffset::kNone, 5000.0, 40.0, 40.0},
+      {"no offset, zs_max = 30", ExitOffset::kNone, 550.0, 30.0, 40.0},
+      {"no offset, zs_max = 25", ExitOffset::kNone, 550.0, 25.0, 40.0},
+      {"no offset, zs_max = 20", ExitOffset::kNone, 550.0, 20.0, 40.0},
+  };
+  ignav::plan::StudyReport report;
+  report.robot_name = robot.config.name;
+  json rows = json::array();
+  for (const auto& set : sets) {
+    std::cerr << "study: " << set.label << "\n";
+    report.sets.push_back(ignav::kinematics::runIkStudy(set));
+    const auto& s = report.sets.back();
+    rows.push_back({{"set", set.label},
+                    {"targets", s.targets},
+                    {"mean_mm", s.mean_mm},
+                    {"max_mm", s.max_mm},
+                    {"variance_mm2", s.variance_mm2},
+                    {"geometries_mean_below_0_60", s.geometriesWithMeanBelow(0.60)},
+                    {"clipped", s.clipped},
+                    {"exact_max_mm", s.exact_max_mm}});
+  }
+  report.experiment_map = ignav::kinematics::closedFormErrorMap(robot.kinematics, 0.5);
+  if (!out_dir.empty()) {
+    const auto written = ignav::plan::writeStudyReport(report, out_dir);
+    if (!written) throw BadInput{written.error().message};
+  }
+  return {{"sets", rows}, {"out_dir", out_dir}};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ignav-plan: offline kinematics, reachability and step planning (JSON out)"};
+  app.require_subcommand(1);
+  std::string robot_path;
+  std::string joints_text, target_text, batch_path, ply_path, out_dir = "docs";
+  double grid_mm = 0.5;
+
+  auto* fk = app.add_subcommand("fk", "tip pose for joints THETA_C_DEG,ZC_MM,ZS_MM");
+  fk->add_option("--robot", robot_path, "robot YAML")->required();
+  fk->add_option("--joints", joints_text, "THETA_C_DEG,ZC_MM,ZS_MM")->required();
+  auto* ik = app.add_subcommand("ik", "joints and motor steps for a robot-frame target X,Y,Z");
+  ik->add_option("--robot", robot_path, "robot YAML")->required();
+  ik->add_option("--target", target_text, "X,Y,Z in mm (robot frame)")->required();
+  auto* batch = app.add_subcommand("batch", "JSON lines of {\"id\",\"fk\"|\"ik\"} cases");
+  batch->add_option("--robot", robot_path, "robot YAML")->required();
+  batch->add_option("--in", batch_path, "cases.jsonl")->required();
+  auto* ws = app.add_subcommand("workspace", "feasible-volume figures and point cloud");
+  ws->add_option("--robot", robot_path, "robot YAML")->required();
+  ws->add_option("--grid-mm", grid_mm, "grid spacing of the reachability map");
+  ws->add_option("--ply", ply_path, "write the reachable grid points as PLY");
+  auto* study = app.add_subcommand("study", "reproduce the paper's IK simulation (MODEL.md §7)");
+  study->add_option("--robot", robot_path, "robot YAML (the instrument of the heat map)")
+      ->required();
+  study->add_option("--out-dir", out_dir, "where IK_STUDY.md and the PNGs go ('' = none)");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "ignav-plan: " << e.what() << "\n";
+    return kExitBadInput;
+  }
+
+  try {
+    const Robot robot = loadRobotOrThrow(robot_path);
+    json out;
+    if (*fk) {
+      out = forwardJson(robot, parseTriple(joints_text, "--joints"));
+    } else if (*ik) {
+      out = inverseJson(robot, parseTriple(target_text, "--target"));
+    } else if (*batch) {
+      return runBatch(robot, batch_path);
+    } else if (*ws) {
+      out = workspaceJson(robot, grid_mm, ply_path);
+    } else if (*study) {
+      out = studyJson(robot, out_dir);
+    }
+    std::cout << out.dump(2) << "\n";
+    return 0;
+  } catch (const BadInput& e) {
+    std::cerr << "ignav-plan: " << e.message << "\n";
+    return kExitBadInput;
+  } catch (const std::exception& e) {
+    std::cerr << "ignav-plan: internal error: " << e.what() << "\n";
+    return kExitInternal;
+  }
+}

@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Installs every Debian package ignav needs to build, test and run.
+# Idempotent: when everything is present it only checks and returns.
+set -euo pipefail
+
+packages=(
+  # toolchain
+  build-essential cmake ninja-build pkg-config clang-format
+  # math, config, logging, CLI
+  libeigen3-dev libyaml-cpp-dev nlohmann-json3-dev libspdlog-dev libfmt-dev libcli11-dev
+  # images, point clouds, DICOM
+  libopencv-dev libpcl-dev libdcmtk-dev dcmtk zlib1g-dev
+  # DDS
+  cyclonedds-dev cyclonedds-tools
+  # tests and benchmarks
+  libgtest-dev libgmock-dev libbenchmark-dev
+  # reference DICOM files for tests (pydicom ships real edge cases)
+  python3-pydicom python3-numpy
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "setup: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+echo "setup: installing ${#missing[@]} packages: ${missing[*]}"
+SUDO=""
+[ "$(id -u)" -eq 0 ] || SUDO="sudo"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -q
+$SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
