@@ -24,9 +24,20 @@ cat > "$out/targets.jsonl" <<'JSONL'
 JSONL
 "$plan" batch --robot "$robot" --in "$out/targets.jsonl" | tee "$out/plan.jsonl"
 
+echo "== the built-in phantom CT: a DICOM series, read back, and slices through its fiducials"
+"$plan" phantom "$out/phantom_ct" --noise-hu 8 > "$out/phantom.json"
+"$plan" volume-info "$out/phantom_ct" --probe-lps -12,-6,-18 | tee "$out/volume_info.json"
+"$plan" render "$out/phantom_ct" --view axial --lps -12,-6,-18 --window 2000 --level 300 --size 512 --pixel-mm 0.16 \
+  --mark -12,-6,-18 --mark 14,-4,6 --mark 2,16,20 --out "$out/slice_axial_F1.png" > "$out/slice_axial_F1.json"
+"$plan" render "$out/phantom_ct" --view coronal --lps 14,-4,6 --window 2000 --level 300 --size 512 --pixel-mm 0.16 \
+  --mark -12,-6,-18 --mark 14,-4,6 --mark 2,16,20 --out "$out/slice_coronal_F2.png" > "$out/slice_coronal_F2.json"
+"$plan" render "$out/phantom_ct" --view sagittal --lps 2,16,20 --window 2000 --level 300 --size 512 --pixel-mm 0.16 \
+  --mark -12,-6,-18 --mark 14,-4,6 --mark 2,16,20 --out "$out/slice_sagittal_F3.png" > "$out/slice_sagittal_F3.json"
+
 echo "== the paper's IK simulation, closed form vs exact (writes figures)"
 "$plan" study --robot "$robot" --out-dir "$out" > "$out/study.json"
 echo
 echo "Session folder: $out/"
 ls -1 "$out"
-echo "Open feasible_volume.ply in 3D Slicer or ParaView; IK_STUDY.md and the PNGs in any viewer."
+echo "Open phantom_ct/ (DICOM) and feasible_volume.ply in 3D Slicer or ParaView; the slice PNGs"
+echo "(with their pixel -> LPS mapping in the matching .json) and IK_STUDY.md in any viewer."

@@ -10,6 +10,8 @@ packages=(
   libeigen3-dev libyaml-cpp-dev nlohmann-json3-dev libspdlog-dev libfmt-dev libcli11-dev
   # images, point clouds, DICOM
   libopencv-dev libpcl-dev libdcmtk-dev dcmtk zlib1g-dev
+  # benchmarks: the reference DICOM converter and GNU time for peak memory
+  dcm2niix time
   # DDS
   cyclonedds-dev cyclonedds-tools
   # tests and benchmarks

@@ -117,4 +117,43 @@ TEST(PlanCli, WorkspaceFiguresAndPointCloud) {
   std::filesystem::remove(ply);
 }
 
+TEST(PlanCli, PhantomVolumeInfoAndRenderAClick) {
+  const auto dir = std::filesystem::temp_directory_path() / "ignav_cli_phantom";
+  std::filesystem::remove_all(dir);
+  ProcessResult run =
+      plan("phantom " + dir.string() + " --dims 48,40,32 --fiducials '0,0,0;8,-5,6;-9,7,-4'");
+  ASSERT_EQ(run.exit_code, 0);
+  EXPECT_EQ(json::parse(run.out)["files"], 32);
+  run = plan("volume-info " + dir.string() + " --probe-lps 8,-5,6 --probe-ijk 0,0,0");
+  ASSERT_EQ(run.exit_code, 0);
+  const json info = json::parse(run.out);
+  EXPECT_EQ(info["dims"], json::array({48, 40, 32}));
+  EXPECT_EQ(info["modality"], "CT");
+  EXPECT_EQ(info["series"].size(), 1u);
+  EXPECT_GT(info["probe_lps"]["value"].get<double>(), 2000.0);   // inside a fiducial bead
+  // A 38 x 31 x 39 mm grid lies inside the 60 x 60 x 64 mm gelatin box: its corner is gelatin.
+  EXPECT_EQ(info["probe_ijk"]["value"].get<double>(), 20.0);
+  EXPECT_EQ(info["hu_max"].get<double>(), 3000.0);
+  // Render a slice through a fiducial and map its marker's pixel back to LPS with the printed
+  // matrix: the click lands on the fiducial.
+  const auto png = dir / "slice.png";
+  run = plan("render " + dir.string() + " --view coronal --lps 8,-5,6 --mark 8,-5,6 --out " +
+             png.string());
+  ASSERT_EQ(run.exit_code, 0);
+  const json r = json::parse(run.out);
+  EXPECT_TRUE(std::filesystem::exists(png));
+  const double u = r["marks"][0]["pixel"][0], v = r["marks"][0]["pixel"][1];
+  const json& m = r["pixel_to_lps"];
+  const double lps[3] = {
+      m[0][0].get<double>() * u + m[0][1].get<double>() * v + m[0][3].get<double>(),
+      m[1][0].get<double>() * u + m[1][1].get<double>() * v + m[1][3].get<double>(),
+      m[2][0].get<double>() * u + m[2][1].get<double>() * v + m[2][3].get<double>()};
+  EXPECT_NEAR(lps[0], 8.0, 1e-9);
+  EXPECT_NEAR(lps[1], -5.0, 1e-9);
+  EXPECT_NEAR(lps[2], 6.0, 1e-9);
+  EXPECT_EQ(plan("volume-info /nonexistent/ct").exit_code, 2);
+  EXPECT_EQ(plan("render " + dir.string() + " --view upside --out x.png").exit_code, 2);
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace

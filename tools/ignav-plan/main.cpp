@@ -11,6 +11,7 @@
 #include "ignav/kinematics/ik_study.hpp"
 #include "ignav/kinematics/workspace_map.hpp"
 #include "study_report.hpp"
+#include "volume_commands.hpp"
 
 namespace {
 
@@ -19,43 +20,20 @@ using ignav::kinematics::Joints;
 using nlohmann::json;
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr int kExitBadInput = 2;
+constexpr int kExitCliError = 2;
 constexpr int kExitInternal = 1;
 
 double deg(double rad) {
   return rad * 180.0 / kPi;
 }
 
-// A user error: reported on stderr, exit code 2.
-struct BadInput {
-  std::string message;
-};
+using ignav::plan::CliError;
+using ignav::plan::parseTriple;
 
 Robot loadRobotOrThrow(const std::string& path) {
   auto robot = ignav::config::loadRobot(path);
-  if (!robot) throw BadInput{robot.error().message};
+  if (!robot) throw CliError{robot.error().message};
   return std::move(robot).value();
-}
-
-std::array<double, 3> parseTriple(const std::string& text, const std::string& what) {
-  std::array<double, 3> v{};
-  std::stringstream in(text);
-  std::string item;
-  size_t n = 0;
-  while (std::getline(in, item, ',')) {
-    if (n == 3) throw BadInput{what + ": expected 3 comma-separated numbers, got '" + text + "'"};
-    try {
-      size_t used = 0;
-      v[n] = std::stod(item, &used);
-      if (used != item.size()) throw std::invalid_argument(item);
-    } catch (const std::exception&) {
-      throw BadInput{what + ": '" + item + "' is not a number"};
-    }
-    if (!std::isfinite(v[n])) throw BadInput{what + ": '" + item + "' is not finite"};
-    ++n;
-  }
-  if (n != 3) throw BadInput{what + ": expected 3 comma-separated numbers, got '" + text + "'"};
-  return v;
 }
 
 json jointsJson(const Joints& j) {
@@ -69,7 +47,7 @@ json vec(const Eigen::Vector3d& p) {
 json forwardJson(const Robot& robot, const std::array<double, 3>& q) {
   const Joints joints{q[0] * kPi / 180.0, q[1], q[2]};
   const auto ok = robot.kinematics.checkJoints(joints);
-  if (!ok) throw BadInput{ok.error().message};
+  if (!ok) throw CliError{ok.error().message};
   const auto pose = robot.kinematics.forward(joints);
   return {{"tip_mm", vec(pose.tip_mm)},
           {"approach_rad", pose.approach_rad},
@@ -80,7 +58,7 @@ json inverseJson(const Robot& robot, const std::array<double, 3>& p) {
   const Eigen::Vector3d target(p[0], p[1], p[2]);
   const auto& kin = robot.kinematics;
   const auto solution = kin.inverse(target);
-  if (!solution) throw BadInput{solution.error().message};
+  if (!solution) throw CliError{solution.error().message};
   if (!solution->reachable()) {
     return {{"reachable", false},
             {"reason", ignav::kinematics::toString(solution->reach)},
@@ -102,7 +80,7 @@ json inverseJson(const Robot& robot, const std::array<double, 3>& p) {
 
 int runBatch(const Robot& robot, const std::string& path) {
   std::ifstream in(path);
-  if (!in) throw BadInput{path + ": cannot open"};
+  if (!in) throw CliError{path + ": cannot open"};
   std::string line;
   size_t line_no = 0;
   bool any_bad = false;
@@ -112,16 +90,16 @@ int runBatch(const Robot& robot, const std::string& path) {
     json out;
     try {
       const json case_ = json::parse(line);
-      if (!case_.is_object()) throw BadInput{"each line must be a JSON object"};
+      if (!case_.is_object()) throw CliError{"each line must be a JSON object"};
       if (case_.contains("id")) out["id"] = case_["id"];
       auto triple = [&](const char* key) {
         const json& v = case_.at(key);
         if (!v.is_array() || v.size() != 3)
-          throw BadInput{std::string(key) + ": expected [a, b, c]"};
+          throw CliError{std::string(key) + ": expected [a, b, c]"};
         std::array<double, 3> t{};
         for (size_t i = 0; i < 3; ++i) {
           if (!v[i].is_number())
-            throw BadInput{std::string(key) + ": element " + std::to_string(i) +
+            throw CliError{std::string(key) + ": element " + std::to_string(i) +
                            " is not a number"};
           t[i] = v[i].get<double>();
         }
@@ -133,11 +111,11 @@ int runBatch(const Robot& robot, const std::string& path) {
       } else if (case_.contains("ik")) {
         result = inverseJson(robot, triple("ik"));
       } else {
-        throw BadInput{"needs a key \"fk\": [theta_c_deg, z_c_mm, z_s_mm] or \"ik\": [x, y, z]"};
+        throw CliError{"needs a key \"fk\": [theta_c_deg, z_c_mm, z_s_mm] or \"ik\": [x, y, z]"};
       }
       for (auto& [k, v] : result.items())
         out[k] = v;
-    } catch (const BadInput& e) {
+    } catch (const CliError& e) {
       out["error"] = path + ":" + std::to_string(line_no) + ": " + e.message;
       any_bad = true;
     } catch (const json::exception& e) {
@@ -146,16 +124,16 @@ int runBatch(const Robot& robot, const std::string& path) {
     }
     std::cout << out.dump() << '\n';
   }
-  return any_bad ? kExitBadInput : 0;
+  return any_bad ? kExitCliError : 0;
 }
 
 json workspaceJson(const Robot& robot, double grid_mm, const std::string& ply) {
   const auto w = robot.kinematics.workspace();
   const auto map = ignav::kinematics::computeWorkspaceMap(robot.kinematics, grid_mm);
-  if (!map) throw BadInput{"--grid-mm: " + map.error().message};
+  if (!map) throw CliError{"--grid-mm: " + map.error().message};
   if (!ply.empty()) {
     const auto written = ignav::kinematics::writeWorkspacePly(*map, ply);
-    if (!written) throw BadInput{written.error().message};
+    if (!written) throw CliError{written.error().message};
   }
   return {{"phi_deg", deg(w.exit_angle_rad)},
           {"e_phi_mm", w.exit_error_mm},
@@ -202,7 +180,7 @@ json studyJson(const Robot& robot, const std::string& out_dir) {
   report.experiment_map = ignav::kinematics::closedFormErrorMap(robot.kinematics, 0.5);
   if (!out_dir.empty()) {
     const auto written = ignav::plan::writeStudyReport(report, out_dir);
-    if (!written) throw BadInput{written.error().message};
+    if (!written) throw CliError{written.error().message};
   }
   return {{"sets", rows}, {"out_dir", out_dir}};
 }
@@ -234,16 +212,80 @@ int main(int argc, char** argv) {
       ->required();
   study->add_option("--out-dir", out_dir, "where IK_STUDY.md and the PNGs go ('' = none)");
 
+  ignav::plan::VolumeInfoArgs info_args;
+  std::string probe_ijk, probe_lps;
+  auto* info = app.add_subcommand("volume-info", "series, geometry and HU range of a CT");
+  info->add_option("path", info_args.path, "DICOM folder/file, .nrrd/.nhdr, .mha/.mhd")->required();
+  info->add_option("--series", info_args.series_uid, "SeriesInstanceUID (default: largest CT)");
+  info->add_option("--probe-ijk", probe_ijk, "I,J,K: add the value there");
+  info->add_option("--probe-lps", probe_lps, "X,Y,Z in LPS mm: add the value there");
+  info->add_flag("--fill-missing-slices", info_args.fill_missing_slices,
+                 "interpolate missing slices instead of refusing the series");
+  ignav::plan::RenderArgs render_args;
+  std::string render_centre;
+  std::vector<std::string> marks;
+  auto* render = app.add_subcommand("render", "a slice as PNG, with its pixel -> LPS mapping");
+  render->add_option("path", render_args.path, "DICOM folder/file, .nrrd/.nhdr, .mha/.mhd")
+      ->required();
+  render->add_option("--series", render_args.series_uid, "SeriesInstanceUID");
+  render->add_option("--view", render_args.view, "axial | sagittal | coronal");
+  render->add_option("--lps", render_centre, "X,Y,Z: the slice's centre (default: volume centre)");
+  render->add_option("--out", render_args.out, "PNG path")->required();
+  render->add_option("--window", render_args.window, "window width (HU)");
+  render->add_option("--level", render_args.level, "window level (HU)");
+  render->add_option("--size", render_args.size_px, "width and height in pixels (0 = fit)");
+  render->add_option("--pixel-mm", render_args.pixel_mm, "pixel size in mm (0 = finest spacing)");
+  render->add_option("--mark", marks, "X,Y,Z in LPS mm: a labelled marker (repeatable)");
+  ignav::plan::PhantomArgs phantom_args;
+  std::string fiducials;
+  auto* phantom = app.add_subcommand("phantom", "write the built-in phantom CT as DICOM");
+  phantom->add_option("out_dir", phantom_args.out_dir, "folder for the series")->required();
+  phantom->add_flag("--oblique", phantom_args.oblique, "tilt the slice grid 12 degrees");
+  phantom->add_option("--fiducials", fiducials, "X,Y,Z;X,Y,Z;... in LPS mm");
+  phantom->add_option("--noise-hu", phantom_args.noise_hu, "Gaussian noise sigma (HU)");
+  std::string phantom_dims;
+  phantom->add_option("--dims", phantom_dims, "I,J,K voxels (default 96,96,64)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     std::cerr << "ignav-plan: " << e.what() << "\n";
-    return kExitBadInput;
+    return kExitCliError;
   }
 
   try {
+    if (*info || *render || *phantom) {
+      json out;
+      if (*info) {
+        if (!probe_ijk.empty()) info_args.probe_ijk = parseTriple(probe_ijk, "--probe-ijk");
+        if (!probe_lps.empty()) info_args.probe_lps = parseTriple(probe_lps, "--probe-lps");
+        out = ignav::plan::volumeInfo(info_args);
+      } else if (*render) {
+        if (!render_centre.empty()) render_args.centre_lps = parseTriple(render_centre, "--lps");
+        for (const auto& m : marks)
+          render_args.marks_lps.push_back(parseTriple(m, "--mark"));
+        out = ignav::plan::render(render_args);
+      } else {
+        std::stringstream list(fiducials);
+        for (std::string item; std::getline(list, item, ';');) {
+          if (!item.empty()) phantom_args.fiducials_lps.push_back(parseTriple(item, "--fiducials"));
+        }
+        if (!phantom_dims.empty()) {
+          const auto d = parseTriple(phantom_dims, "--dims");
+          for (size_t i = 0; i < 3; ++i) {
+            if (d[i] < 1 || d[i] > 2048 || d[i] != std::floor(d[i])) {
+              throw CliError{"--dims: each size must be a whole number in [1, 2048]"};
+            }
+            phantom_args.dims[i] = static_cast<int>(d[i]);
+          }
+        }
+        out = ignav::plan::phantom(phantom_args);
+      }
+      std::cout << out.dump(2) << "\n";
+      return 0;
+    }
     const Robot robot = loadRobotOrThrow(robot_path);
     json out;
     if (*fk) {
@@ -259,9 +301,9 @@ int main(int argc, char** argv) {
     }
     std::cout << out.dump(2) << "\n";
     return 0;
-  } catch (const BadInput& e) {
+  } catch (const CliError& e) {
     std::cerr << "ignav-plan: " << e.message << "\n";
-    return kExitBadInput;
+    return kExitCliError;
   } catch (const std::exception& e) {
     std::cerr << "ignav-plan: internal error: " << e.what() << "\n";
     return kExitInternal;

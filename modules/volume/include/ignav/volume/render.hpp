@@ -1,0 +1,66 @@
+// Slices to 8-bit PNG with window/level and navigation overlays (points, paths, the robot's
+// feasible region, scale bar, orientation labels). OpenCV stays inside src/.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ignav/core/expected.hpp"
+#include "ignav/volume/slice.hpp"
+
+namespace ignav::volume {
+
+struct Rgb {
+  std::uint8_t r = 255, g = 255, b = 255;
+};
+
+// A point drawn filled when within the in-plane tolerance of the slice, else as a hollow ring.
+struct PointMarker {
+  Eigen::Vector3d lps_mm = Eigen::Vector3d::Zero();
+  std::string label;  // drawn to the right of the marker; "" for none
+  Rgb colour{255, 255, 0};
+  int radius_px = 4;
+};
+
+struct PathOverlay {
+  std::vector<Eigen::Vector3d> lps_mm;  // projected onto the slice and joined in order
+  Rgb colour{0, 255, 255};
+  int thickness_px = 1;
+};
+
+// Tinted translucently where `contains(lps)` holds (evaluated at every pixel centre) and/or
+// inside `polygon_lps_mm` (projected onto the slice).
+struct RegionOverlay {
+  std::function<bool(const Eigen::Vector3d& lps_mm)> contains;
+  std::vector<Eigen::Vector3d> polygon_lps_mm;
+  Rgb colour{0, 255, 0};
+  double opacity = 0.3;
+};
+
+struct Overlays {
+  std::vector<RegionOverlay> regions;  // drawn first, then paths, then points
+  std::vector<PathOverlay> paths;
+  std::vector<PointMarker> points;
+};
+
+struct RenderOptions {
+  std::optional<WindowLevel> window;   // default: the slice's own
+  double in_plane_tolerance_mm = 0.0;  // 0: half the slice thickness
+  bool scale_bar = true;               // bottom left, a round length near 1/4 of the width
+  bool orientation_labels = true;
+  Rgb outside{0, 0, 0};  // pixels beyond the volume (NaN)
+};
+
+// Grey level of a physical value: 255 * (value - (level - width/2)) / width, rounded, clamped.
+std::uint8_t windowGrey(double value, const WindowLevel& window);
+
+Expected<std::vector<std::uint8_t>> renderPng(const Slice& slice, const Overlays& overlays = {},
+                                              const RenderOptions& options = {});
+Status writePng(const std::vector<std::uint8_t>& png, const std::string& path);
+
+}  // namespace ignav::volume

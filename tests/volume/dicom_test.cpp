@@ -1,0 +1,248 @@
+// The DICOM reader against real third-party files (Debian's python3-pydicom test data) and the
+// phantom series. Reference values were read with pydicom (dcmread(...).pixel_array and the
+// geometry tags), an implementation independent of DCMTK.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "ignav/volume/dicom.hpp"
+#include "ignav/volume/phantom.hpp"
+
+namespace ignav::volume {
+namespace {
+
+namespace fs = std::filesystem;
+const std::string kPydicom = "/usr/lib/python3/dist-packages/pydicom/data/test_files/";
+
+std::string data(const std::string& name) {
+  const std::string p = kPydicom + name;
+  if (!fs::exists(p)) ADD_FAILURE() << p << " missing: tools/setup.sh installs python3-pydicom";
+  return p;
+}
+
+// A fresh temporary folder per test, removed afterwards.
+struct TempDir {
+  fs::path path;
+  explicit TempDir(const std::string& name)
+      : path(fs::temp_directory_path() / ("ignav_" + name + "_" + std::to_string(::getpid()))) {
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+  std::string str() const { return path.string(); }
+};
+
+TEST(Dicom, CtSmallGeometryAndHounsfieldValues) {
+  const auto r = readDicomSeries({data("CT_small.dcm")});
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const Volume& v = r->volume;
+  EXPECT_EQ(v.modality, "CT");
+  EXPECT_EQ(v.geometry.dims, (std::array<int, 3>{128, 128, 1}));
+  EXPECT_NEAR(v.geometry.spacing_mm.x(), 0.661468, 1e-9);
+  EXPECT_NEAR(v.geometry.origin_lps_mm.x(), -158.135803, 1e-9);
+  EXPECT_NEAR(v.geometry.origin_lps_mm.y(), -179.035797, 1e-9);
+  EXPECT_NEAR(v.geometry.origin_lps_mm.z(), -75.699997, 1e-9);
+  // pydicom: pixel_array[row 10, col 20] = 185, [0,0] = 175, [64,64] = 1928; intercept -1024.
+  EXPECT_EQ(v.valueAt(20, 10, 0), 185 - 1024);
+  EXPECT_EQ(v.valueAt(0, 0, 0), 175 - 1024);
+  EXPECT_EQ(v.valueAt(64, 64, 0), 1928 - 1024);
+  const auto [lo, hi] = v.valueRange();
+  EXPECT_EQ(lo, 128 - 1024);
+  EXPECT_EQ(hi, 2191 - 1024);
+  // Pixel (i, j) lies at origin + i * row direction * column spacing + j * column direction * row
+  // spacing.
+  const Eigen::Vector3d p = v.geometry.toLps(Eigen::Vector3d(20, 10, 0));
+  EXPECT_NEAR(p.x(), -158.135803 + 20 * 0.661468, 1e-9);
+  EXPECT_NEAR(p.y(), -179.035797 + 10 * 0.661468, 1e-9);
+}
+
+TEST(Dicom, EveryTransferSyntaxDecodesToTheSamePixels) {
+  // MR_small in several encodings (explicit/implicit/big endian, RLE, JPEG-LS lossless).
+  const auto ref = readDicomSeries({data("MR_small.dcm")});
+  ASSERT_TRUE(ref.ok()) << ref.error().message;
+  EXPECT_EQ(ref->volume.valueAt(20, 10, 0), 316);  // pydicom
+  EXPECT_EQ(ref->volume.valueAt(40, 32, 0), 1281);
+  EXPECT_EQ(ref->volume.valueAt(63, 63, 0), 862);
+  for (const char* name : {"MR_small_implicit.dcm", "MR_small_bigendian.dcm", "MR_small_RLE.dcm",
+                           "MR_small_jpeg_ls_lossless.dcm", "MR_small_padded.dcm"}) {
+    const auto r = readDicomSeries({data(name)});
+    ASSERT_TRUE(r.ok()) << name << ": " << r.error().message;
+    EXPECT_EQ(r->volume.voxels, ref->volume.voxels) << name;
+    EXPECT_TRUE(r->volume.geometry.origin_lps_mm.isApprox(ref->volume.geometry.origin_lps_mm))
+        << name;
+  }
+}
+
+TEST(Dicom, Jpeg2000IsRefusedWithAReason) {
+  const auto r = readDicomSeries({data("MR_small_jp2klossless.dcm")});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().code, ErrorCode::kUnsupported);
+  EXPECT_NE(r.error().message.find("JPEG 2000"), std::string::npos) << r.error().message;
+  EXPECT_NE(r.error().message.find("MR_small_jp2klossless.dcm"), std::string::npos);
+}
+
+TEST(Dicom, SlicesAreOrderedByPositionNotInstanceNumber) {
+  // CT5N: InstanceNumber 6..10 runs from z = 8.7625 down to -1.2375; the volume's k runs up the
+  // slice normal (+z), so k = 0 is instance 10 (file 3353) and k = 4 instance 6 (file 2062).
+  const auto r = readDicomSeries({data("dicomdirtests/98892001/CT5N")});
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const Volume& v = r->volume;
+  EXPECT_EQ(v.geometry.dims, (std::array<int, 3>{16, 16, 5}));
+  EXPECT_NEAR(v.geometry.origin_lps_mm.z(), -1.2375, 1e-9);
+  EXPECT_NEAR(v.geometry.spacing_mm.z(), 2.5, 2e-3);
+  EXPECT_EQ(v.valueAt(4, 3, 0), 925 - 1024);  // pydicom pixel_array[3, 4] of file 3353
+  EXPECT_EQ(v.valueAt(2, 10, 0), 905 - 1024);
+  EXPECT_EQ(v.valueAt(4, 3, 4), 1018 - 1024);  // file 2062
+  EXPECT_EQ(v.valueAt(4, 3, 2), 1042 - 1024);  // file 2693
+}
+
+TEST(Dicom, FolderWithManySeriesListsThemAndPicksTheLargestCt) {
+  const auto r = readDicomSeries({data("dicomdirtests/98892001")});
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  ASSERT_EQ(r->series.size(), 2u);
+  EXPECT_EQ(r->series.front().frames, 5u);
+  EXPECT_EQ(r->volume.geometry.dims[2], 5);
+  // Choosing the other one by UID works; an unknown UID lists what is there.
+  const auto other =
+      readDicomSeries({data("dicomdirtests/98892001")}, {r->series.back().uid, false, {}});
+  ASSERT_FALSE(other.ok());  // CT2N: 2 slices 265 mm apart with SliceThickness 650: not a grid
+  const auto unknown = readDicomSeries({data("dicomdirtests/98892001")}, {"1.2.3", false, {}});
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_NE(unknown.error().message.find(r->series.front().uid), std::string::npos);
+}
+
+TEST(Dicom, NonImageFilesAreSkippedWithANote) {
+  TempDir dir("dicom_mixed");
+  for (const char* name : {"CT_small.dcm", "test-SR.dcm", "rtplan.dcm"}) {
+    fs::copy_file(data(name), dir.path / name);
+  }
+  fs::copy_file(data("dicomdirtests/DICOMDIR"), dir.path / "DICOMDIR");
+  std::ofstream(dir.path / "notes.txt") << "not a DICOM file\n";
+  const auto r = readDicomSeries({dir.str()});
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r->series.size(), 1u);
+  EXPECT_EQ(r->notes.size(), 4u);
+  std::string all;
+  for (const auto& n : r->notes)
+    all += n + "\n";
+  EXPECT_NE(all.find("DICOMDIR"), std::string::npos) << all;
+  EXPECT_NE(all.find("notes.txt: skipped"), std::string::npos) << all;
+}
+
+TEST(Dicom, IrregularSeriesAreReportedNotGuessed) {
+  // Radial slices (MR700) have differing orientations.
+  auto r = readDicomSeries({data("dicomdirtests/98892003/MR700")});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("ImageOrientationPatient"), std::string::npos)
+      << r.error().message;
+  // CT2 (77654033): one slice 202.5 mm from three others 1.25 mm apart.
+  r = readDicomSeries({data("dicomdirtests/77654033/CT2")});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("missing slice"), std::string::npos) << r.error().message;
+}
+
+TEST(Dicom, MalformedFilesGetAnErrorNamingTheFile) {
+  auto r = readDicomSeries({data("MR_truncated.dcm")});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("MR_truncated.dcm"), std::string::npos) << r.error().message;
+  r = readDicomSeries({"/nonexistent/series"});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().code, ErrorCode::kIo);
+  // 32-bit RT dose is read but refused with its reason.
+  r = readDicomSeries({data("rtdose.dcm")});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("BitsAllocated 32"), std::string::npos) << r.error().message;
+  // Garbage and a truncated copy of a good file.
+  TempDir dir("dicom_bad");
+  std::ofstream(dir.path / "junk.dcm") << std::string(300, 'x');
+  std::ifstream in(data("CT_small.dcm"), std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  std::ofstream(dir.path / "cut.dcm", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  r = readDicomSeries({dir.str()});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("cut.dcm"), std::string::npos) << r.error().message;
+}
+
+TEST(Phantom, SeriesReadsBackExactlyWhateverTheFileOrder) {
+  PhantomSpec spec;
+  spec.dims = {40, 36, 24};
+  spec.noise_sigma_hu = 5.0;
+  const Volume made = makePhantom(spec).value();
+  TempDir dir("phantom_rt");
+  DicomWriteOptions options;
+  options.reverse_instance_numbers = true;
+  const auto files = writeDicomSeries(made, dir.str(), options).value();
+  ASSERT_EQ(files.size(), 24u);
+  // Rename the files in shuffled order so neither names nor InstanceNumbers give the order.
+  std::vector<std::string> names;
+  for (std::size_t i = 0; i < files.size(); ++i)
+    names.push_back("f" + std::to_string(i));
+  std::shuffle(names.begin(), names.end(), std::mt19937(3));
+  for (std::size_t i = 0; i < files.size(); ++i)
+    fs::rename(files[i], dir.path / names[i]);
+  std::vector<Progress> seen;
+  DicomLoadOptions load;
+  load.progress = [&](const Progress& p) { seen.push_back(p); };
+  const auto r = readDicomSeries({dir.str()}, load);
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r->volume.voxels, made.voxels);
+  EXPECT_EQ(r->volume.geometry.dims, made.geometry.dims);
+  EXPECT_TRUE(r->volume.geometry.ijkToLps().isApprox(made.geometry.ijkToLps(), 1e-9));
+  ASSERT_FALSE(seen.empty());
+  EXPECT_EQ(seen.back().stage, "decode");
+  EXPECT_EQ(seen.back().done, 24u);
+}
+
+TEST(Phantom, ObliqueSeriesKeepsItsDirection) {
+  PhantomSpec spec;
+  spec.dims = {32, 32, 16};
+  spec.oblique = true;
+  const Volume made = makePhantom(spec).value();
+  EXPECT_GT(std::abs(made.geometry.direction(2, 0)), 0.05);  // really tilted
+  TempDir dir("phantom_oblique");
+  ASSERT_TRUE(writeDicomSeries(made, dir.str()).ok());
+  const auto r = readDicomSeries({dir.str()});
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_TRUE(r->volume.geometry.direction.isApprox(made.geometry.direction, 1e-6));
+  EXPECT_TRUE(r->volume.geometry.origin_lps_mm.isApprox(made.geometry.origin_lps_mm, 1e-6));
+  EXPECT_EQ(r->volume.voxels, made.voxels);
+}
+
+TEST(Phantom, FiducialsAreBrightWhereTheyWereAsked) {
+  PhantomSpec spec;
+  const Volume v = makePhantom(spec).value();
+  for (const auto& f : spec.fiducials_lps_mm)
+    EXPECT_GT(v.sampleLps(f, -2000), 2000.0);
+  EXPECT_NEAR(v.sampleLps({0, 0, 0}, -2000), spec.box_hu, 1e-9);   // gelatin
+  EXPECT_NEAR(v.sampleLps({36, 0, 0}, -2000), spec.air_hu, 1e-9);  // air outside the box
+}
+
+TEST(Phantom, MissingAndDuplicateSlicesAreDetected) {
+  PhantomSpec spec;
+  spec.dims = {16, 16, 10};
+  const Volume made = makePhantom(spec).value();
+  TempDir dir("phantom_gap");
+  const auto files = writeDicomSeries(made, dir.str()).value();
+  fs::remove(files[4]);
+  auto r = readDicomSeries({dir.str()});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("1 missing slice(s)"), std::string::npos) << r.error().message;
+  DicomLoadOptions fill;
+  fill.fill_missing_slices = true;
+  r = readDicomSeries({dir.str()}, fill);
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r->volume.geometry.dims[2], 10);
+  EXPECT_EQ(r->warnings.size(), 1u);
+  // A duplicate: the same slice twice under another name.
+  fs::copy_file(files[2], dir.path / "copy_of_slice_2.dcm");
+  r = readDicomSeries({dir.str()}, fill);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("duplicate slice position"), std::string::npos)
+      << r.error().message;
+}
+
+}  // namespace
+}  // namespace ignav::volume
