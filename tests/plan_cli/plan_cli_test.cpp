@@ -130,7 +130,7 @@ TEST(PlanCli, PhantomVolumeInfoAndRenderAClick) {
   EXPECT_EQ(info["dims"], json::array({48, 40, 32}));
   EXPECT_EQ(info["modality"], "CT");
   EXPECT_EQ(info["series"].size(), 1u);
-  EXPECT_GT(info["probe_lps"]["value"].get<double>(), 2000.0);   // inside a fiducial bead
+  EXPECT_GT(info["probe_lps"]["value"].get<double>(), 2000.0);  // inside a fiducial bead
   // A 38 x 31 x 39 mm grid lies inside the 60 x 60 x 64 mm gelatin box: its corner is gelatin.
   EXPECT_EQ(info["probe_ijk"]["value"].get<double>(), 20.0);
   EXPECT_EQ(info["hu_max"].get<double>(), 3000.0);
