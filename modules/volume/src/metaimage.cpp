@@ -11,51 +11,18 @@
 #include <limits>
 #include <sstream>
 
+#include "header_text.hpp"
 #include "ignav/volume/image_io.hpp"
 
 namespace ignav::volume {
 namespace {
 
+using namespace header_text;  // NOLINT: the shared header-parsing helpers
+
 namespace fs = std::filesystem;
 using detail::ScalarType;
 
 constexpr std::size_t kMaxHeaderBytes = std::size_t{1} << 20;
-
-Error fail(ErrorCode code, const std::string& what, const std::string& problem) {
-  return makeError(code, what + ": " + problem);
-}
-
-std::string trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t\r\n");
-  if (b == std::string::npos) return "";
-  const auto e = s.find_last_not_of(" \t\r\n");
-  return s.substr(b, e - b + 1);
-}
-
-// At most 60 characters of a header line for a message, binary bytes shown as '?'.
-std::string printable(const std::string& s) {
-  std::string out = s.substr(0, 60);
-  for (auto& c : out) {
-    if (!std::isprint(static_cast<unsigned char>(c))) c = '?';
-  }
-  return out;
-}
-
-std::string lower(std::string s) {
-  for (auto& c : s)
-    c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
-
-bool readLine(std::istream& in, std::string& line, std::size_t max_chars) {
-  line.clear();
-  for (int c = in.get(); c != EOF; c = in.get()) {
-    if (c == '\n') return true;
-    if (line.size() >= max_chars) return false;
-    line += static_cast<char>(c);
-  }
-  return !line.empty();
-}
 
 // Exactly `count` finite numbers separated by white space.
 bool parseNumbers(const std::string& s, std::size_t count, std::vector<double>& out) {

@@ -15,10 +15,13 @@
 #include <new>
 #include <sstream>
 
+#include "header_text.hpp"
 #include "ignav/volume/image_io.hpp"
 
 namespace ignav::volume {
 namespace {
+
+using namespace header_text;  // NOLINT: the shared header-parsing helpers
 
 namespace fs = std::filesystem;
 using detail::ScalarType;
@@ -27,10 +30,6 @@ constexpr std::size_t kChunkBytes = std::size_t{16} << 20;  // progress and I/O 
 constexpr std::size_t kMaxHeaderBytes = std::size_t{1} << 20;
 // Deflate cannot expand more than ~1032:1, so a header declaring more than that is a lie.
 constexpr std::uint64_t kMaxInflateRatio = 1040;
-
-Error fail(ErrorCode code, const std::string& what, const std::string& problem) {
-  return makeError(code, what + ": " + problem);
-}
 
 std::size_t sizeOf(ScalarType t) {
   switch (t) {
@@ -292,28 +291,6 @@ Status convert(const std::vector<std::uint8_t>& raw, std::size_t n, const std::s
 
 // ---- small text helpers ----
 
-std::string trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t\r\n");
-  if (b == std::string::npos) return "";
-  const auto e = s.find_last_not_of(" \t\r\n");
-  return s.substr(b, e - b + 1);
-}
-
-// At most 60 characters of a header line for a message, binary bytes shown as '?'.
-std::string printable(const std::string& s) {
-  std::string out = s.substr(0, 60);
-  for (auto& c : out) {
-    if (!std::isprint(static_cast<unsigned char>(c))) c = '?';
-  }
-  return out;
-}
-
-std::string lower(std::string s) {
-  for (auto& c : s)
-    c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
-
 std::vector<std::string> words(const std::string& s) {
   std::istringstream in(s);
   std::vector<std::string> out;
@@ -401,17 +378,6 @@ bool nrrdType(const std::string& name, ScalarType& t) {
     }
   }
   return false;
-}
-
-// getline with a length limit, so a binary file without newlines is never slurped whole.
-bool readLine(std::istream& in, std::string& line, std::size_t max_chars) {
-  line.clear();
-  for (int c = in.get(); c != EOF; c = in.get()) {
-    if (c == '\n') return true;
-    if (line.size() >= max_chars) return false;
-    line += static_cast<char>(c);
-  }
-  return !line.empty();
 }
 
 std::string fmt(double v) {
