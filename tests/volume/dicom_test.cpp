@@ -10,6 +10,7 @@
 
 #include "ignav/volume/dicom.hpp"
 #include "ignav/volume/phantom.hpp"
+#include "scratch.hpp"
 
 namespace ignav::volume {
 namespace {
@@ -22,18 +23,6 @@ std::string data(const std::string& name) {
   if (!fs::exists(p)) ADD_FAILURE() << p << " missing: tools/setup.sh installs python3-pydicom";
   return p;
 }
-
-// A fresh temporary folder per test, removed afterwards.
-struct TempDir {
-  fs::path path;
-  explicit TempDir(const std::string& name)
-      : path(fs::temp_directory_path() / ("ignav_" + name + "_" + std::to_string(::getpid()))) {
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-  std::string str() const { return path.string(); }
-};
 
 TEST(Dicom, CtSmallGeometryAndHounsfieldValues) {
   const auto r = readDicomSeries({data("CT_small.dcm")});
@@ -115,13 +104,13 @@ TEST(Dicom, FolderWithManySeriesListsThemAndPicksTheLargestCt) {
 }
 
 TEST(Dicom, NonImageFilesAreSkippedWithANote) {
-  TempDir dir("dicom_mixed");
+  const fs::path dir = testing::scratchDir();
   for (const char* name : {"CT_small.dcm", "test-SR.dcm", "rtplan.dcm"}) {
-    fs::copy_file(data(name), dir.path / name);
+    fs::copy_file(data(name), dir / name);
   }
-  fs::copy_file(data("dicomdirtests/DICOMDIR"), dir.path / "DICOMDIR");
-  std::ofstream(dir.path / "notes.txt") << "not a DICOM file\n";
-  const auto r = readDicomSeries({dir.str()});
+  fs::copy_file(data("dicomdirtests/DICOMDIR"), dir / "DICOMDIR");
+  std::ofstream(dir / "notes.txt") << "not a DICOM file\n";
+  const auto r = readDicomSeries({dir.string()});
   ASSERT_TRUE(r.ok()) << r.error().message;
   EXPECT_EQ(r->series.size(), 1u);
   EXPECT_EQ(r->notes.size(), 4u);
@@ -156,12 +145,12 @@ TEST(Dicom, MalformedFilesGetAnErrorNamingTheFile) {
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().message.find("BitsAllocated 32"), std::string::npos) << r.error().message;
   // Garbage and a truncated copy of a good file.
-  TempDir dir("dicom_bad");
-  std::ofstream(dir.path / "junk.dcm") << std::string(300, 'x');
+  const fs::path dir = testing::scratchDir();
+  std::ofstream(dir / "junk.dcm") << std::string(300, 'x');
   std::ifstream in(data("CT_small.dcm"), std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(in)), {});
-  std::ofstream(dir.path / "cut.dcm", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
-  r = readDicomSeries({dir.str()});
+  std::ofstream(dir / "cut.dcm", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  r = readDicomSeries({dir.string()});
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().message.find("cut.dcm"), std::string::npos) << r.error().message;
 }
@@ -171,10 +160,10 @@ TEST(Phantom, SeriesReadsBackExactlyWhateverTheFileOrder) {
   spec.dims = {40, 36, 24};
   spec.noise_sigma_hu = 5.0;
   const Volume made = makePhantom(spec).value();
-  TempDir dir("phantom_rt");
+  const fs::path dir = testing::scratchDir();
   DicomWriteOptions options;
   options.reverse_instance_numbers = true;
-  const auto files = writeDicomSeries(made, dir.str(), options).value();
+  const auto files = writeDicomSeries(made, dir.string(), options).value();
   ASSERT_EQ(files.size(), 24u);
   // Rename the files in shuffled order so neither names nor InstanceNumbers give the order.
   std::vector<std::string> names;
@@ -182,11 +171,11 @@ TEST(Phantom, SeriesReadsBackExactlyWhateverTheFileOrder) {
     names.push_back("f" + std::to_string(i));
   std::shuffle(names.begin(), names.end(), std::mt19937(3));
   for (std::size_t i = 0; i < files.size(); ++i)
-    fs::rename(files[i], dir.path / names[i]);
+    fs::rename(files[i], dir / names[i]);
   std::vector<Progress> seen;
   DicomLoadOptions load;
   load.progress = [&](const Progress& p) { seen.push_back(p); };
-  const auto r = readDicomSeries({dir.str()}, load);
+  const auto r = readDicomSeries({dir.string()}, load);
   ASSERT_TRUE(r.ok()) << r.error().message;
   EXPECT_EQ(r->volume.voxels, made.voxels);
   EXPECT_EQ(r->volume.geometry.dims, made.geometry.dims);
@@ -202,9 +191,9 @@ TEST(Phantom, ObliqueSeriesKeepsItsDirection) {
   spec.oblique = true;
   const Volume made = makePhantom(spec).value();
   EXPECT_GT(std::abs(made.geometry.direction(2, 0)), 0.05);  // really tilted
-  TempDir dir("phantom_oblique");
-  ASSERT_TRUE(writeDicomSeries(made, dir.str()).ok());
-  const auto r = readDicomSeries({dir.str()});
+  const fs::path dir = testing::scratchDir();
+  ASSERT_TRUE(writeDicomSeries(made, dir.string()).ok());
+  const auto r = readDicomSeries({dir.string()});
   ASSERT_TRUE(r.ok()) << r.error().message;
   EXPECT_TRUE(r->volume.geometry.direction.isApprox(made.geometry.direction, 1e-6));
   EXPECT_TRUE(r->volume.geometry.origin_lps_mm.isApprox(made.geometry.origin_lps_mm, 1e-6));
@@ -224,21 +213,21 @@ TEST(Phantom, MissingAndDuplicateSlicesAreDetected) {
   PhantomSpec spec;
   spec.dims = {16, 16, 10};
   const Volume made = makePhantom(spec).value();
-  TempDir dir("phantom_gap");
-  const auto files = writeDicomSeries(made, dir.str()).value();
+  const fs::path dir = testing::scratchDir();
+  const auto files = writeDicomSeries(made, dir.string()).value();
   fs::remove(files[4]);
-  auto r = readDicomSeries({dir.str()});
+  auto r = readDicomSeries({dir.string()});
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().message.find("1 missing slice(s)"), std::string::npos) << r.error().message;
   DicomLoadOptions fill;
   fill.fill_missing_slices = true;
-  r = readDicomSeries({dir.str()}, fill);
+  r = readDicomSeries({dir.string()}, fill);
   ASSERT_TRUE(r.ok()) << r.error().message;
   EXPECT_EQ(r->volume.geometry.dims[2], 10);
   EXPECT_EQ(r->warnings.size(), 1u);
   // A duplicate: the same slice twice under another name.
-  fs::copy_file(files[2], dir.path / "copy_of_slice_2.dcm");
-  r = readDicomSeries({dir.str()}, fill);
+  fs::copy_file(files[2], dir / "copy_of_slice_2.dcm");
+  r = readDicomSeries({dir.string()}, fill);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().message.find("duplicate slice position"), std::string::npos)
       << r.error().message;

@@ -12,28 +12,12 @@
 #include <vector>
 
 #include "ignav/volume/image_io.hpp"
+#include "scratch.hpp"
 
 namespace ignav::volume {
 namespace {
 
-namespace fs = std::filesystem;
-using Bytes = std::vector<std::uint8_t>;
-
-fs::path tempDir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  fs::path dir = fs::temp_directory_path() / "ignav_mha_test" /
-                 (std::string(info->test_suite_name()) + "." + info->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-std::string writeFile(const fs::path& path, const std::string& header, const Bytes& data = {}) {
-  std::ofstream out(path, std::ios::binary);
-  out.write(header.data(), static_cast<std::streamsize>(header.size()));
-  out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
-  return path.string();
-}
+using namespace testing;  // scratchDir, writeFile, Bytes, fs
 
 // 4 x 3 x 2 voxels, value 7 i - 5 j + 300 k - 100.
 int refValue(int i, int j, int k) {
@@ -93,11 +77,12 @@ void expectRef(const Expected<Volume>& v) {
 }
 
 TEST(MetaImage, ItkMhaLocalShortGivesValuesAndLpsGeometry) {
-  expectRef(readMetaImage(writeFile(tempDir() / "ct.mha", itkHeader("LOCAL"), int16Bytes(false))));
+  expectRef(
+      readMetaImage(writeFile(scratchDir() / "ct.mha", itkHeader("LOCAL"), int16Bytes(false))));
 }
 
 TEST(MetaImage, MhdWithBigEndianRawFile) {
-  const auto dir = tempDir();
+  const auto dir = scratchDir();
   writeFile(dir / "ct.raw", "", int16Bytes(true));
   expectRef(readMetaImage(writeFile(dir / "ct.mhd", itkHeader("ct.raw", "MET_SHORT", "True"))));
 }
@@ -111,7 +96,7 @@ TEST(MetaImage, CompressedDataIsZlib) {
   std::string header = itkHeader("LOCAL", "MET_SHORT", "False", "True");
   header.insert(header.find("TransformMatrix"),
                 "CompressedDataSize = " + std::to_string(z_size) + "\n");
-  expectRef(readMetaImage(writeFile(tempDir() / "z.mha", header, z)));
+  expectRef(readMetaImage(writeFile(scratchDir() / "z.mha", header, z)));
 }
 
 TEST(MetaImage, FloatAndCharTypes) {
@@ -124,20 +109,23 @@ TEST(MetaImage, FloatAndCharTypes) {
         std::memcpy(b, &v, 4);
         f.insert(f.end(), b, b + 4);
       }
-  expectRef(readMetaImage(writeFile(tempDir() / "f.mha", itkHeader("LOCAL", "MET_FLOAT"), f)));
+  expectRef(readMetaImage(writeFile(scratchDir() / "f.mha", itkHeader("LOCAL", "MET_FLOAT"), f)));
   Bytes c(24);
   for (std::size_t n = 0; n < c.size(); ++n)
     c[n] = static_cast<std::uint8_t>(n * 10);  // 0..230
-  const auto v = readMetaImage(writeFile(tempDir() / "c.mha", itkHeader("LOCAL", "MET_CHAR"), c));
+  const auto v =
+      readMetaImage(writeFile(scratchDir() / "c.mha", itkHeader("LOCAL", "MET_CHAR"), c));
   ASSERT_TRUE(v.ok()) << v.error().message;
   EXPECT_DOUBLE_EQ(v->valueAt(3, 2, 1), 230 - 256);  // signed char
-  const auto u = readMetaImage(writeFile(tempDir() / "u.mha", itkHeader("LOCAL", "MET_UCHAR"), c));
+  const auto u =
+      readMetaImage(writeFile(scratchDir() / "u.mha", itkHeader("LOCAL", "MET_UCHAR"), c));
   ASSERT_TRUE(u.ok()) << u.error().message;
   EXPECT_DOUBLE_EQ(u->valueAt(3, 2, 1), 230);
 }
 
 TEST(MetaImage, ReadVolumeFileDispatchesMha) {
-  expectRef(readVolumeFile(writeFile(tempDir() / "ct.mha", itkHeader("LOCAL"), int16Bytes(false))));
+  expectRef(
+      readVolumeFile(writeFile(scratchDir() / "ct.mha", itkHeader("LOCAL"), int16Bytes(false))));
 }
 
 std::string replaced(std::string s, const std::string& from, const std::string& to) {
@@ -192,7 +180,7 @@ TEST(MetaImage, MalformedFilesGiveErrorsNamingFileAndProblem) {
       {"garbage", "", garbage, ErrorCode::kFormat, "not a MetaImage header line"},
       {"empty", "", {}, ErrorCode::kFormat, "ElementDataFile"},
   };
-  const auto dir = tempDir();
+  const auto dir = scratchDir();
   for (const auto& c : cases) {
     const auto path = writeFile(dir / (std::string(c.name) + ".mha"), c.header, c.data);
     const auto v = readMetaImage(path);

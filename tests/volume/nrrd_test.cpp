@@ -12,28 +12,12 @@
 #include <vector>
 
 #include "ignav/volume/image_io.hpp"
+#include "scratch.hpp"
 
 namespace ignav::volume {
 namespace {
 
-namespace fs = std::filesystem;
-using Bytes = std::vector<std::uint8_t>;
-
-fs::path tempDir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  fs::path dir = fs::temp_directory_path() / "ignav_nrrd_test" /
-                 (std::string(info->test_suite_name()) + "." + info->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-std::string writeFile(const fs::path& path, const std::string& header, const Bytes& data = {}) {
-  std::ofstream out(path, std::ios::binary);
-  out.write(header.data(), static_cast<std::streamsize>(header.size()));
-  out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
-  return path.string();
-}
+using namespace testing;  // scratchDir, writeFile, Bytes, fs
 
 Bytes int16Le(const std::vector<int>& values) {
   Bytes b;
@@ -116,7 +100,7 @@ void expectRefVolume(const Volume& v) {
 
 TEST(Nrrd, SlicerAttachedRawShortGivesValuesAndLpsGeometry) {
   const auto path =
-      writeFile(tempDir() / "ct.nrrd", slicerHeader("short", "raw"), int16Le(refValues()));
+      writeFile(scratchDir() / "ct.nrrd", slicerHeader("short", "raw"), int16Le(refValues()));
   const auto v = readNrrd(path);
   ASSERT_TRUE(v.ok()) << v.error().message;
   expectRefVolume(*v);
@@ -131,7 +115,7 @@ TEST(Nrrd, SlicerAttachedRawShortGivesValuesAndLpsGeometry) {
 
 TEST(Nrrd, RasSpaceIsFlippedToLps) {
   // Slicer in RAS: i runs toward -R (=L), origin R 10 A 20 S 30.
-  const auto path = writeFile(tempDir() / "ras.nrrd",
+  const auto path = writeFile(scratchDir() / "ras.nrrd",
                               slicerHeader("short", "raw", "right-anterior-superior",
                                            "(-0.5,0,0) (0,-0.75,0) (0,0,2.5)", "(10,20,30)"),
                               int16Le(refValues()));
@@ -147,7 +131,7 @@ TEST(Nrrd, RasSpaceIsFlippedToLps) {
 
 TEST(Nrrd, ObliqueDirectionsAreNormalisedColumns) {
   // Axis i along (0.6, 0.8, 0) with 2 mm spacing, j along (-0.8, 0.6, 0) with 1 mm.
-  const auto path = writeFile(tempDir() / "obl.nrrd",
+  const auto path = writeFile(scratchDir() / "obl.nrrd",
                               slicerHeader("short", "raw", "left-posterior-superior",
                                            "(1.2,1.6,0) (-0.8,0.6,0) (0,0,3)", "(0,0,0)"),
                               int16Le(refValues()));
@@ -161,8 +145,8 @@ TEST(Nrrd, ObliqueDirectionsAreNormalisedColumns) {
 }
 
 TEST(Nrrd, GzipEncodingFromZlib) {
-  const auto path =
-      writeFile(tempDir() / "gz.nrrd", slicerHeader("short", "gzip"), gzip(int16Le(refValues())));
+  const auto path = writeFile(scratchDir() / "gz.nrrd", slicerHeader("short", "gzip"),
+                              gzip(int16Le(refValues())));
   const auto v = readNrrd(path);
   ASSERT_TRUE(v.ok()) << v.error().message;
   expectRefVolume(*v);
@@ -175,7 +159,7 @@ TEST(Nrrd, BigEndianShort) {
     be.push_back(static_cast<std::uint8_t>(u >> 8));
     be.push_back(static_cast<std::uint8_t>(u & 0xff));
   }
-  const auto path = writeFile(tempDir() / "be.nrrd",
+  const auto path = writeFile(scratchDir() / "be.nrrd",
                               slicerHeader("short", "raw", "left-posterior-superior",
                                            "(0.5,0,0) (0,0.75,0) (0,0,2.5)", "(-10,20,30)", "big"),
                               be);
@@ -193,7 +177,7 @@ TEST(Nrrd, BigEndianFloatWithIntegralValuesIsExact) {
     for (int s = 24; s >= 0; s -= 8)
       be.push_back(static_cast<std::uint8_t>((u >> s) & 0xff));
   }
-  const auto path = writeFile(tempDir() / "bef.nrrd",
+  const auto path = writeFile(scratchDir() / "bef.nrrd",
                               slicerHeader("float", "raw", "left-posterior-superior",
                                            "(0.5,0,0) (0,0.75,0) (0,0,2.5)", "(-10,20,30)", "big"),
                               be);
@@ -209,7 +193,7 @@ TEST(Nrrd, Uint16AboveInt16RangeIsShiftedExactly) {
   values[7] = 65535;
   Bytes raw(values.size() * 2);
   std::memcpy(raw.data(), values.data(), raw.size());  // host is little-endian here
-  const auto path = writeFile(tempDir() / "u16.nrrd", slicerHeader("ushort", "raw"), raw);
+  const auto path = writeFile(scratchDir() / "u16.nrrd", slicerHeader("ushort", "raw"), raw);
   const auto v = readNrrd(path);
   ASSERT_TRUE(v.ok()) << v.error().message;
   for (std::size_t n = 0; n < values.size(); ++n) {
@@ -221,7 +205,7 @@ TEST(Nrrd, Uint8AndInt32InRangeAreExact) {
   Bytes u8(60);
   for (std::size_t n = 0; n < 60; ++n)
     u8[n] = static_cast<std::uint8_t>(200 + n % 50);
-  auto v = readNrrd(writeFile(tempDir() / "u8.nrrd", slicerHeader("uchar", "raw"), u8));
+  auto v = readNrrd(writeFile(scratchDir() / "u8.nrrd", slicerHeader("uchar", "raw"), u8));
   ASSERT_TRUE(v.ok()) << v.error().message;
   EXPECT_DOUBLE_EQ(v->valueAt(2, 3, 4), 200 + 59 % 50);
 
@@ -230,7 +214,7 @@ TEST(Nrrd, Uint8AndInt32InRangeAreExact) {
     i32[n] = 100000 + static_cast<std::int32_t>(n);
   Bytes raw(240);
   std::memcpy(raw.data(), i32.data(), raw.size());
-  v = readNrrd(writeFile(tempDir() / "i32.nrrd", slicerHeader("int", "raw"), raw));
+  v = readNrrd(writeFile(scratchDir() / "i32.nrrd", slicerHeader("int", "raw"), raw));
   ASSERT_TRUE(v.ok()) << v.error().message;
   EXPECT_DOUBLE_EQ(v->valueAt(2, 3, 4), 100059);
   EXPECT_DOUBLE_EQ(v->valueAt(0, 0, 0), 100000);
@@ -242,7 +226,7 @@ TEST(Nrrd, NonGridFloatAndWideIntAreUnsupportedNamingTheType) {
     f[n] = std::sqrt(static_cast<float>(n) + 0.5f);
   Bytes raw(240);
   std::memcpy(raw.data(), f.data(), raw.size());
-  const auto path = writeFile(tempDir() / "f.nrrd", slicerHeader("float", "raw"), raw);
+  const auto path = writeFile(scratchDir() / "f.nrrd", slicerHeader("float", "raw"), raw);
   auto v = readNrrd(path);
   ASSERT_FALSE(v.ok());
   EXPECT_EQ(v.error().code, ErrorCode::kUnsupported);
@@ -252,14 +236,14 @@ TEST(Nrrd, NonGridFloatAndWideIntAreUnsupportedNamingTheType) {
   std::vector<std::int32_t> i32(60, 0);
   i32[3] = 1000000;
   std::memcpy(raw.data(), i32.data(), raw.size());
-  v = readNrrd(writeFile(tempDir() / "wide.nrrd", slicerHeader("int", "raw"), raw));
+  v = readNrrd(writeFile(scratchDir() / "wide.nrrd", slicerHeader("int", "raw"), raw));
   ASSERT_FALSE(v.ok());
   EXPECT_EQ(v.error().code, ErrorCode::kUnsupported);
   EXPECT_NE(v.error().message.find("int32"), std::string::npos) << v.error().message;
 }
 
 TEST(Nrrd, DetachedHeaderWithDataFile) {
-  const auto dir = tempDir();
+  const auto dir = scratchDir();
   writeFile(dir / "ct.raw", "", int16Le(refValues()));
   std::string header = slicerHeader("short", "raw");
   header.pop_back();  // a .nhdr has no blank line
@@ -271,7 +255,7 @@ TEST(Nrrd, DetachedHeaderWithDataFile) {
 
 TEST(Nrrd, ProgressReportsCompletion) {
   const auto path =
-      writeFile(tempDir() / "p.nrrd", slicerHeader("short", "gzip"), gzip(int16Le(refValues())));
+      writeFile(scratchDir() / "p.nrrd", slicerHeader("short", "gzip"), gzip(int16Le(refValues())));
   std::size_t last_done = 0, last_total = 0, calls = 0;
   const auto v = readNrrd(path, [&](const Progress& p) {
     ++calls;
@@ -301,7 +285,7 @@ Volume obliqueVolume() {
 TEST(Nrrd, WriteReadRoundTripInt16RawAndGzip) {
   const Volume in = obliqueVolume();
   for (auto enc : {NrrdEncoding::kRaw, NrrdEncoding::kGzip}) {
-    const auto path = (tempDir() / "rt.nrrd").string();
+    const auto path = (scratchDir() / "rt.nrrd").string();
     ASSERT_TRUE(writeNrrd(in, path, enc).ok());
     std::ifstream f(path);
     std::string text((std::istreambuf_iterator<char>(f)), {});
@@ -323,7 +307,7 @@ TEST(Nrrd, WriteReadRoundTripRescaledValuesAsDouble) {
   Volume in = obliqueVolume();
   in.value_scale = 0.1;
   in.value_offset = -1024.3;
-  const auto path = (tempDir() / "scaled.nrrd").string();
+  const auto path = (scratchDir() / "scaled.nrrd").string();
   ASSERT_TRUE(writeNrrd(in, path).ok());
   const auto out = readNrrd(path);
   ASSERT_TRUE(out.ok()) << out.error().message;
@@ -336,13 +320,13 @@ TEST(Nrrd, WriteReadRoundTripRescaledValuesAsDouble) {
 TEST(Nrrd, WriteRejectsInconsistentVolume) {
   Volume in = obliqueVolume();
   in.voxels.pop_back();
-  const auto s = writeNrrd(in, (tempDir() / "bad.nrrd").string());
+  const auto s = writeNrrd(in, (scratchDir() / "bad.nrrd").string());
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.error().code, ErrorCode::kInvalidArgument);
 }
 
 TEST(Nrrd, ReadVolumeFileDispatchesByExtension) {
-  const auto dir = tempDir();
+  const auto dir = scratchDir();
   const auto path = writeFile(dir / "CT.NRRD", slicerHeader("short", "raw"), int16Le(refValues()));
   const auto v = readVolumeFile(path);
   ASSERT_TRUE(v.ok()) << v.error().message;
@@ -427,7 +411,7 @@ TEST(Nrrd, MalformedFilesGiveErrorsNamingFileAndProblem) {
        ErrorCode::kIo,
        "no.raw"},
   };
-  const auto dir = tempDir();
+  const auto dir = scratchDir();
   for (const auto& c : cases) {
     const auto path = writeFile(dir / (std::string(c.name) + ".nrrd"), c.header, c.data);
     const auto v = readNrrd(path);

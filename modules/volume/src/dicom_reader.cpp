@@ -109,22 +109,21 @@ Expected<FileHeader> readHeader(const std::string& path, DcmFileFormat& ff, std:
   if (h.series_uid.empty()) return bad("missing SeriesInstanceUID (0020,000E)");
   h.description = str(ds, DCM_SeriesDescription);
   Uint16 u16 = 0;
-  auto needU16 = [&](const DcmTagKey& tag, const char* name, int& out) {
+  auto needU16 = [&](const DcmTagKey& tag, int& out) {
     if (ds.findAndGetUint16(tag, u16).bad()) return false;
     out = u16;
-    (void)name;
     return true;
   };
-  if (!needU16(DCM_Rows, "Rows", h.rows)) return bad("missing Rows (0028,0010)");
-  if (!needU16(DCM_Columns, "Columns", h.cols)) return bad("missing Columns (0028,0011)");
-  if (!needU16(DCM_BitsAllocated, "BitsAllocated", h.bits_allocated)) {
+  if (!needU16(DCM_Rows, h.rows)) return bad("missing Rows (0028,0010)");
+  if (!needU16(DCM_Columns, h.cols)) return bad("missing Columns (0028,0011)");
+  if (!needU16(DCM_BitsAllocated, h.bits_allocated)) {
     return bad("missing BitsAllocated (0028,0100)");
   }
-  if (!needU16(DCM_BitsStored, "BitsStored", h.bits_stored)) h.bits_stored = h.bits_allocated;
-  if (!needU16(DCM_PixelRepresentation, "PixelRepresentation", h.pixel_representation)) {
+  if (!needU16(DCM_BitsStored, h.bits_stored)) h.bits_stored = h.bits_allocated;
+  if (!needU16(DCM_PixelRepresentation, h.pixel_representation)) {
     return bad("missing PixelRepresentation (0028,0103)");
   }
-  if (!needU16(DCM_SamplesPerPixel, "SamplesPerPixel", h.samples)) h.samples = 1;
+  if (!needU16(DCM_SamplesPerPixel, h.samples)) h.samples = 1;
   h.photometric = str(ds, DCM_PhotometricInterpretation);
   if (h.rows == 0 || h.cols == 0) return bad("Rows or Columns is 0");
 

@@ -2,8 +2,11 @@
 #pragma once
 
 #include <cctype>
+#include <initializer_list>
 #include <istream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "ignav/core/expected.hpp"
 
@@ -43,6 +46,27 @@ inline bool readLine(std::istream& in, std::string& line, std::size_t max_chars)
     line += static_cast<char>(c);
   }
   return !line.empty();
+}
+
+// Header fields in file order with lower-cased names; the first of `names` present wins.
+struct HeaderFields {
+  std::vector<std::pair<std::string, std::string>> entries;
+
+  void add(std::string key, std::string value) {
+    entries.emplace_back(std::move(key), std::move(value));
+  }
+  const std::string* find(std::initializer_list<const char*> names) const {
+    for (const auto& [k, v] : entries) {
+      for (const char* name : names) {
+        if (k == name) return &v;
+      }
+    }
+    return nullptr;
+  }
+};
+
+inline Error missingField(const std::string& what, const char* field) {
+  return fail(ErrorCode::kFormat, what, std::string("missing field '") + field + "'");
 }
 
 }  // namespace ignav::volume::header_text

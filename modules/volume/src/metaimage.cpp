@@ -80,7 +80,7 @@ Expected<Volume> readMetaImage(const std::string& path, const ProgressCallback& 
   if (!in) return fail(ErrorCode::kIo, what, "cannot open the file");
 
   // "Key = Value" lines up to and including ElementDataFile, which must come last.
-  std::vector<std::pair<std::string, std::string>> fields;
+  HeaderFields fields;
   std::string line;
   std::size_t header_bytes = 0;
   bool have_data_file = false;
@@ -97,39 +97,28 @@ Expected<Volume> readMetaImage(const std::string& path, const ProgressCallback& 
                   "not a MetaImage header line: '" + printable(t) + "' (expected Key = Value)");
     }
     std::string key = lower(trim(t.substr(0, eq)));
-    fields.emplace_back(key, trim(t.substr(eq + 1)));
+    fields.add(key, trim(t.substr(eq + 1)));
     have_data_file = key == "elementdatafile";
   }
   if (!have_data_file) {
     return fail(ErrorCode::kFormat, what, "missing field 'ElementDataFile' (truncated header?)");
   }
-  const auto find = [&](std::initializer_list<const char*> names) -> const std::string* {
-    for (const auto& [k, v] : fields) {
-      for (const char* name : names) {
-        if (k == name) return &v;
-      }
-    }
-    return nullptr;
-  };
-  const auto missing = [&](const char* field) {
-    return fail(ErrorCode::kFormat, what, std::string("missing field '") + field + "'");
-  };
 
-  if (const std::string* object = find({"objecttype"});
+  if (const std::string* object = fields.find({"objecttype"});
       object != nullptr && lower(*object) != "image") {
     return fail(ErrorCode::kUnsupported, what, "ObjectType '" + *object + "' is not Image");
   }
-  const std::string* ndims = find({"ndims"});
-  if (ndims == nullptr) return missing("NDims");
+  const std::string* ndims = fields.find({"ndims"});
+  if (ndims == nullptr) return missingField(what, "NDims");
   if (trim(*ndims) != "3") {
     return fail(ErrorCode::kUnsupported, what, "NDims " + *ndims + " (only 3D volumes)");
   }
-  if (const std::string* channels = find({"elementnumberofchannels"});
+  if (const std::string* channels = fields.find({"elementnumberofchannels"});
       channels != nullptr && trim(*channels) != "1") {
     return fail(ErrorCode::kUnsupported, what,
                 "ElementNumberOfChannels " + *channels + " (only scalar volumes)");
   }
-  if (const std::string* binary = find({"binarydata"})) {
+  if (const std::string* binary = fields.find({"binarydata"})) {
     bool b = true;
     if (!parseBool(*binary, b)) {
       return fail(ErrorCode::kFormat, what, "BinaryData '" + *binary + "' is not True/False");
@@ -140,8 +129,8 @@ Expected<Volume> readMetaImage(const std::string& path, const ProgressCallback& 
   Volume volume;
   Geometry& g = volume.geometry;
   std::vector<double> nums;
-  const std::string* dim_size = find({"dimsize"});
-  if (dim_size == nullptr) return missing("DimSize");
+  const std::string* dim_size = fields.find({"dimsize"});
+  if (dim_size == nullptr) return missingField(what, "DimSize");
   if (!parseNumbers(*dim_size, 3, nums)) {
     return fail(ErrorCode::kFormat, what, "DimSize '" + *dim_size + "' must hold 3 integers");
   }
@@ -153,20 +142,20 @@ Expected<Volume> readMetaImage(const std::string& path, const ProgressCallback& 
     }
     g.dims[a] = static_cast<int>(nums[a]);
   }
-  if (const std::string* spacing = find({"elementspacing", "elementsize"})) {
+  if (const std::string* spacing = fields.find({"elementspacing", "elementsize"})) {
     if (!parseNumbers(*spacing, 3, nums)) {
       return fail(ErrorCode::kFormat, what,
                   "ElementSpacing '" + *spacing + "' must hold 3 numbers");
     }
     g.spacing_mm = Eigen::Vector3d(nums[0], nums[1], nums[2]);
   }
-  if (const std::string* origin = find({"offset", "position", "origin"})) {
+  if (const std::string* origin = fields.find({"offset", "position", "origin"})) {
     if (!parseNumbers(*origin, 3, nums)) {
       return fail(ErrorCode::kFormat, what, "Offset '" + *origin + "' must hold 3 numbers");
     }
     g.origin_lps_mm = Eigen::Vector3d(nums[0], nums[1], nums[2]);
   }
-  if (const std::string* matrix = find({"transformmatrix", "rotation", "orientation"})) {
+  if (const std::string* matrix = fields.find({"transformmatrix", "rotation", "orientation"})) {
     if (!parseNumbers(*matrix, 9, nums)) {
       return fail(ErrorCode::kFormat, what,
                   "TransformMatrix '" + *matrix + "' must hold 9 numbers");
@@ -179,23 +168,23 @@ Expected<Volume> readMetaImage(const std::string& path, const ProgressCallback& 
   if (auto s = g.validate(what); !s.ok()) return s.error();
 
   detail::RasterSource source;
-  const std::string* type_name = find({"elementtype"});
-  if (type_name == nullptr) return missing("ElementType");
+  const std::string* type_name = fields.find({"elementtype"});
+  if (type_name == nullptr) return missingField(what, "ElementType");
   if (!metaType(*type_name, source.type)) {
     return fail(ErrorCode::kUnsupported, what, "ElementType '" + *type_name + "' is not supported");
   }
-  if (const std::string* msb = find({"binarydatabyteordermsb", "elementbyteordermsb"})) {
+  if (const std::string* msb = fields.find({"binarydatabyteordermsb", "elementbyteordermsb"})) {
     if (!parseBool(*msb, source.big_endian)) {
       return fail(ErrorCode::kFormat, what,
                   "BinaryDataByteOrderMSB '" + *msb + "' is not True/False");
     }
   }
-  if (const std::string* comp = find({"compresseddata"})) {
+  if (const std::string* comp = fields.find({"compresseddata"})) {
     if (!parseBool(*comp, source.compressed)) {
       return fail(ErrorCode::kFormat, what, "CompressedData '" + *comp + "' is not True/False");
     }
   }
-  const std::string data_file = *find({"elementdatafile"});
+  const std::string data_file = *fields.find({"elementdatafile"});
   if (data_file == "LOCAL" || lower(data_file) == "local") {
     source.data_path = path;
     source.byte_skip = static_cast<std::int64_t>(in.tellg());
@@ -211,7 +200,7 @@ Expected<Volume> readMetaImage(const std::string& path, const ProgressCallback& 
     fs::path p(data_file);
     if (p.is_relative()) p = fs::path(path).parent_path() / p;
     source.data_path = p.string();
-    if (const std::string* hs = find({"headersize"})) {
+    if (const std::string* hs = fields.find({"headersize"})) {
       char* end = nullptr;
       errno = 0;
       const long long v = std::strtoll(hs->c_str(), &end, 10);

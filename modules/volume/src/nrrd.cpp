@@ -505,7 +505,7 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
   }
 
   // Fields, lower-cased names; key:=value pairs and comments are skipped.
-  std::vector<std::pair<std::string, std::string>> fields;
+  HeaderFields fields;
   bool blank_line = false;
   std::size_t header_bytes = line.size() + 1;
   while (readLine(in, line, kMaxHeaderBytes)) {
@@ -524,22 +524,11 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
     if (colon == std::string::npos || colon + 1 >= line.size() || line[colon + 1] != ' ') {
       return fail(ErrorCode::kFormat, what, "malformed header line '" + printable(line) + "'");
     }
-    fields.emplace_back(lower(trim(line.substr(0, colon))), trim(line.substr(colon + 2)));
+    fields.add(lower(trim(line.substr(0, colon))), trim(line.substr(colon + 2)));
   }
-  const auto find = [&](std::initializer_list<const char*> names) -> const std::string* {
-    for (const auto& [k, v] : fields) {
-      for (const char* name : names) {
-        if (k == name) return &v;
-      }
-    }
-    return nullptr;
-  };
-  const auto missing = [&](const char* field) {
-    return fail(ErrorCode::kFormat, what, std::string("missing field '") + field + "'");
-  };
 
-  const std::string* dimension = find({"dimension"});
-  if (dimension == nullptr) return missing("dimension");
+  const std::string* dimension = fields.find({"dimension"});
+  if (dimension == nullptr) return missingField(what, "dimension");
   std::int64_t dim = 0;
   if (!parseInt64(*dimension, dim)) {
     return fail(ErrorCode::kFormat, what, "dimension '" + *dimension + "' is not an integer");
@@ -548,14 +537,14 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
     return fail(ErrorCode::kUnsupported, what,
                 "dimension " + std::to_string(dim) + " (only scalar 3D volumes are supported)");
   }
-  const std::string* type_field = find({"type"});
-  if (type_field == nullptr) return missing("type");
+  const std::string* type_field = fields.find({"type"});
+  if (type_field == nullptr) return missingField(what, "type");
   ScalarType type{};
   if (!nrrdType(*type_field, type)) {
     return fail(ErrorCode::kUnsupported, what, "voxel type '" + *type_field + "' is not supported");
   }
-  const std::string* encoding_field = find({"encoding"});
-  if (encoding_field == nullptr) return missing("encoding");
+  const std::string* encoding_field = fields.find({"encoding"});
+  if (encoding_field == nullptr) return missingField(what, "encoding");
   const std::string encoding = lower(*encoding_field);
   bool compressed = false;
   if (encoding == "gzip" || encoding == "gz") {
@@ -565,20 +554,20 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
                 "encoding '" + *encoding_field + "' is not supported (raw and gzip are)");
   }
   bool big_endian = false;
-  if (const std::string* endian = find({"endian"})) {
+  if (const std::string* endian = fields.find({"endian"})) {
     if (lower(*endian) == "big") {
       big_endian = true;
     } else if (lower(*endian) != "little") {
       return fail(ErrorCode::kFormat, what, "endian '" + *endian + "' is neither little nor big");
     }
   } else if (sizeOf(type) > 1) {
-    return missing("endian");
+    return missingField(what, "endian");
   }
 
   Volume volume;
   Geometry& g = volume.geometry;
-  const std::string* sizes = find({"sizes"});
-  if (sizes == nullptr) return missing("sizes");
+  const std::string* sizes = fields.find({"sizes"});
+  if (sizes == nullptr) return missingField(what, "sizes");
   const auto size_words = words(*sizes);
   if (size_words.size() != 3) {
     return fail(ErrorCode::kFormat, what, "sizes '" + *sizes + "' must list 3 axes");
@@ -591,7 +580,7 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
     }
     g.dims[static_cast<std::size_t>(a)] = static_cast<int>(s);
   }
-  if (const std::string* kinds = find({"kinds"})) {
+  if (const std::string* kinds = fields.find({"kinds"})) {
     for (const auto& k : words(*kinds)) {
       if (lower(k) != "domain" && lower(k) != "space") {
         return fail(ErrorCode::kUnsupported, what,
@@ -601,7 +590,7 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
   }
 
   // Geometry: space + space directions (columns = spacing * direction) + space origin.
-  const std::string* space = find({"space"});
+  const std::string* space = fields.find({"space"});
   bool ras = false;
   if (space != nullptr) {
     const std::string s = lower(*space);
@@ -613,7 +602,7 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
                       "right-anterior-superior are supported)");
     }
   }
-  if (const std::string* directions = find({"space directions"})) {
+  if (const std::string* directions = fields.find({"space directions"})) {
     const auto items = vectorItems(*directions);
     if (items.size() != 3) {
       return fail(ErrorCode::kFormat, what,
@@ -635,7 +624,7 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
       g.spacing_mm[a] = norm;
       g.direction.col(a) = v / norm;
     }
-  } else if (const std::string* spacings = find({"spacings"})) {
+  } else if (const std::string* spacings = fields.find({"spacings"})) {
     const auto w = words(*spacings);
     for (int a = 0; a < 3; ++a) {
       if (w.size() != 3 || !parseDouble(w[static_cast<std::size_t>(a)], g.spacing_mm[a])) {
@@ -643,9 +632,9 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
       }
     }
   } else {
-    return missing("space directions");
+    return missingField(what, "space directions");
   }
-  if (const std::string* origin = find({"space origin"})) {
+  if (const std::string* origin = fields.find({"space origin"})) {
     if (!parseNrrdVector(*origin, g.origin_lps_mm)) {
       return fail(ErrorCode::kFormat, what, "space origin '" + *origin + "' is not a 3-vector");
     }
@@ -663,12 +652,12 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
   source.big_endian = big_endian;
   source.compressed = compressed;
   std::int64_t line_skip = 0;
-  if (const std::string* ls = find({"line skip", "lineskip"})) {
+  if (const std::string* ls = fields.find({"line skip", "lineskip"})) {
     if (!parseInt64(*ls, line_skip) || line_skip < 0) {
       return fail(ErrorCode::kFormat, what, "line skip '" + *ls + "' is not a count");
     }
   }
-  if (const std::string* bs = find({"byte skip", "byteskip"})) {
+  if (const std::string* bs = fields.find({"byte skip", "byteskip"})) {
     if (!parseInt64(*bs, source.byte_skip) || source.byte_skip < -1) {
       return fail(ErrorCode::kFormat, what, "byte skip '" + *bs + "' is invalid");
     }
@@ -676,7 +665,7 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
   if (compressed && (line_skip != 0 || source.byte_skip != 0)) {
     return fail(ErrorCode::kUnsupported, what, "line skip / byte skip with gzip encoding");
   }
-  if (const std::string* data_file = find({"data file", "datafile"})) {
+  if (const std::string* data_file = fields.find({"data file", "datafile"})) {
     if (data_file->rfind("LIST", 0) == 0 || data_file->find('%') != std::string::npos) {
       return fail(ErrorCode::kUnsupported, what,
                   "data file '" + *data_file + "': only a single data file is supported");
