@@ -117,8 +117,8 @@ Expected<Kinematics> Kinematics::create(const Instrument& g) {
   double previous_r = 0.0;
   for (int i = 0; i <= kSamples; ++i) {
     const double zs = g.stylet_travel_mm * i / kSamples;
-    double r = 0.0, slope = 0.0;
-    k.radiusAndSlope(zs, r, slope);
+    const RadialProfile profile = k.radialProfile(zs);
+    const double r = profile.radius_mm, slope = profile.slope;
     // The slope may vanish at zs = 0 (no clearance: the tip starts on the axis) but the radius
     // must grow from sample to sample.
     const bool grows = i == 0 ? r >= 0.0 : r > previous_r;
@@ -137,22 +137,26 @@ Expected<Kinematics> Kinematics::create(const Instrument& g) {
   return k;
 }
 
-Kinematics::Planar Kinematics::planar(double z_s_mm, ExitOffset offset) const {
+Kinematics::CannulaBend Kinematics::cannulaBend(double z_s_mm) const {
   const Instrument& g = instrument_;
-  const double R = g.stylet_radius_mm;
   const double arc_mm = g.stylet_curved_length_mm - z_s_mm;  // deflected cannula arc, L0 - zs
   // Straight cannula part from P0 to the start of the deflected arc; the cannula length
   // zfixed + zsmax + zc is preserved whatever zs is (MODEL.md A2).
   const double straight_mm = g.cannula_fixed_offset_mm + g.stylet_travel_mm - arc_mm;
-  double theta_d = 0.0, sin_d = 0.0, cos_d = 1.0, y2 = 0.0, z2 = -straight_mm - arc_mm;
-  if (!rigid_) {
-    theta_d = arc_mm * inv_rd_;
-    sin_d = std::sin(theta_d);
-    cos_d = std::cos(theta_d);
-    const double half = std::sin(0.5 * theta_d);
-    y2 = 2.0 * g.cannula_deflected_radius_mm * half * half;     // Rd(1 - cos θd), eq (3)
-    z2 = -straight_mm - g.cannula_deflected_radius_mm * sin_d;  // eq (4)
-  }
+  if (rigid_) return {0.0, 0.0, 1.0, 0.0, -straight_mm - arc_mm};
+  const double theta_d = arc_mm * inv_rd_;
+  const double sin_d = std::sin(theta_d), cos_d = std::cos(theta_d);
+  // Rd(1 - cos θd) (eq 3) as Rd sin²θd / (1 + cos θd): no cancellation for small θd and no third
+  // trigonometric call in the IK's inner loop.
+  return {theta_d, sin_d, cos_d, g.cannula_deflected_radius_mm * sin_d * sin_d / (1.0 + cos_d),
+          -straight_mm - g.cannula_deflected_radius_mm * sin_d};  // eq (4)
+}
+
+Kinematics::Planar Kinematics::planar(double z_s_mm, ExitOffset offset) const {
+  const double R = instrument_.stylet_radius_mm;
+  const CannulaBend b = cannulaBend(z_s_mm);
+  const double theta_d = b.theta_d_rad, sin_d = b.sin_d, cos_d = b.cos_d;
+  const double y2 = b.tip_y_mm, z2 = b.tip_z_mm;
   double dy = 0.0, dz = 0.0;  // eq (9), MODEL.md A3
   switch (offset) {
     case ExitOffset::kLateral:
@@ -179,38 +183,39 @@ Kinematics::Planar Kinematics::planar(double z_s_mm, ExitOffset offset) const {
   return p;
 }
 
-void Kinematics::radiusAndSlope(double z_s_mm, double& radius_mm, double& slope) const {
+Kinematics::RadialProfile Kinematics::radialProfile(double z_s_mm) const {
   const Instrument& g = instrument_;
   const double R = g.stylet_radius_mm;
-  const double arc_mm = g.stylet_curved_length_mm - z_s_mm;
-  double theta_d = 0.0, sin_d = 0.0, cos_d = 1.0, y2 = 0.0;
-  if (!rigid_) {
-    theta_d = arc_mm * inv_rd_;
-    sin_d = std::sin(theta_d);
-    cos_d = std::cos(theta_d);
-    const double half = std::sin(0.5 * theta_d);
-    y2 = 2.0 * g.cannula_deflected_radius_mm * half * half;
-  }
+  const CannulaBend b = cannulaBend(z_s_mm);
+  const double theta_d = b.theta_d_rad, sin_d = b.sin_d, cos_d = b.cos_d, y2 = b.tip_y_mm;
   const double sin_psi0 = sin_d * cos_phi_ + cos_d * sin_phi_;
   const double cos_psi0 = cos_d * cos_phi_ - sin_d * sin_phi_;
   const double gamma = theta_d + phi_rad_ + z_s_mm / R;
   const double sin_g = std::sin(gamma), cos_g = std::cos(gamma);
-  double dy = 0.0, d_dy = 0.0;
+  // The exit offset's term of r and its first two derivatives.
+  const double c = clearance_mm_, k = inv_rd_;
+  double dy = 0.0, d_dy = 0.0, dd_dy = 0.0;
   switch (g.exit_offset) {
     case ExitOffset::kLateral:
-      dy = clearance_mm_ * cos_d;
-      d_dy = clearance_mm_ * inv_rd_ * sin_d;
+      dy = c * cos_d;
+      d_dy = c * k * sin_d;
+      dd_dy = -c * k * k * cos_d;
       break;
     case ExitOffset::kAxial:
-      dy = clearance_mm_ * sin_d;
-      d_dy = -clearance_mm_ * inv_rd_ * cos_d;
+      dy = c * sin_d;
+      d_dy = -c * k * cos_d;
+      dd_dy = -c * k * k * sin_d;
       break;
     case ExitOffset::kNone:
       break;
   }
-  radius_mm = y2 + dy + R * (cos_psi0 - cos_g);
-  // d/dzs with dθd/dzs = -1/Rd and dγ/dzs = 1/R - 1/Rd (MODEL.md §5).
-  slope = -sin_d + R * inv_rd_ * sin_psi0 + (1.0 - R * inv_rd_) * sin_g + d_dy;
+  // d/dzs with dθd/dzs = dψ0/dzs = -1/Rd and dγ/dzs = 1/R - 1/Rd (MODEL.md §5).
+  const double dgamma = 1.0 / R - k;
+  RadialProfile out;
+  out.radius_mm = y2 + dy + R * (cos_psi0 - cos_g);
+  out.slope = -sin_d + R * k * sin_psi0 + R * dgamma * sin_g + d_dy;
+  out.curvature = k * cos_d - R * k * k * cos_psi0 + R * dgamma * dgamma * cos_g + dd_dy;
+  return out;
 }
 
 double Kinematics::tipDepthAtHome_mm(double z_s_mm) const {

@@ -87,9 +87,18 @@ class Kinematics {
     double cannula_y_mm, cannula_z_mm;
     double gamma_rad;
   };
+  // The deflected cannula for a stylet deployment: its arc angle θd and its tip P2 (eqs 3, 4).
+  struct CannulaBend {
+    double theta_d_rad, sin_d, cos_d;
+    double tip_y_mm, tip_z_mm;  // at z_c = 0
+  };
+  CannulaBend cannulaBend(double z_s_mm) const;
   Planar planar(double z_s_mm, ExitOffset offset) const;
-  // Tip radius and its derivative d r / d z_s, for Newton.
-  void radiusAndSlope(double z_s_mm, double& radius_mm, double& slope) const;
+  // Tip radius r(z_s) and its first two derivatives, for the root finder.
+  struct RadialProfile {
+    double radius_mm, slope, curvature;
+  };
+  RadialProfile radialProfile(double z_s_mm) const;
   double closedFormStylet_mm(double radius_mm) const;
 
   explicit Kinematics(const Instrument& instrument);
