@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -183,6 +184,51 @@ TEST(Phantom, SeriesReadsBackExactlyWhateverTheFileOrder) {
   ASSERT_FALSE(seen.empty());
   EXPECT_EQ(seen.back().stage, "decode");
   EXPECT_EQ(seen.back().done, 24u);
+}
+
+TEST(Phantom, ParallelDecodingIsDeterministic) {
+  PhantomSpec spec;
+  spec.dims = {64, 48, 40};  // 6 KB of pixels per file: DCMTK leaves them on disk until decoding
+  spec.noise_sigma_hu = 5.0;
+  const Volume made = makePhantom(spec).value();
+  const fs::path dir = testing::scratchDir();
+  const auto files = writeDicomSeries(made, dir.string()).value();
+  for (int threads : {1, 2, 5}) {
+    DicomLoadOptions options;
+    options.threads = threads;
+    const auto r = readDicomSeries({dir.string()}, options);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->volume.voxels, made.voxels) << threads << " threads";
+  }
+  // Two files whose last pixel (the file's last two bytes) is 65535 - 1024 HU, beyond int16:
+  // whatever the timing, the first of them in file order is reported.
+  for (std::size_t victim : {std::size_t{7}, std::size_t{30}}) {
+    std::fstream f(files[victim], std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(-2, std::ios::end);
+    f.put('\xff').put('\xff');
+  }
+  for (int run = 0; run < 5; ++run) {
+    DicomLoadOptions options;
+    options.threads = 4;
+    const auto r = readDicomSeries({dir.string()}, options);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.error().message.find("slice_0007.dcm"), std::string::npos) << r.error().message;
+  }
+}
+
+TEST(Phantom, AHeaderThatOverstatesItsPixelsIsRefusedBeforeAllocating) {
+  // dcmodify (DCMTK's command-line tool) sets NumberOfFrames to 10^6 in a 3 KB slice: 3 GB
+  // declared. The reader must say so, not allocate it.
+  PhantomSpec spec;
+  spec.dims = {32, 32, 1};
+  const fs::path dir = testing::scratchDir();
+  const auto files = writeDicomSeries(makePhantom(spec).value(), dir.string()).value();
+  const std::string cmd = "dcmodify -nb -i \"(0028,0008)=1000000\" " + files[0] + " 2>/dev/null";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << "dcmodify (package dcmtk) is needed";
+  const auto r = readDicomSeries({dir.string()});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("declares 32 x 32 x 1000000 pixels"), std::string::npos)
+      << r.error().message;
 }
 
 TEST(Phantom, ObliqueSeriesKeepsItsDirection) {

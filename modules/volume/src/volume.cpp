@@ -1,12 +1,38 @@
 #include "ignav/volume/volume.hpp"
 
+#include <sys/mman.h>
+
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+#include <new>
 #include <sstream>
 
 namespace ignav::volume {
+
+namespace {
+constexpr std::size_t kHugePage = std::size_t{2} << 20;
+constexpr std::size_t kHugeThreshold = 2 * kHugePage;  // smaller blocks: plain new
+}  // namespace
+
+void* allocateVoxelMemory(std::size_t bytes) {
+  if (bytes < kHugeThreshold) return ::operator new(bytes);
+  const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
+  void* p = std::aligned_alloc(kHugePage, rounded);
+  if (p == nullptr) throw std::bad_alloc();
+  madvise(p, rounded, MADV_HUGEPAGE);  // a hint: without THP it is simply ignored
+  return p;
+}
+
+void freeVoxelMemory(void* p, std::size_t bytes) noexcept {
+  if (bytes < kHugeThreshold) {
+    ::operator delete(p);
+  } else {
+    std::free(p);
+  }
+}
 
 Eigen::Matrix4d Geometry::ijkToLps() const {
   Eigen::Matrix4d m = Eigen::Matrix4d::Identity();

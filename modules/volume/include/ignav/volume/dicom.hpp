@@ -24,6 +24,9 @@ struct DicomLoadOptions {
   // missing slices are filled by linear interpolation and each fill is listed in warnings.
   bool fill_missing_slices = false;
   ProgressCallback progress;
+  // Files decoded in parallel (0: one per hardware thread, at most 8). The volume is the same
+  // whatever the count; progress is reported from the calling thread only.
+  int threads = 0;
 };
 
 struct DicomLoadResult {

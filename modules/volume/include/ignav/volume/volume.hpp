@@ -6,7 +6,10 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <memory>
+#include <new>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -34,12 +37,44 @@ struct Geometry {
   Status validate(const std::string& what) const;
 };
 
+// Voxel memory: large blocks are 2 MiB aligned and marked for transparent huge pages, so a
+// 150 MB volume costs ~75 page faults instead of ~37,000 when a reader first writes it.
+void* allocateVoxelMemory(std::size_t bytes);
+void freeVoxelMemory(void* p, std::size_t bytes) noexcept;
+
+// Leaves new elements uninitialised (resize / the size constructor): a 150 MB volume that is
+// about to be overwritten by a reader is not zero-filled first. assign(n, value) still fills.
+template <typename T>
+struct UninitialisedAllocator {
+  using value_type = T;
+  UninitialisedAllocator() = default;
+  template <typename U>
+  UninitialisedAllocator(const UninitialisedAllocator<U>&) noexcept {}  // NOLINT: implicit
+  T* allocate(std::size_t n) { return static_cast<T*>(allocateVoxelMemory(n * sizeof(T))); }
+  void deallocate(T* p, std::size_t n) noexcept { freeVoxelMemory(p, n * sizeof(T)); }
+  template <typename U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+  friend bool operator==(const UninitialisedAllocator&, const UninitialisedAllocator&) {
+    return true;
+  }
+  friend bool operator!=(const UninitialisedAllocator&, const UninitialisedAllocator&) {
+    return false;
+  }
+};
+using VoxelBuffer = std::vector<std::int16_t, UninitialisedAllocator<std::int16_t>>;
+
 // Stored value v -> physical value (HU for CT): v * value_scale + value_offset. CT series with
 // RescaleSlope 1 store HU directly (scale 1, offset 0).
 class Volume {
  public:
   Geometry geometry;
-  std::vector<std::int16_t> voxels;  // i fastest, then j, then k
+  VoxelBuffer voxels;  // i fastest, then j, then k
   double value_scale = 1.0;
   double value_offset = 0.0;
   std::string modality;     // "CT", "MR", ... ("" when the file format has none)
