@@ -4,11 +4,17 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+
+#include "ignav/volume/render.hpp"
 
 namespace ignav::plan {
 namespace {
+
+bool savePng(const cv::Mat& bgr, const std::string& path) {
+  const auto png = volume::encodePngBgr(bgr.data, bgr.cols, bgr.rows, bgr.step[0]);
+  return png.ok() && volume::writePng(*png, path).ok();
+}
 
 void label(cv::Mat& img, const std::string& text, int x, int y, double scale = 0.45) {
   cv::putText(img, text, {x, y}, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(20, 20, 20), 1,
@@ -65,7 +71,7 @@ bool writeHeatmap(const std::vector<kinematics::IkStudySample>& samples, double 
   }
   label(canvas, fmt(max_mm, 2), bx + 24, margin + 10);
   label(canvas, "0", bx + 24, margin + h);
-  return cv::imwrite(path, canvas);
+  return savePng(canvas, path);
 }
 
 bool writeHistogram(const std::vector<kinematics::IkStudySample>& samples, double max_mm,
@@ -94,7 +100,7 @@ bool writeHistogram(const std::vector<kinematics::IkStudySample>& samples, doubl
   label(canvas, "0 mm", margin - 10, h - margin + 20);
   label(canvas, fmt(max_mm, 2) + " mm", w - margin - 40, h - margin + 20);
   label(canvas, "peak " + std::to_string(peak), margin + 5, margin - 5);
-  return cv::imwrite(path, canvas);
+  return savePng(canvas, path);
 }
 
 }  // namespace

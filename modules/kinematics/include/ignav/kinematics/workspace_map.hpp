@@ -23,7 +23,7 @@ struct WorkspaceMap {
 // grid_mm must be in [0.05, 10]; the error names the value.
 Expected<WorkspaceMap> computeWorkspaceMap(const Kinematics& kinematics, double grid_mm);
 
-// Binary little-endian PLY with x, y, z and intensity = z_s (mm), written through PCL.
+// Binary little-endian PLY with x, y, z and intensity = z_s (mm).
 Status writeWorkspacePly(const WorkspaceMap& map, const std::string& path);
 
 }  // namespace ignav::kinematics

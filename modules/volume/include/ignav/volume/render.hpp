@@ -63,4 +63,8 @@ Expected<std::vector<std::uint8_t>> renderPng(const Slice& slice, const Overlays
                                               const RenderOptions& options = {});
 Status writePng(const std::vector<std::uint8_t>& png, const std::string& path);
 
+// PNG bytes of an 8-bit BGR image (rows `stride_bytes` apart), for other figures we draw.
+Expected<std::vector<std::uint8_t>> encodePngBgr(const std::uint8_t* bgr, int width, int height,
+                                                 std::size_t stride_bytes);
+
 }  // namespace ignav::volume
