@@ -9,13 +9,15 @@ packages=(
   # math, config, logging, CLI
   libeigen3-dev libyaml-cpp-dev nlohmann-json3-dev libspdlog-dev libfmt-dev libcli11-dev
   # images, point clouds, DICOM
-  libopencv-dev libpcl-dev libdcmtk-dev dcmtk zlib1g-dev
+  libopencv-dev libpcl-dev libdcmtk-dev dcmtk zlib1g-dev libpng-dev
   # benchmarks: the reference DICOM converter and GNU time for peak memory
   dcm2niix time
   # DDS
   cyclonedds-dev cyclonedds-tools
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  # ITK reads our .tfm files back in the tests (an independent reader)
+  libinsighttoolkit5-dev
   # reference DICOM files for tests (pydicom ships real edge cases)
   python3-pydicom python3-numpy
 )

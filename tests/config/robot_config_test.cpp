@@ -90,6 +90,47 @@ TEST(RobotConfig, MisspeltKeyIsRejectedNotIgnored) {
   EXPECT_NE(errorOf(text + "extra: 1\n").find("extra: unknown key"), std::string::npos);
 }
 
+TEST(RobotConfig, RegistrationSectionIsOptionalWithDefaults) {
+  std::string text = bundledText();
+  const auto with = parseRobotConfig(text, "with.yaml");
+  ASSERT_TRUE(with.ok()) << with.error().message;
+  text.erase(text.find("  # Optional; every key"));
+  const auto without = parseRobotConfig(text, "without.yaml");
+  ASSERT_TRUE(without.ok()) << without.error().message;
+  // The bundled file spells out the defaults, so both read the same.
+  const auto& a = with->registration;
+  const auto& b = without->registration;
+  EXPECT_EQ(a.scan.scan_joints.z_s_mm, 40.0);
+  EXPECT_EQ(b.scan.scan_joints.z_s_mm, 40.0);  // defaults to the stylet travel
+  EXPECT_EQ(a.scan.cannula_base_mm, b.scan.cannula_base_mm);
+  EXPECT_EQ(a.limits.max_fre_mm, b.limits.max_fre_mm);
+  EXPECT_EQ(a.limits.min_spread_from_line_mm, b.limits.min_spread_from_line_mm);
+  EXPECT_EQ(a.fle_mm, b.fle_mm);
+  EXPECT_EQ(a.fiducials.min_hu, b.fiducials.min_hu);
+  EXPECT_EQ(a.fiducials.max_volume_mm3, b.fiducials.max_volume_mm3);
+  EXPECT_EQ(a.kind, registration::TransformKind::kSimilarity);
+}
+
+TEST(RobotConfig, RegistrationErrorsNameTheKey) {
+  EXPECT_NE(errorOf(withValue("transform", "affine"))
+                .find("robot.registration.transform: unknown value 'affine'"),
+            std::string::npos);
+  EXPECT_NE(errorOf(withValue("min_scale", "1.2")).find("robot.registration.min_scale: must be"),
+            std::string::npos);
+  EXPECT_NE(errorOf(withValue("fle_mm", "-1")).find("robot.registration.fle_mm: must be positive"),
+            std::string::npos);
+  EXPECT_NE(errorOf(withValue("cannula_base_mm", "120"))
+                .find("robot.registration.cannula_base_mm = 120 must lie on the straight part"),
+            std::string::npos)
+      << errorOf(withValue("cannula_base_mm", "120"));
+  EXPECT_NE(errorOf(withValue("scan_joints", "{theta_c_deg: 0, z_c_mm: 0, zs_mm: 40}"))
+                .find("robot.registration.scan_joints.zs_mm: unknown key"),
+            std::string::npos);
+  const auto rigid = parseRobotConfig(withValue("transform", "rigid"), "x.yaml");
+  ASSERT_TRUE(rigid.ok());
+  EXPECT_EQ(rigid->registration.kind, registration::TransformKind::kRigid);
+}
+
 TEST(RobotConfig, UnreadableInput) {
   EXPECT_NE(errorOf("robot: [1, 2").find("not valid YAML"), std::string::npos);
   EXPECT_NE(errorOf("- a\n- b\n").find("robot: is missing"), std::string::npos);

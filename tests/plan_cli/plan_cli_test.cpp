@@ -1,8 +1,10 @@
 // ignav-plan as a user runs it: a real process, JSON on stdout, exit codes.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -153,6 +155,100 @@ TEST(PlanCli, PhantomVolumeInfoAndRenderAClick) {
   EXPECT_NEAR(lps[2], 6.0, 1e-9);
   EXPECT_EQ(plan("volume-info /nonexistent/ct").exit_code, 2);
   EXPECT_EQ(plan("render " + dir.string() + " --view upside --out x.png").exit_code, 2);
+  std::filesystem::remove_all(dir);
+}
+
+std::filesystem::path freshDir(const std::string& name) {
+  const auto dir =
+      std::filesystem::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+void writeFile(const std::filesystem::path& path, const std::string& text) {
+  std::ofstream(path) << text;
+}
+
+TEST(PlanCli, RegisterPrintsTheTransformOrARejection) {
+  const auto dir = freshDir("ignav_cli_register");
+  // robot = Rz(90°)·image + (10, 20, 30)
+  writeFile(dir / "pairs.json",
+            R"({"image_mm": [[0,0,0],[40,0,0],[0,30,0]],
+                "robot_mm": [[10,20,30],[10,60,30],[-20,20,30]]})");
+  ProcessResult run = plan("register --pairs " + (dir / "pairs.json").string() +
+                           " --tre 0,0,0 --tfm " + (dir / "t.tfm").string());
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  json r = json::parse(run.out);
+  EXPECT_TRUE(r["ok"].get<bool>());
+  EXPECT_NEAR(r["scale"].get<double>(), 1.0, 1e-12);
+  EXPECT_NEAR(r["rotation"][0][1].get<double>(), -1.0, 1e-12);
+  EXPECT_NEAR(r["rotation"][1][0].get<double>(), 1.0, 1e-12);
+  EXPECT_NEAR(r["translation_mm"][2].get<double>(), 30.0, 1e-9);
+  EXPECT_LT(r["fre_mm"].get<double>(), 1e-9);
+  // TRE at a fiducial's own position for a similarity fit of 3: above FLE/√3.
+  EXPECT_GT(r["targets"][0]["tre_mm"].get<double>(), 0.5 / std::sqrt(3.0));
+  EXPECT_TRUE(std::filesystem::exists(dir / "t.tfm"));
+
+  const auto rejected = [&](const std::string& text, const std::string& reason) {
+    writeFile(dir / "bad.json", text);
+    const ProcessResult bad = plan("register --pairs " + (dir / "bad.json").string());
+    EXPECT_EQ(bad.exit_code, 2) << text;
+    const json j = json::parse(bad.out);
+    EXPECT_FALSE(j["ok"].get<bool>());
+    EXPECT_EQ(j["reason"], reason) << j.dump();
+    return j["message"].get<std::string>();
+  };
+  rejected(R"({"image_mm": [[0,0,0],[40,0,0],[80,0,0]],
+               "robot_mm": [[10,20,30],[10,60,30],[-20,20,30]]})",
+           "collinear");
+  rejected(R"({"image_mm": [[0,0,0],[40,0,0]], "robot_mm": [[0,0,0],[40,0,0]]})", "too_few_pairs");
+  rejected("{not json", "format");
+  EXPECT_NE(rejected(R"({"image_mm": [[0,0,0],[1,null,0],[0,1,0]], "robot_mm": []})", "bad_input")
+                .find("image_mm[1] must hold three numbers"),
+            std::string::npos);
+  std::string many = R"({"robot_mm": [], "image_mm": [)";
+  for (int i = 0; i < 1001; ++i)
+    many += std::string(i ? "," : "") + "[0,0,0]";
+  EXPECT_NE(rejected(many + "]}", "bad_input").find("image_mm has 1001 points; at most 1000"),
+            std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(PlanCli, RobotPhantomFindsAndRegistersItsMarkers) {
+  const auto dir = freshDir("ignav_cli_robot_phantom");
+  ProcessResult run =
+      plan("phantom " + (dir / "ct").string() + " --oblique --noise-hu 15 --robot " + kRobot);
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const json phantom = json::parse(run.out);
+  run = plan("find-fiducials " + (dir / "ct").string() + " --robot " + kRobot + " --tfm " +
+             (dir / "r.tfm").string() + " --markups " + (dir / "r.mrk.json").string());
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const json found = json::parse(run.out);
+  ASSERT_TRUE(found.contains("registration")) << found.dump(2);
+  const json& reg = found["registration"];
+  ASSERT_TRUE(reg["ok"].get<bool>());
+  // Against the phantom's true image -> robot map: every marker and the matrix agree.
+  const json& truth = phantom["image_to_robot_true"];
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(reg["scale"].get<double>() * reg["rotation"][r][c].get<double>(),
+                  truth[r][c].get<double>(), 2e-3);
+    }
+    EXPECT_NEAR(reg["translation_mm"][r].get<double>(), truth[r][3].get<double>(), 0.3);
+  }
+  for (int k = 0; k < 3; ++k) {
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_NEAR(found["chosen"][k]["centroid_lps_mm"][a].get<double>(),
+                  phantom["fiducials_lps_mm"][k][a].get<double>(), 0.1);
+    }
+  }
+  EXPECT_LT(reg["fre_mm"].get<double>(), 0.1);
+  std::ifstream markups(dir / "r.mrk.json");
+  const json m = json::parse(markups);
+  EXPECT_EQ(m["markups"][0]["controlPoints"][2]["label"], "stylet_tip");
+  EXPECT_TRUE(std::filesystem::exists(dir / "r.tfm"));
+  EXPECT_EQ(plan("find-fiducials " + (dir / "ct").string() + " --expect 0").exit_code, 2);
   std::filesystem::remove_all(dir);
 }
 

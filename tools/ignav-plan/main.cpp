@@ -10,6 +10,7 @@
 #include "ignav/config/robot_config.hpp"
 #include "ignav/kinematics/ik_study.hpp"
 #include "ignav/kinematics/workspace_map.hpp"
+#include "registration_commands.hpp"
 #include "study_report.hpp"
 #include "volume_commands.hpp"
 
@@ -245,6 +246,33 @@ int main(int argc, char** argv) {
   phantom->add_option("--noise-hu", phantom_args.noise_hu, "Gaussian noise sigma (HU)");
   std::string phantom_dims;
   phantom->add_option("--dims", phantom_dims, "I,J,K voxels (default 96,96,64)");
+  phantom->add_option("--robot", phantom_args.robot_path,
+                      "robot YAML: beads at its registration feature points, robot inclined");
+
+  ignav::plan::RegisterArgs register_args;
+  std::vector<std::string> tre_targets;
+  auto* reg = app.add_subcommand("register", "image -> robot transform from point pairs");
+  reg->add_option("--pairs", register_args.pairs_path,
+                  "JSON {\"image_mm\": [[x,y,z],...], \"robot_mm\": [[x,y,z],...]}")
+      ->required();
+  reg->add_flag("--rigid", register_args.rigid, "fix the scale at 1");
+  reg->add_option("--robot", register_args.robot_path,
+                  "robot YAML: limits, FLE, and the feature points when robot_mm is absent");
+  reg->add_option("--tre", tre_targets, "X,Y,Z image mm: expected TRE there (repeatable)");
+  reg->add_option("--tfm", register_args.tfm_out, "write the transform for 3D Slicer (.tfm)");
+  reg->add_option("--markups", register_args.markups_out, "write the image points (.mrk.json)");
+  ignav::plan::FindFiducialsArgs find_args;
+  double min_hu = 0.0;
+  auto* find = app.add_subcommand("find-fiducials", "locate marker beads on a CT");
+  find->add_option("path", find_args.volume_path, "DICOM folder/file, .nrrd/.nhdr, .mha/.mhd")
+      ->required();
+  find->add_option("--series", find_args.series_uid, "SeriesInstanceUID");
+  auto* min_hu_option = find->add_option("--min-hu", min_hu, "marker threshold (HU)");
+  find->add_option("--expect", find_args.expect, "markers placed (without --robot)");
+  find->add_option("--robot", find_args.robot_path,
+                   "robot YAML: match its feature points by mutual distances and register");
+  find->add_option("--tfm", find_args.tfm_out, "write the registration for 3D Slicer (.tfm)");
+  find->add_option("--markups", find_args.markups_out, "write the markers (.mrk.json)");
 
   try {
     app.parse(argc, argv);
@@ -256,6 +284,18 @@ int main(int argc, char** argv) {
   }
 
   try {
+    if (*reg) {
+      for (const auto& t : tre_targets)
+        register_args.targets_image.push_back(parseTriple(t, "--tre"));
+      const auto outcome = ignav::plan::registerPairs(register_args);
+      std::cout << outcome.json.dump(2) << "\n";
+      return outcome.exit_code;
+    }
+    if (*find) {
+      if (min_hu_option->count() > 0) find_args.min_hu = min_hu;
+      std::cout << ignav::plan::findFiducials(find_args).dump(2) << "\n";
+      return 0;
+    }
     if (*info || *render || *phantom) {
       json out;
       if (*info) {

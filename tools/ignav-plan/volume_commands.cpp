@@ -4,6 +4,8 @@
 #include <iostream>
 #include <sstream>
 
+#include "ignav/config/robot_config.hpp"
+#include "ignav/registration/robot_phantom.hpp"
 #include "ignav/volume/load.hpp"
 #include "ignav/volume/phantom.hpp"
 #include "ignav/volume/render.hpp"
@@ -134,6 +136,21 @@ json render(const RenderArgs& args) {
 
 json phantom(const PhantomArgs& args) {
   volume::PhantomSpec spec;
+  json robot_json;
+  if (!args.robot_path.empty()) {
+    if (!args.fiducials_lps.empty()) throw CliError{"--fiducials and --robot exclude each other"};
+    auto robot = config::loadRobot(args.robot_path);
+    if (!robot) throw CliError{robot.error().message};
+    auto rp = registration::makeRobotPhantom(robot->kinematics, robot->config.registration.scan);
+    if (!rp) throw CliError{rp.error().message};
+    spec = rp->spec;
+    json model = json::array();
+    for (const auto& p : rp->model_robot_mm)
+      model.push_back({p.x(), p.y(), p.z()});
+    robot_json = {{"robot", robot->config.name},
+                  {"feature_points_robot_mm", model},
+                  {"image_to_robot_true", matrix(rp->image_to_robot_true)}};
+  }
   spec.oblique = args.oblique;
   spec.noise_sigma_hu = args.noise_hu;
   if (!args.fiducials_lps.empty()) {
@@ -149,11 +166,13 @@ json phantom(const PhantomArgs& args) {
   json fiducials = json::array();
   for (const auto& f : spec.fiducials_lps_mm)
     fiducials.push_back({f.x(), f.y(), f.z()});
-  return {{"out_dir", args.out_dir},
-          {"files", files->size()},
-          {"dims", {spec.dims[0], spec.dims[1], spec.dims[2]}},
-          {"fiducials_lps_mm", fiducials},
-          {"ijk_to_lps", matrix(v->geometry.ijkToLps())}};
+  json out = {{"out_dir", args.out_dir},
+              {"files", files->size()},
+              {"dims", {spec.dims[0], spec.dims[1], spec.dims[2]}},
+              {"fiducials_lps_mm", fiducials},
+              {"ijk_to_lps", matrix(v->geometry.ijkToLps())}};
+  if (!robot_json.is_null()) out.update(robot_json);
+  return out;
 }
 
 }  // namespace ignav::plan

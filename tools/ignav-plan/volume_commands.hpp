@@ -35,6 +35,7 @@ struct PhantomArgs {
   std::vector<std::array<double, 3>> fiducials_lps;  // empty: the default three
   double noise_hu = 0.0;
   std::array<int, 3> dims{0, 0, 0};  // 0: default
+  std::string robot_path;  // markers at this robot's feature points instead of `fiducials_lps`
 };
 nlohmann::json phantom(const PhantomArgs& args);
 

@@ -80,6 +80,18 @@ class Section {
     return v;
   }
 
+  bool has(const std::string& key) const { return ok() && node_[key]; }
+
+  // For optional keys: the default when absent, else as number(key).
+  double number(const std::string& key, double fallback) {
+    return has(key) ? number(key) : fallback;
+  }
+
+  // Reports a value that parsed but is out of range.
+  void require(bool condition, const std::string& key, const std::string& what) {
+    if (!condition) fail(path_ + "." + key, what);
+  }
+
   bool ok() const { return error_->empty(); }
 
  private:
@@ -106,6 +118,54 @@ class Section {
   std::string* error_;
 };
 
+// `robot.registration`: optional, and so is each key (defaults in settings.hpp).
+void parseRegistration(Section& robot, RobotConfig& c) {
+  auto& reg = c.registration;
+  Section s =
+      robot.child("registration",
+                  {"scan_joints", "cannula_base_mm", "transform", "min_scale", "max_scale",
+                   "max_fre_mm", "min_separation_mm", "min_spread_from_line_mm", "fle_mm",
+                   "max_tre_mm", "fiducial_min_hu", "bead_min_volume_mm3", "bead_max_volume_mm3",
+                   "bead_max_extent_mm", "max_match_residual_mm", "min_match_margin_mm"});
+  if (s.has("scan_joints")) {
+    Section j = s.child("scan_joints", {"theta_c_deg", "z_c_mm", "z_s_mm"});
+    reg.scan.scan_joints.theta_c_rad = j.number("theta_c_deg") * M_PI / 180.0;
+    reg.scan.scan_joints.z_c_mm = j.number("z_c_mm");
+    reg.scan.scan_joints.z_s_mm = j.number("z_s_mm");
+  }
+  reg.scan.cannula_base_mm = s.number("cannula_base_mm", reg.scan.cannula_base_mm);
+  if (s.has("transform")) {
+    reg.kind = s.choice("transform", {"similarity", "rigid"}) == "rigid"
+                   ? registration::TransformKind::kRigid
+                   : registration::TransformKind::kSimilarity;
+  }
+  auto& limits = reg.limits;
+  limits.min_scale = s.number("min_scale", limits.min_scale);
+  limits.max_scale = s.number("max_scale", limits.max_scale);
+  s.require(limits.min_scale > 0.0 && limits.min_scale <= limits.max_scale, "min_scale",
+            "must be positive and at most max_scale");
+  auto positive = [&s](const char* key, double& value) {
+    value = s.number(key, value);
+    s.require(value > 0.0 && std::isfinite(value), key, "must be positive");
+  };
+  positive("max_fre_mm", limits.max_fre_mm);
+  positive("min_separation_mm", limits.min_separation_mm);
+  positive("min_spread_from_line_mm", limits.min_spread_from_line_mm);
+  positive("fle_mm", reg.fle_mm);
+  positive("max_tre_mm", reg.max_tre_mm);
+  auto& beads = reg.fiducials;
+  beads.min_hu = s.number("fiducial_min_hu", beads.min_hu);
+  s.require(std::isfinite(beads.min_hu), "fiducial_min_hu", "must be finite");
+  positive("bead_min_volume_mm3", beads.min_volume_mm3);
+  positive("bead_max_volume_mm3", beads.max_volume_mm3);
+  s.require(beads.min_volume_mm3 <= beads.max_volume_mm3, "bead_min_volume_mm3",
+            "must be at most bead_max_volume_mm3");
+  positive("bead_max_extent_mm", beads.max_extent_mm);
+  positive("max_match_residual_mm", beads.max_match_residual_mm);
+  beads.min_match_margin_mm = s.number("min_match_margin_mm", beads.min_match_margin_mm);
+  s.require(beads.min_match_margin_mm >= 0.0, "min_match_margin_mm", "must not be negative");
+}
+
 }  // namespace
 
 Expected<RobotConfig> parseRobotConfig(const std::string& yaml_text, const std::string& source) {
@@ -124,7 +184,8 @@ Expected<RobotConfig> parseRobotConfig(const std::string& yaml_text, const std::
                        source + ": " + kv.first.Scalar() + ": unknown key; expected robot");
     }
   }
-  Section r(root["robot"], "robot", &error, {"name", "stylet", "cannula", "model", "transmission"});
+  Section r(root["robot"], "robot", &error,
+            {"name", "stylet", "cannula", "model", "transmission", "registration"});
   c.name = r.text("name");
 
   Section stylet =
@@ -161,6 +222,9 @@ Expected<RobotConfig> parseRobotConfig(const std::string& yaml_text, const std::
                                 ? actuation::Coupling::kCarried
                                 : actuation::Coupling::kCasing;
 
+  c.registration.scan.scan_joints.z_s_mm = c.instrument.stylet_travel_mm;
+  if (r.has("registration")) parseRegistration(r, c);
+
   if (!error.empty()) return makeError(ErrorCode::kConfig, source + ": " + error);
   return c;
 }
@@ -178,7 +242,9 @@ Expected<Robot> makeRobot(const RobotConfig& config, const std::string& source) 
   if (!kin) return makeError(kin.error().code, source + ": " + kin.error().message);
   auto tx = actuation::Transmission::create(config.transmission);
   if (!tx) return makeError(tx.error().code, source + ": " + tx.error().message);
-  return Robot{config, std::move(kin).value(), std::move(tx).value()};
+  auto features = registration::featurePoints(*kin, config.registration.scan);
+  if (!features) return makeError(features.error().code, source + ": " + features.error().message);
+  return Robot{config, std::move(kin).value(), std::move(tx).value(), *features};
 }
 
 Expected<Robot> loadRobot(const std::string& path) {

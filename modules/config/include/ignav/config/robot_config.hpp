@@ -9,6 +9,7 @@
 #include "ignav/core/expected.hpp"
 #include "ignav/kinematics/instrument.hpp"
 #include "ignav/kinematics/solver.hpp"
+#include "ignav/registration/settings.hpp"
 
 namespace ignav::config {
 
@@ -16,6 +17,7 @@ struct RobotConfig {
   std::string name;
   kinematics::Instrument instrument;
   actuation::TransmissionSpec transmission;
+  registration::RegistrationSettings registration;  // optional section; defaults otherwise
 };
 
 // Parses and validates (unknown keys are errors: a misspelt key must not silently fall back to
@@ -28,6 +30,8 @@ struct Robot {
   RobotConfig config;
   kinematics::Kinematics kinematics;
   actuation::Transmission transmission;
+  // The registration feature points in the robot frame at the scan-time joints.
+  registration::FeaturePoints feature_points_mm;
 };
 
 Expected<Robot> loadRobot(const std::string& path);

@@ -25,6 +25,9 @@ const char* toString(ErrorCode code);
 struct Error {
   ErrorCode code = ErrorCode::kInternal;
   std::string message;
+  // A short machine-readable token finer than `code` (e.g. "collinear"), for replies that a
+  // client branches on; empty when the code says enough.
+  std::string reason;
 };
 
 template <typename T>
@@ -54,8 +57,8 @@ class Expected {
 struct Ok {};
 using Status = Expected<Ok>;
 
-inline Error makeError(ErrorCode code, std::string message) {
-  return Error{code, std::move(message)};
+inline Error makeError(ErrorCode code, std::string message, std::string reason = {}) {
+  return Error{code, std::move(message), std::move(reason)};
 }
 
 }  // namespace ignav
