@@ -24,20 +24,42 @@ cat > "$out/targets.jsonl" <<'JSONL'
 JSONL
 "$plan" batch --robot "$robot" --in "$out/targets.jsonl" | tee "$out/plan.jsonl"
 
-echo "== the built-in phantom CT: a DICOM series, read back, and slices through its fiducials"
-"$plan" phantom "$out/phantom_ct" --noise-hu 8 > "$out/phantom.json"
-"$plan" volume-info "$out/phantom_ct" --probe-lps -12,-6,-18 | tee "$out/volume_info.json"
-"$plan" render "$out/phantom_ct" --view axial --lps -12,-6,-18 --window 2000 --level 300 --size 512 --pixel-mm 0.16 \
-  --mark -12,-6,-18 --mark 14,-4,6 --mark 2,16,20 --out "$out/slice_axial_F1.png" > "$out/slice_axial_F1.json"
-"$plan" render "$out/phantom_ct" --view coronal --lps 14,-4,6 --window 2000 --level 300 --size 512 --pixel-mm 0.16 \
-  --mark -12,-6,-18 --mark 14,-4,6 --mark 2,16,20 --out "$out/slice_coronal_F2.png" > "$out/slice_coronal_F2.json"
-"$plan" render "$out/phantom_ct" --view sagittal --lps 2,16,20 --window 2000 --level 300 --size 512 --pixel-mm 0.16 \
-  --mark -12,-6,-18 --mark 14,-4,6 --mark 2,16,20 --out "$out/slice_sagittal_F3.png" > "$out/slice_sagittal_F3.json"
+echo "== the built-in phantom CT: the robot inclined in gelatin, bead markers at its three feature points"
+"$plan" phantom "$out/phantom_ct" --robot "$robot" --oblique --noise-hu 8 > "$out/phantom.json"
+"$plan" volume-info "$out/phantom_ct" | tee "$out/volume_info.json"
+
+echo "== registration: find the markers, match them to the robot's feature points, register"
+"$plan" find-fiducials "$out/phantom_ct" --robot "$robot" --tfm "$out/image_to_robot.tfm" \
+  --markups "$out/fiducials.mrk.json" | tee "$out/fiducials.json"
+# The same by hand: the three points as a user would click them (to 0.5 mm), with the expected
+# TRE at two targets.
+python3 - "$out" <<'PY'
+import json, sys
+out = sys.argv[1]
+truth = json.load(open(f"{out}/phantom.json"))["fiducials_lps_mm"]
+json.dump({"image_mm": [[round(c * 2) / 2 for c in p] for p in truth]},
+          open(f"{out}/clicked_points.json", "w"))
+PY
+"$plan" register --pairs "$out/clicked_points.json" --robot "$robot" --tre 0,0,0 --tre 10,-20,-40 \
+  --markups "$out/clicked_points.mrk.json" | tee "$out/registration_clicked.json"
+
+echo "== slices through the detected markers"
+marks=$(python3 -c 'import json,sys; print(" ".join("--mark %.3f,%.3f,%.3f" % tuple(c["centroid_lps_mm"]) for c in json.load(open(sys.argv[1]))["chosen"]))' "$out/fiducials.json")
+i=0
+for view in axial coronal sagittal; do
+  centre=$(python3 -c 'import json,sys; c=json.load(open(sys.argv[1]))["chosen"][int(sys.argv[2])]; print("%.3f,%.3f,%.3f" % tuple(c["centroid_lps_mm"]))' "$out/fiducials.json" $i)
+  label=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["chosen"][int(sys.argv[2])]["label"])' "$out/fiducials.json" $i)
+  # shellcheck disable=SC2086
+  "$plan" render "$out/phantom_ct" --view $view --lps "$centre" --window 2000 --level 300 --size 512 \
+    --pixel-mm 0.16 $marks --out "$out/slice_${view}_${label}.png" > "$out/slice_${view}_${label}.json"
+  i=$((i + 1))
+done
 
 echo "== the paper's IK simulation, closed form vs exact (writes figures)"
 "$plan" study --robot "$robot" --out-dir "$out" > "$out/study.json"
 echo
 echo "Session folder: $out/"
 ls -1 "$out"
-echo "Open phantom_ct/ (DICOM) and feasible_volume.ply in 3D Slicer or ParaView; the slice PNGs"
-echo "(with their pixel -> LPS mapping in the matching .json) and IK_STUDY.md in any viewer."
+echo "In 3D Slicer: load phantom_ct/ (DICOM), fiducials.mrk.json and image_to_robot.tfm, then put"
+echo "feasible_volume.ply (robot frame) under the transform to see it in the CT. The slice PNGs (with"
+echo "their pixel -> LPS mapping in the matching .json) and IK_STUDY.md open in any viewer."
