@@ -23,11 +23,15 @@ json vec(const Eigen::Vector3d& v) {
   return {v.x(), v.y(), v.z()};
 }
 
-const char* featureLabel(std::size_t i) {
-  return i < 3 ? registration::toString(static_cast<registration::FeaturePoint>(i)) : "extra";
+// Feature-point names when the robot supplied the model points, else P1, P2, ...
+std::string pointLabel(std::size_t i, bool feature_points) {
+  if (feature_points && i < 3) {
+    return registration::toString(static_cast<registration::FeaturePoint>(i));
+  }
+  return "P" + std::to_string(i + 1);
 }
 
-// `what` names the array in errors, e.g. "pairs.json: image_mm[2]".
+// Errors name the file and the element, e.g. "pairs.json: image_mm[2] must be [x, y, z]".
 Points readPoints(const json& doc, const std::string& key, const std::string& source) {
   const json& a = doc.at(key);
   if (!a.is_array()) throw CliError{source + ": " + key + " must be an array of [x, y, z]"};
@@ -100,14 +104,14 @@ void writeMarkups(const std::vector<registration::MarkupPoint>& points, const st
   }
 }
 
-void writeExports(const registration::Registration& r, const std::string& tfm,
+void writeExports(const registration::Registration& r, bool feature_points, const std::string& tfm,
                   const std::string& markups) {
   if (!tfm.empty()) {
     if (auto s = registration::writeItkTransform(r, tfm); !s) throw CliError{s.error().message};
   }
   std::vector<registration::MarkupPoint> points;
   for (std::size_t i = 0; i < r.image_mm.size(); ++i) {
-    points.push_back({featureLabel(i), r.image_mm[i],
+    points.push_back({pointLabel(i, feature_points), r.image_mm[i],
                       fmt::format("registration residual {:.3f} mm", r.residuals_mm[i]), true});
   }
   writeMarkups(points, markups);
@@ -152,7 +156,7 @@ RegisterOutcome registerPairs(const RegisterArgs& args) {
     }
     json out = registrationJson(*r, settings);
     if (!args.targets_image.empty()) out["targets"] = targetsJson(*r, settings, args.targets_image);
-    writeExports(*r, args.tfm_out, args.markups_out);
+    writeExports(*r, !doc.contains("robot_mm"), args.tfm_out, args.markups_out);
     return {out, 0};
   } catch (const CliError& e) {
     return reject("bad_input", e.message);
@@ -218,7 +222,7 @@ json findFiducials(const FindFiducialsArgs& args) {
   for (std::size_t k = 0; k < m.candidate.size(); ++k) {
     const auto& c = found->candidates[m.candidate[k]];
     image.push_back(c.centroid_lps_mm);
-    chosen.push_back({{"label", robot ? featureLabel(k) : "marker"},
+    chosen.push_back({{"label", pointLabel(k, robot.has_value())},
                       {"candidate", m.candidate[k]},
                       {"centroid_lps_mm", vec(c.centroid_lps_mm)}});
   }
@@ -231,7 +235,7 @@ json findFiducials(const FindFiducialsArgs& args) {
     auto r = registration::registerPoints(image, model, settings.kind, settings.limits);
     if (r) {
       out["registration"] = registrationJson(*r, settings);
-      writeExports(*r, args.tfm_out, args.markups_out);
+      writeExports(*r, true, args.tfm_out, args.markups_out);
       return out;
     }
     out["registration"] = {
@@ -239,8 +243,7 @@ json findFiducials(const FindFiducialsArgs& args) {
   }
   std::vector<registration::MarkupPoint> points;
   for (std::size_t k = 0; k < image.size(); ++k) {
-    points.push_back(
-        {robot ? featureLabel(k) : "marker " + std::to_string(k + 1), image[k], "detected", false});
+    points.push_back({pointLabel(k, robot.has_value()), image[k], "detected", false});
   }
   writeMarkups(points, args.markups_out);
   return out;
