@@ -206,6 +206,14 @@ TEST(PointRegistrationRejects, NonFiniteValuesNamingThePoint) {
   }
 }
 
+TEST(PointRegistrationRejects, CoordinatesBeyondAnyScanner) {
+  Points image = kImage;
+  image[0].x() = 1e308;  // finite, but its square is not
+  const auto e = rejection(image, kImage);
+  EXPECT_EQ(e.reason, "out_of_range");
+  EXPECT_NE(e.message.find("image point 1"), std::string::npos) << e.message;
+}
+
 TEST(PointRegistrationRejects, CoincidentPointsInEitherFrame) {
   const Points twice{{0, 0, 0}, {40, 0, 0}, {40.3, 0.2, 0}};
   auto e = rejection(twice, kImage);

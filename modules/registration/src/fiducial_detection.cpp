@@ -382,10 +382,15 @@ Expected<FiducialDetection> findFiducials(const volume::Volume& volume,
     chosen.runner_up_rms_mm = std::numeric_limits<double>::infinity();
     result.match = std::move(chosen);
     result.summary = found + fmt::format(", as many as expected ({})", search.expect);
+  } else if (accepted_positions.size() > search.expect) {
+    result.summary = found + fmt::format(
+                                 ", {} expected: give model points (the robot config) "
+                                 "to choose by mutual distances",
+                                 search.expect);
   } else {
     result.summary = found + fmt::format(
-                                 ", {} expected: give model points (the robot config) to "
-                                 "choose by mutual distances",
+                                 ", {} expected: lower min_hu, or check that the markers "
+                                 "are in the scan",
                                  search.expect);
   }
   if (result.match) {

@@ -22,12 +22,21 @@ std::string formatPoint(const Eigen::Vector3d& p) {
   return fmt::format("({:g}, {:g}, {:g})", p.x(), p.y(), p.z());
 }
 
+// Finite, and within a range where squared distances cannot overflow: no scanner or robot
+// frame spans a kilometre.
+constexpr double kMaxCoordinate_mm = 1e6;
+
 Status checkFinite(const Points& points, const char* frame) {
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (!points[i].allFinite()) {
       return reject(ErrorCode::kInvalidArgument, "non_finite",
                     fmt::format("{} point {} {} has a non-finite coordinate", frame, i + 1,
                                 formatPoint(points[i])));
+    }
+    if (points[i].cwiseAbs().maxCoeff() > kMaxCoordinate_mm) {
+      return reject(ErrorCode::kInvalidArgument, "out_of_range",
+                    fmt::format("{} point {} {} lies beyond {:g} mm from the origin", frame, i + 1,
+                                formatPoint(points[i]), kMaxCoordinate_mm));
     }
   }
   return Ok{};

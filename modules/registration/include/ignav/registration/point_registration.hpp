@@ -18,8 +18,8 @@ enum class TransformKind { kSimilarity, kRigid };
 const char* toString(TransformKind kind);  // "similarity" | "rigid"
 
 // What a point set must satisfy before it may steer a needle. A rejection's Error carries one
-// of these reason tokens: too_few_pairs, count_mismatch, non_finite, coincident, collinear,
-// scale_out_of_range, fre_too_large.
+// of these reason tokens: too_few_pairs, count_mismatch, non_finite, out_of_range (beyond
+// 10^6 mm), coincident, collinear, scale_out_of_range, fre_too_large.
 struct RegistrationLimits {
   double min_scale = 0.9;
   double max_scale = 1.1;
