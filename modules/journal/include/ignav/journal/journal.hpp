@@ -1,0 +1,33 @@
+// The session journal: one JSON record per line, appended and flushed to disk (fdatasync)
+// before the server publishes the effects of the input it records (DESIGN.md invariant 4).
+#pragma once
+
+#include <string>
+
+#include "ignav/core/expected.hpp"
+
+namespace ignav::journal {
+
+class Journal {
+ public:
+  // Creates the file (and its folder) or appends to it.
+  static Expected<Journal> open(const std::string& path);
+  Journal(Journal&& other) noexcept;
+  Journal& operator=(Journal&& other) noexcept;
+  Journal(const Journal&) = delete;
+  Journal& operator=(const Journal&) = delete;
+  ~Journal();
+
+  // One line (no newline inside); durable when this returns Ok.
+  Status append(const std::string& line);
+  const std::string& path() const { return path_; }
+  std::size_t records() const { return records_; }
+
+ private:
+  Journal(int fd, std::string path) : fd_(fd), path_(std::move(path)) {}
+  int fd_ = -1;
+  std::string path_;
+  std::size_t records_ = 0;
+};
+
+}  // namespace ignav::journal

@@ -1,0 +1,62 @@
+#include "ignav/journal/journal.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <utility>
+
+namespace ignav::journal {
+
+Expected<Journal> Journal::open(const std::string& path) {
+  std::error_code ec;
+  const auto parent = std::filesystem::path(path).parent_path();
+  if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    return makeError(ErrorCode::kIo, path + ": cannot open journal: " + std::strerror(errno));
+  }
+  return Journal(fd, path);
+}
+
+Journal::Journal(Journal&& other) noexcept
+    : fd_(std::exchange(other.fd_, -1)), path_(std::move(other.path_)), records_(other.records_) {}
+
+Journal& Journal::operator=(Journal&& other) noexcept {
+  if (this != &other) {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = std::exchange(other.fd_, -1);
+    path_ = std::move(other.path_);
+    records_ = other.records_;
+  }
+  return *this;
+}
+
+Journal::~Journal() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+Status Journal::append(const std::string& line) {
+  if (line.find('\n') != std::string::npos) {
+    return makeError(ErrorCode::kInvalidArgument, "journal record spans lines");
+  }
+  const std::string record = line + "\n";
+  std::size_t written = 0;
+  while (written < record.size()) {
+    const ssize_t n = ::write(fd_, record.data() + written, record.size() - written);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return makeError(ErrorCode::kIo, path_ + ": journal write failed: " + std::strerror(errno));
+    }
+    written += static_cast<std::size_t>(n);
+  }
+  if (::fdatasync(fd_) != 0) {
+    return makeError(ErrorCode::kIo, path_ + ": journal sync failed: " + std::strerror(errno));
+  }
+  ++records_;
+  return Ok{};
+}
+
+}  // namespace ignav::journal

@@ -1,0 +1,35 @@
+// The workflow as a table and a pure reducer: (session, input) -> (session', effects).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "ignav/workflow/session.hpp"
+
+namespace ignav::workflow {
+
+// One row per allowed (phase, input) pair; every pair not listed is rejected with
+// "<input> is not allowed in <phase>". `to` is where an accepted input leads; an input whose
+// guard fails leaves the phase unchanged.
+struct Transition {
+  Phase from;
+  InputKind input;
+  Phase to;
+  const char* why;  // shown on the diagram's edge
+};
+const std::vector<Transition>& transitionTable();
+
+// The inputs a client may send now (for WorkflowState.allowed_commands).
+std::vector<InputKind> allowedCommands(Phase phase);
+
+// The table as a Mermaid state diagram (docs/WORKFLOW.md holds the same text; CI checks it).
+std::string mermaidDiagram();
+
+// A fresh session for this robot (phase startup, no volume).
+Session newSession(std::string session_id, std::shared_ptr<const config::Robot> robot,
+                   std::string robot_path);
+
+// Deterministic: the same inputs in the same order give the same sessions and effects.
+Step reduce(const Session& session, const Input& input);
+
+}  // namespace ignav::workflow

@@ -1,0 +1,386 @@
+#include "ignav/workflow/reducer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include <fmt/format.h>
+
+#include <nlohmann/json.hpp>
+
+#include "ignav/registration/fiducial_detection.hpp"
+
+namespace ignav::workflow {
+namespace {
+
+using nlohmann::json;
+
+constexpr std::size_t kRepliesKeptPerClient = 256;
+
+struct Rejection {
+  std::string code;
+  std::string message;
+};
+
+const Transition* findTransition(Phase phase, InputKind kind) {
+  for (const auto& t : transitionTable()) {
+    if (t.from == phase && t.input == kind) return &t;
+  }
+  return nullptr;
+}
+
+std::optional<Rejection> checkShape(const Input& in) {
+  if (in.client_id.empty() || in.client_id.size() > kMaxIdLength) {
+    return Rejection{"bad_client_id",
+                     fmt::format("client_id must have 1 to {} characters", kMaxIdLength)};
+  }
+  if (in.path.size() > kMaxPathLength) {
+    return Rejection{"too_long", fmt::format("path has {} characters; at most {}", in.path.size(),
+                                             kMaxPathLength)};
+  }
+  if (in.points.size() > kMaxTargets || in.ids.size() > kMaxTargets) {
+    return Rejection{"oversized", fmt::format("{} points and {} ids given; at most {} of each",
+                                              in.points.size(), in.ids.size(), kMaxTargets)};
+  }
+  for (std::size_t i = 0; i < in.points.size(); ++i) {
+    if (!in.points[i].allFinite()) {
+      return Rejection{"non_finite", fmt::format("points[{}] has a non-finite coordinate", i)};
+    }
+  }
+  auto want = [&](std::size_t points, std::size_t ids) -> std::optional<Rejection> {
+    if (in.points.size() == points && in.ids.size() == ids) return std::nullopt;
+    return Rejection{"bad_arguments",
+                     fmt::format("{} takes {} point(s) and {} id(s); got {} and {}",
+                                 toString(in.kind), points, ids, in.points.size(), in.ids.size())};
+  };
+  switch (in.kind) {
+    case InputKind::kLoadVolume:
+      if (in.path.empty()) return Rejection{"bad_arguments", "load_volume needs a path"};
+      return want(0, 0);
+    case InputKind::kSetFiducials:
+      return want(3, 0);
+    case InputKind::kAddTarget:
+      return want(1, 0);
+    case InputKind::kMoveTarget:
+      return want(1, 1);
+    case InputKind::kRemoveTarget:
+      return want(0, 1);
+    case InputKind::kReorderTargets:
+      return std::nullopt;  // checked against the targets
+    default:
+      return want(0, 0);
+  }
+}
+
+Target* findTarget(Session& s, std::uint32_t id) {
+  for (auto& t : s.targets) {
+    if (t.id == id) return &t;
+  }
+  return nullptr;
+}
+
+void evaluate(const Session& s, Target& t) {
+  Target fresh;
+  fresh.id = t.id;
+  fresh.lps_mm = t.lps_mm;
+  t = fresh;
+  if (!s.registration) {
+    t.message = "not registered yet: register the CT to the robot first";
+    return;
+  }
+  const auto& robot = *s.robot;
+  const auto& reg = *s.registration;
+  t.registered = true;
+  t.robot_mm = reg.toRobot(t.lps_mm);
+  auto solution = robot.kinematics.inverse(t.robot_mm);
+  if (!solution) {  // only for non-finite targets, which validation refuses
+    t.message = solution.error().message;
+    return;
+  }
+  t.solution = *solution;
+  t.message = fmt::format("target {}: {}", t.id, robot.kinematics.describe(t.solution, t.robot_mm));
+  if (t.solution.reachable()) t.steps = robot.transmission.toSteps(t.solution.joints).steps;
+  const auto& settings = robot.config.registration;
+  t.tre_mm = registration::expectedTre_mm(registration::describeFiducials(reg.image_mm), t.lps_mm,
+                                          settings.fle_mm, reg.kind);
+  t.tre_warning = t.tre_mm > settings.max_tre_mm;
+}
+
+void evaluateAll(Session& s, Effects& e) {
+  for (auto& t : s.targets) {
+    evaluate(s, t);
+    e.targets_changed.push_back(t.id);
+  }
+}
+
+std::optional<Rejection> adoptRegistration(Session& s, const std::vector<Eigen::Vector3d>& image,
+                                           bool auto_detected, Effects& e) {
+  const auto& robot = *s.robot;
+  const std::vector<Eigen::Vector3d> model(robot.feature_points_mm.begin(),
+                                           robot.feature_points_mm.end());
+  auto reg = registration::registerPoints(image, model, robot.config.registration.kind,
+                                          robot.config.registration.limits);
+  if (!reg) return Rejection{reg.error().reason, reg.error().message};
+  s.registration = std::move(reg).value();
+  s.registration_status = {"registered",
+                           fmt::format("FRE {:.3f} mm, scale {:.4f}{}", s.registration->fre_mm,
+                                       s.registration->scale,
+                                       auto_detected ? ", markers detected on the CT" : ""),
+                           auto_detected};
+  e.registration_changed = true;
+  evaluateAll(s, e);
+  return std::nullopt;
+}
+
+// Applies an allowed input. Returns a rejection without having touched `s` in any way that
+// matters (callers discard `s` on rejection anyway).
+std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uint32_t& new_id) {
+  switch (in.kind) {
+    case InputKind::kConfigLoaded:
+      e.robot_changed = true;
+      return std::nullopt;
+    case InputKind::kLoadVolume:
+      if (s.volume_status.status == "loading") {
+        return Rejection{"busy", "a volume is loading (" + s.volume_status.source + ")"};
+      }
+      s.ct = {};
+      s.volume_status = {"loading", in.path, "loading " + in.path};
+      s.registration.reset();
+      s.registration_status = {};
+      e.load_volume = in.path;
+      e.volume_changed = e.registration_changed = true;
+      evaluateAll(s, e);
+      return std::nullopt;
+    case InputKind::kVolumeLoaded:
+      s.ct = in.loaded;
+      s.volume_status = {"loaded", in.loaded.source, in.loaded.description};
+      e.volume_changed = true;
+      if (s.phase == Phase::kStopped || s.phase == Phase::kEmergency) {
+        s.resume_phase = Phase::kRegistration;
+      }
+      return std::nullopt;
+    case InputKind::kVolumeLoadFailed:
+      s.volume_status = {"failed", s.volume_status.source, in.error};
+      e.volume_changed = true;
+      if (s.phase == Phase::kStopped || s.phase == Phase::kEmergency) {
+        s.resume_phase = Phase::kImaging;
+      }
+      return std::nullopt;
+    case InputKind::kSetFiducials:
+      return adoptRegistration(s, in.points, false, e);
+    case InputKind::kAutoFiducials: {
+      if (!s.ct.volume) return Rejection{"no_volume", "no CT is loaded"};
+      const std::vector<Eigen::Vector3d> model(s.robot->feature_points_mm.begin(),
+                                               s.robot->feature_points_mm.end());
+      auto found = registration::findFiducials(*s.ct.volume,
+                                               s.robot->config.registration.fiducials, model);
+      if (!found) return Rejection{"bad_search", found.error().message};
+      if (!found->match) return Rejection{"no_match", found->summary};
+      std::vector<Eigen::Vector3d> image;
+      for (std::size_t k : found->match->candidate) {
+        image.push_back(found->candidates[k].centroid_lps_mm);
+      }
+      return adoptRegistration(s, image, true, e);
+    }
+    case InputKind::kAddTarget: {
+      if (s.targets.size() >= kMaxTargets) {
+        return Rejection{"too_many_targets",
+                         fmt::format("the plan already has {} targets, the most one insertion "
+                                     "takes",
+                                     kMaxTargets)};
+      }
+      Target t;
+      t.id = s.next_target_id++;
+      t.lps_mm = in.points[0];
+      evaluate(s, t);
+      new_id = t.id;
+      e.targets_changed.push_back(t.id);
+      s.targets.push_back(std::move(t));
+      return std::nullopt;
+    }
+    case InputKind::kMoveTarget: {
+      Target* t = findTarget(s, in.ids[0]);
+      if (!t) return Rejection{"unknown_target", fmt::format("no target {}", in.ids[0])};
+      t->lps_mm = in.points[0];
+      evaluate(s, *t);
+      e.targets_changed.push_back(t->id);
+      return std::nullopt;
+    }
+    case InputKind::kRemoveTarget: {
+      auto it = std::find_if(s.targets.begin(), s.targets.end(),
+                             [&](const Target& t) { return t.id == in.ids[0]; });
+      if (it == s.targets.end()) {
+        return Rejection{"unknown_target", fmt::format("no target {}", in.ids[0])};
+      }
+      s.targets.erase(it);
+      e.targets_removed.push_back(in.ids[0]);
+      for (const auto& t : s.targets) e.targets_changed.push_back(t.id);  // orders moved up
+      return std::nullopt;
+    }
+    case InputKind::kClearTargets:
+      for (const auto& t : s.targets) e.targets_removed.push_back(t.id);
+      s.targets.clear();
+      return std::nullopt;
+    case InputKind::kReorderTargets: {
+      std::set<std::uint32_t> given(in.ids.begin(), in.ids.end());
+      std::set<std::uint32_t> have;
+      for (const auto& t : s.targets) have.insert(t.id);
+      if (given != have || in.ids.size() != s.targets.size()) {
+        return Rejection{"bad_order",
+                         fmt::format("reorder_targets needs each of the {} target ids exactly once",
+                                     s.targets.size())};
+      }
+      std::vector<Target> ordered;
+      for (auto id : in.ids) ordered.push_back(*findTarget(s, id));
+      s.targets = std::move(ordered);
+      for (const auto& t : s.targets) e.targets_changed.push_back(t.id);
+      return std::nullopt;
+    }
+    case InputKind::kLockPlan: {
+      if (s.targets.empty()) return Rejection{"empty_plan", "the plan has no targets"};
+      std::string bad;
+      for (const auto& t : s.targets) {
+        if (!t.registered || !t.solution.reachable()) {
+          bad += (bad.empty() ? "" : "; ") + t.message;
+        }
+      }
+      if (!bad.empty()) {
+        return Rejection{"unreachable_targets", "remove or move these first: " + bad};
+      }
+      return std::nullopt;
+    }
+    case InputKind::kStop:
+      s.resume_phase = s.phase;
+      return std::nullopt;
+    case InputKind::kEmergencyStop:
+      if (s.phase != Phase::kStopped) s.resume_phase = s.phase;
+      return std::nullopt;
+    case InputKind::kResume:
+    case InputKind::kUnlockPlan:
+    case InputKind::kResetEmergency:
+      return std::nullopt;
+    case InputKind::kQuery:
+      e.robot_changed = e.volume_changed = e.registration_changed = true;
+      for (const auto& t : s.targets) e.targets_changed.push_back(t.id);
+      return std::nullopt;
+  }
+  return Rejection{"internal", "unhandled input"};
+}
+
+json journalRecord(const Input& in, const Session& after) {
+  json points = json::array();
+  for (const auto& p : in.points) points.push_back({p.x(), p.y(), p.z()});
+  json record = {{"t", in.time_s},
+                 {"revision", after.revision},
+                 {"input", toString(in.kind)},
+                 {"phase", toString(after.phase)}};
+  if (isCommand(in.kind)) {
+    record["client_id"] = in.client_id;
+    record["request_id"] = in.request_id;
+  }
+  if (!in.path.empty()) record["path"] = in.path;
+  if (!in.points.empty()) record["points"] = points;
+  if (!in.ids.empty()) record["ids"] = in.ids;
+  if (in.kind == InputKind::kVolumeLoaded && in.loaded.volume) {
+    const auto& g = in.loaded.volume->geometry;
+    record["source"] = in.loaded.source;
+    record["dims"] = {g.dims[0], g.dims[1], g.dims[2]};
+  }
+  if (!in.error.empty()) record["error"] = in.error;
+  return record;
+}
+
+void remember(Session& s, const Reply& reply) {
+  auto& kept = s.replies[reply.client_id];
+  kept[reply.request_id] = reply;
+  while (kept.size() > kRepliesKeptPerClient) kept.erase(kept.begin());
+}
+
+}  // namespace
+
+std::string Target::status() const {
+  if (!registered) return "unregistered";
+  return solution.reachable() ? "planned" : "unreachable";
+}
+
+Session newSession(std::string session_id, std::shared_ptr<const config::Robot> robot,
+                   std::string robot_path) {
+  Session s;
+  s.session_id = std::move(session_id);
+  s.robot = std::move(robot);
+  s.robot_path = std::move(robot_path);
+  return s;
+}
+
+Step reduce(const Session& session, const Input& in) {
+  Step step{session, {}};
+  Session& s = step.session;
+  Effects& e = step.effects;
+  const bool command = isCommand(in.kind);
+  Reply reply{in.client_id, in.request_id, false, "", "", 0, s.revision};
+
+  auto reject = [&](const Rejection& r) {
+    Step rejected{session, {}};
+    reply.error_code = r.code;
+    reply.message = r.message;
+    reply.revision = session.revision;
+    ++rejected.session.rejected;
+    if (command && !in.client_id.empty() && in.client_id.size() <= kMaxIdLength) {
+      remember(rejected.session, reply);
+    }
+    rejected.effects.replies.push_back(reply);
+    rejected.effects.health_changed = true;
+    return rejected;
+  };
+
+  if (command) {
+    if (auto bad = checkShape(in)) return reject(*bad);
+    const auto client = session.replies.find(in.client_id);
+    if (client != session.replies.end()) {
+      const auto seen = client->second.find(in.request_id);
+      if (seen != client->second.end()) {  // a retry: answer again, do not execute twice
+        Step again{session, {}};
+        again.effects.replies.push_back(seen->second);
+        return again;
+      }
+    }
+  }
+  const Transition* t = findTransition(session.phase, in.kind);
+  if (!t) {
+    std::string allowed;
+    for (auto k : allowedCommands(session.phase)) {
+      allowed += (allowed.empty() ? "" : ", ") + std::string(toString(k));
+    }
+    return reject({"wrong_phase", fmt::format("{} is not allowed in {} (allowed: {})",
+                                              toString(in.kind), toString(session.phase),
+                                              allowed)});
+  }
+  std::uint32_t new_id = 0;
+  if (auto bad = apply(s, in, e, new_id)) return reject(*bad);
+
+  const Phase before = s.phase;
+  s.phase = in.kind == InputKind::kResume ? s.resume_phase : t->to;
+  if (in.kind != InputKind::kQuery) ++s.revision;
+  s.last_event = toString(in.kind);
+  if (command) ++s.accepted;
+  e.workflow_changed = true;
+  e.health_changed = true;
+  if (before != s.phase && in.kind == InputKind::kLoadVolume) e.volume_changed = true;
+  e.journal.push_back(journalRecord(in, s).dump());
+  if (command) {
+    reply.accepted = true;
+    reply.target_id = new_id;
+    reply.revision = s.revision;
+    reply.message = in.kind == InputKind::kAddTarget ? s.targets.back().message
+                    : s.registration_status.status == "registered" &&
+                            (in.kind == InputKind::kSetFiducials ||
+                             in.kind == InputKind::kAutoFiducials)
+                        ? s.registration_status.message
+                        : std::string("ok");
+    remember(s, reply);
+    e.replies.push_back(reply);
+  }
+  return step;
+}
+
+}  // namespace ignav::workflow

@@ -1,0 +1,78 @@
+// A DDS client of ignav-server: commands with exactly-one replies, slices, and the state topics
+// mirrored as JSON. ignavctl and the end-to-end tests are built on it.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include "ignav/protocol/dds.hpp"
+#include "ignav/workflow/session.hpp"
+
+namespace ignav::protocol {
+
+struct CommandArgs {
+  std::string path;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<std::uint32_t> ids;
+};
+
+struct SliceArgs {
+  std::string view = "axial";
+  Eigen::Vector3d centre_lps = Eigen::Vector3d::Zero();
+  std::uint32_t size_px = 512;
+  double pixel_mm = 0.0;
+  double window = 0.0;
+  double level = 0.0;
+  bool overlays = true;
+};
+
+struct SliceResult {
+  bool ok = false;
+  std::string message;
+  std::uint32_t width = 0, height = 0;
+  Eigen::Matrix4d pixel_to_lps = Eigen::Matrix4d::Identity();
+  std::vector<std::uint8_t> png;
+};
+
+struct Timeout : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+class Client {
+ public:
+  Client(std::uint32_t domain_id, const std::string& config_xml, std::string client_id);
+  ~Client();
+
+  // Until the server's command reader and reply writer are matched.
+  bool waitForServer(std::chrono::milliseconds timeout);
+  // Sends one command and waits for its reply (throws Timeout). request_id 0: the next one.
+  workflow::Reply send(const std::string& command, const CommandArgs& args = {},
+                       std::chrono::milliseconds timeout = std::chrono::seconds(30),
+                       std::uint64_t request_id = 0);
+  SliceResult slice(const SliceArgs& args,
+                    std::chrono::milliseconds timeout = std::chrono::seconds(30));
+
+  // Drains the state topics into state(); returns the names of the topics that changed
+  // ("workflow", "robot", "volume", "registration", "target", "health").
+  std::vector<std::string> poll();
+  // Polls until `done(state())` holds (throws Timeout).
+  void waitFor(const std::function<bool(const nlohmann::json&)>& done,
+               std::chrono::milliseconds timeout);
+  const nlohmann::json& state() const { return state_; }
+  const std::string& clientId() const { return client_id_; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::string client_id_;
+  std::uint64_t next_request_ = 1;
+  nlohmann::json state_ = nlohmann::json::object();
+};
+
+}  // namespace ignav::protocol

@@ -1,0 +1,50 @@
+// Between the generated C types and the workflow's values. The C types point into memory they
+// do not own: the Owned* holders keep that memory alive while a sample is written.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "ignav/protocol/dds.hpp"
+#include "ignav/workflow/session.hpp"
+
+namespace ignav::protocol {
+
+inline char* cstr(const std::string& s) { return const_cast<char*>(s.c_str()); }
+
+template <typename Seq, typename T>
+void viewSequence(Seq& seq, std::vector<T>& items) {
+  seq._maximum = seq._length = static_cast<std::uint32_t>(items.size());
+  seq._buffer = items.empty() ? nullptr : items.data();
+  seq._release = false;
+}
+
+inline ignav_msg_Point3 toMsg(const Eigen::Vector3d& p) { return {p.x(), p.y(), p.z()}; }
+inline Eigen::Vector3d fromMsg(const ignav_msg_Point3& p) { return {p.x, p.y, p.z}; }
+
+// The command kinds by name ("load_volume", ...), for clients.
+std::optional<ignav_msg_CommandKind> commandKindFromName(const std::string& name);
+const char* commandKindName(ignav_msg_CommandKind kind);
+
+// A command as the workflow sees it; nullopt when the kind is not one of ours.
+std::optional<workflow::Input> toInput(const ignav_msg_Command& command);
+
+struct OwnedCommand {
+  std::string client_id, path;
+  std::vector<ignav_msg_Point3> points;
+  std::vector<std::uint32_t> ids;
+  ignav_msg_Command msg{};
+  const ignav_msg_Command& build(std::uint64_t request_id, ignav_msg_CommandKind kind);
+};
+
+struct OwnedReply {
+  workflow::Reply reply;
+  ignav_msg_Reply msg{};
+  const ignav_msg_Reply& build();
+};
+
+// A reply as a client sees it (strings copied out of the loaned sample).
+workflow::Reply fromMsg(const ignav_msg_Reply& msg);
+
+}  // namespace ignav::protocol

@@ -1,0 +1,235 @@
+#include "ignav/protocol/client.hpp"
+
+#include <thread>
+
+#include "ignav/protocol/messages.hpp"
+
+namespace ignav::protocol {
+namespace {
+
+using nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+std::string str(const char* s) { return s ? s : ""; }
+json point(const ignav_msg_Point3& p) { return {p.x, p.y, p.z}; }
+template <typename Seq>
+json points(const Seq& seq) {
+  json out = json::array();
+  for (std::uint32_t i = 0; i < seq._length; ++i) out.push_back(point(seq._buffer[i]));
+  return out;
+}
+template <std::size_t N>
+json array(const double (&a)[N]) {
+  return json(std::vector<double>(a, a + N));
+}
+
+}  // namespace
+
+struct Client::Impl {
+  Participant participant;
+  Writer<ignav_msg_Command> commands;
+  Reader<ignav_msg_Reply> replies;
+  Writer<ignav_msg_SliceRequest> slice_requests;
+  Reader<ignav_msg_SliceReply> slice_replies;
+  Reader<ignav_msg_WorkflowState> workflow;
+  Reader<ignav_msg_RobotState> robot;
+  Reader<ignav_msg_VolumeState> volume;
+  Reader<ignav_msg_RegistrationState> registration;
+  Reader<ignav_msg_TargetState> target;
+  Reader<ignav_msg_Health> health;
+  WaitSet waitset;
+
+  Impl(std::uint32_t domain, const std::string& xml)
+      : participant(domain, xml),
+        commands(participant, &ignav_msg_Command_desc, topic::kCommand, Qos::kRequest),
+        replies(participant, &ignav_msg_Reply_desc, topic::kReply, Qos::kRequest),
+        slice_requests(participant, &ignav_msg_SliceRequest_desc, topic::kSliceRequest,
+                       Qos::kRequest),
+        slice_replies(participant, &ignav_msg_SliceReply_desc, topic::kSliceReply, Qos::kRequest),
+        workflow(participant, &ignav_msg_WorkflowState_desc, topic::kWorkflow, Qos::kState),
+        robot(participant, &ignav_msg_RobotState_desc, topic::kRobot, Qos::kState),
+        volume(participant, &ignav_msg_VolumeState_desc, topic::kVolume, Qos::kState),
+        registration(participant, &ignav_msg_RegistrationState_desc, topic::kRegistration,
+                     Qos::kState),
+        target(participant, &ignav_msg_TargetState_desc, topic::kTarget, Qos::kState),
+        health(participant, &ignav_msg_Health_desc, topic::kHealth, Qos::kState),
+        waitset(participant) {
+    waitset.attach(replies.handle());
+    waitset.attach(slice_replies.handle());
+  }
+};
+
+Client::Client(std::uint32_t domain_id, const std::string& config_xml, std::string client_id)
+    : impl_(std::make_unique<Impl>(domain_id, config_xml)), client_id_(std::move(client_id)) {
+  state_["targets"] = json::object();
+}
+
+Client::~Client() = default;
+
+bool Client::waitForServer(std::chrono::milliseconds timeout) {
+  const auto end = Clock::now() + timeout;
+  while (Clock::now() < end) {
+    if (impl_->commands.matched() > 0 && impl_->replies.matched() > 0 &&
+        impl_->slice_requests.matched() > 0 && impl_->slice_replies.matched() > 0) {
+      return true;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return false;
+}
+
+workflow::Reply Client::send(const std::string& command, const CommandArgs& args,
+                             std::chrono::milliseconds timeout, std::uint64_t request_id) {
+  const auto kind = commandKindFromName(command);
+  if (!kind) throw std::invalid_argument("unknown command '" + command + "'");
+  if (request_id == 0) request_id = next_request_++;
+  OwnedCommand owned;
+  owned.client_id = client_id_;
+  owned.path = args.path;
+  for (const auto& p : args.points) owned.points.push_back(toMsg(p));
+  owned.ids = args.ids;
+  impl_->commands.write(owned.build(request_id, *kind));
+  const auto end = Clock::now() + timeout;
+  std::optional<workflow::Reply> mine;
+  while (!mine) {
+    impl_->replies.take([&](const ignav_msg_Reply& r) {
+      if (str(r.client_id) == client_id_ && r.request_id == request_id) mine = fromMsg(r);
+    });
+    if (mine) break;
+    const auto now = Clock::now();
+    if (now >= end) {
+      throw Timeout(command + " (request " + std::to_string(request_id) + "): no reply");
+    }
+    impl_->waitset.wait(std::chrono::duration_cast<std::chrono::milliseconds>(end - now));
+  }
+  return *mine;
+}
+
+SliceResult Client::slice(const SliceArgs& args, std::chrono::milliseconds timeout) {
+  const std::uint64_t request_id = next_request_++;
+  ignav_msg_SliceRequest req{};
+  req.client_id = cstr(client_id_);
+  req.request_id = request_id;
+  req.view = cstr(args.view);
+  req.centre_lps = toMsg(args.centre_lps);
+  req.size_px = args.size_px;
+  req.pixel_mm = args.pixel_mm;
+  req.window = args.window;
+  req.level = args.level;
+  req.overlays = args.overlays;
+  impl_->slice_requests.write(req);
+  const auto end = Clock::now() + timeout;
+  std::optional<SliceResult> mine;
+  while (!mine) {
+    impl_->slice_replies.take([&](const ignav_msg_SliceReply& r) {
+      if (str(r.client_id) != client_id_ || r.request_id != request_id) return;
+      SliceResult s;
+      s.ok = r.ok;
+      s.message = str(r.message);
+      s.width = r.width;
+      s.height = r.height;
+      for (int i = 0; i < 16; ++i) s.pixel_to_lps(i / 4, i % 4) = r.pixel_to_lps[i];
+      s.png.assign(r.png._buffer, r.png._buffer + r.png._length);
+      mine = std::move(s);
+    });
+    if (mine) break;
+    const auto now = Clock::now();
+    if (now >= end) throw Timeout("slice: no reply");
+    impl_->waitset.wait(std::chrono::duration_cast<std::chrono::milliseconds>(end - now));
+  }
+  return *mine;
+}
+
+std::vector<std::string> Client::poll() {
+  std::vector<std::string> changed;
+  auto note = [&](const char* name, std::size_t n) {
+    if (n > 0) changed.emplace_back(name);
+  };
+  note("workflow", impl_->workflow.take([&](const ignav_msg_WorkflowState& w) {
+    json allowed = json::array();
+    for (std::uint32_t i = 0; i < w.allowed_commands._length; ++i) {
+      allowed.push_back(str(w.allowed_commands._buffer[i]));
+    }
+    state_["workflow"] = {{"session_id", str(w.session_id)},
+                          {"phase", str(w.phase)},
+                          {"allowed_commands", allowed},
+                          {"revision", w.revision},
+                          {"last_event", str(w.last_event)}};
+  }));
+  note("robot", impl_->robot.take([&](const ignav_msg_RobotState& r) {
+    state_["robot"] = {{"name", str(r.name)},
+                       {"config_path", str(r.config_path)},
+                       {"r_min_mm", r.r_min_mm},
+                       {"r_max_mm", r.r_max_mm},
+                       {"feasible_volume_cm3", r.feasible_volume_cm3},
+                       {"feature_points_robot", points(r.feature_points_robot)}};
+  }));
+  note("volume", impl_->volume.take([&](const ignav_msg_VolumeState& v) {
+    state_["volume"] = {{"status", str(v.status)},
+                        {"source", str(v.source)},
+                        {"message", str(v.message)},
+                        {"dims", {v.dims[0], v.dims[1], v.dims[2]}},
+                        {"spacing_mm", array(v.spacing_mm)},
+                        {"ijk_to_lps", array(v.ijk_to_lps)},
+                        {"hu_min", v.hu_min},
+                        {"hu_max", v.hu_max}};
+  }));
+  note("registration", impl_->registration.take([&](const ignav_msg_RegistrationState& r) {
+    json residuals = json::array();
+    for (std::uint32_t i = 0; i < r.residuals_mm._length; ++i) {
+      residuals.push_back(r.residuals_mm._buffer[i]);
+    }
+    state_["registration"] = {{"status", str(r.status)},
+                              {"message", str(r.message)},
+                              {"kind", str(r.kind)},
+                              {"image_points", points(r.image_points)},
+                              {"robot_points", points(r.robot_points)},
+                              {"image_to_robot", array(r.image_to_robot)},
+                              {"scale", r.scale},
+                              {"fre_mm", r.fre_mm},
+                              {"residuals_mm", residuals},
+                              {"auto_detected", r.auto_detected}};
+  }));
+  note("target", impl_->target.takeWithState([&](const ignav_msg_TargetState& t, bool alive) {
+    const std::string id = std::to_string(t.id);
+    if (!alive) {
+      state_["targets"].erase(id);
+      return;
+    }
+    state_["targets"][id] = {{"id", t.id},
+                             {"lps", point(t.lps)},
+                             {"robot", point(t.robot)},
+                             {"registered", t.registered},
+                             {"reachable", t.reachable},
+                             {"reach", str(t.reach)},
+                             {"message", str(t.message)},
+                             {"joints", {t.theta_c_rad, t.z_c_mm, t.z_s_mm}},
+                             {"steps", {t.steps[0], t.steps[1], t.steps[2]}},
+                             {"tre_mm", t.tre_mm},
+                             {"tre_warning", t.tre_warning},
+                             {"order", t.order},
+                             {"status", str(t.status)}};
+  }));
+  note("health", impl_->health.take([&](const ignav_msg_Health& h) {
+    state_["health"] = {{"version", str(h.version)},
+                        {"session_id", str(h.session_id)},
+                        {"session_dir", str(h.session_dir)},
+                        {"uptime_s", h.uptime_s},
+                        {"commands_accepted", h.commands_accepted},
+                        {"commands_rejected", h.commands_rejected}};
+  }));
+  return changed;
+}
+
+void Client::waitFor(const std::function<bool(const nlohmann::json&)>& done,
+                     std::chrono::milliseconds timeout) {
+  const auto end = Clock::now() + timeout;
+  for (;;) {
+    poll();
+    if (done(state_)) return;
+    if (Clock::now() >= end) throw Timeout("the expected state did not arrive");
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+}
+
+}  // namespace ignav::protocol

@@ -1,0 +1,179 @@
+#include "ignav/protocol/dds.hpp"
+
+#include <fstream>
+#include <sstream>
+
+namespace ignav::protocol {
+namespace {
+
+dds_qos_t* makeQos(Qos kind) {
+  dds_qos_t* q = dds_create_qos();
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+  if (kind == Qos::kState) {
+    dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
+    dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
+  } else {
+    dds_qset_durability(q, DDS_DURABILITY_VOLATILE);
+    dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 64);
+  }
+  return q;
+}
+
+struct QosHolder {
+  explicit QosHolder(Qos kind) : qos(makeQos(kind)) {}
+  ~QosHolder() { dds_delete_qos(qos); }
+  QosHolder(const QosHolder&) = delete;
+  QosHolder& operator=(const QosHolder&) = delete;
+  dds_qos_t* qos;
+};
+
+dds_entity_t makeTopic(const Participant& p, const dds_topic_descriptor_t* desc, const char* name,
+                       const QosHolder& qos) {
+  return check(dds_create_topic(p.handle(), desc, name, qos.qos, nullptr), name);
+}
+
+std::size_t matchedOf(dds_entity_t entity, bool writer) {
+  if (writer) {
+    dds_publication_matched_status_t s{};
+    check(dds_get_publication_matched_status(entity, &s), "publication_matched");
+    return s.current_count;
+  }
+  dds_subscription_matched_status_t s{};
+  check(dds_get_subscription_matched_status(entity, &s), "subscription_matched");
+  return s.current_count;
+}
+
+}  // namespace
+
+dds_return_t check(dds_return_t rc, const char* what) {
+  if (rc < 0) throw DdsError(std::string(what) + ": " + dds_strretcode(rc));
+  return rc;
+}
+
+std::string readConfigFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw DdsError(path + ": cannot read the DDS configuration");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+Participant::Participant(std::uint32_t domain_id, const std::string& config_xml) {
+  if (!config_xml.empty()) {
+    domain_ = dds_create_domain(domain_id, config_xml.c_str());
+    if (domain_ < 0 && domain_ != DDS_RETCODE_PRECONDITION_NOT_MET) {
+      // PRECONDITION_NOT_MET: this process already created the domain (tests with two
+      // participants); the existing configuration is used.
+      check(domain_, "dds_create_domain");
+    }
+    if (domain_ < 0) domain_ = 0;
+  }
+  participant_ = check(dds_create_participant(domain_id, nullptr, nullptr), "participant");
+}
+
+Participant::~Participant() {
+  dds_delete(participant_);
+  if (domain_ > 0) dds_delete(domain_);
+}
+
+template <typename T>
+Writer<T>::Writer(const Participant& p, const dds_topic_descriptor_t* desc, const char* name,
+                  Qos qos) {
+  const QosHolder q(qos);
+  const dds_entity_t t = makeTopic(p, desc, name, q);
+  writer_ = check(dds_create_writer(p.handle(), t, q.qos, nullptr), name);
+}
+
+template <typename T>
+std::size_t Writer<T>::matched() const {
+  return matchedOf(writer_, true);
+}
+
+template <typename T>
+Reader<T>::Reader(const Participant& p, const dds_topic_descriptor_t* desc, const char* name,
+                  Qos qos) {
+  const QosHolder q(qos);
+  const dds_entity_t t = makeTopic(p, desc, name, q);
+  reader_ = check(dds_create_reader(p.handle(), t, q.qos, nullptr), name);
+}
+
+template <typename T>
+std::size_t Reader<T>::matched() const {
+  return matchedOf(reader_, false);
+}
+
+template <typename T>
+std::size_t Reader<T>::takeWithState(const std::function<void(const T&, bool)>& fn) const {
+  constexpr int kBatch = 32;
+  std::size_t count = 0;
+  for (;;) {
+    void* samples[kBatch] = {};
+    dds_sample_info_t infos[kBatch];
+    const dds_return_t n = dds_take(reader_, samples, infos, kBatch, kBatch);
+    if (n <= 0) break;
+    for (int i = 0; i < n; ++i) {
+      const bool alive = infos[i].instance_state == DDS_IST_ALIVE;
+      if (infos[i].valid_data || !alive) {
+        fn(*static_cast<const T*>(samples[i]), alive && infos[i].valid_data);
+        ++count;
+      }
+    }
+    dds_return_loan(reader_, samples, n);
+    if (n < kBatch) break;
+  }
+  return count;
+}
+
+template <typename T>
+std::size_t Reader<T>::take(const std::function<void(const T&)>& fn) const {
+  return takeWithState([&](const T& s, bool alive) {
+    if (alive) fn(s);
+  });
+}
+
+WaitSet::WaitSet(const Participant& p) {
+  waitset_ = check(dds_create_waitset(p.handle()), "waitset");
+  guard_ = check(dds_create_guardcondition(p.handle()), "guardcondition");
+  check(dds_waitset_attach(waitset_, guard_, guard_), "attach guard");
+}
+
+void WaitSet::attach(dds_entity_t reader) {
+  const dds_entity_t cond =
+      check(dds_create_readcondition(reader, DDS_ANY_STATE), "readcondition");
+  conditions_.push_back(cond);
+  check(dds_waitset_attach(waitset_, cond, reader), "attach reader");
+}
+
+void WaitSet::trigger() { dds_set_guardcondition(guard_, true); }
+
+bool WaitSet::wait(std::chrono::milliseconds timeout) {
+  dds_attach_t triggered[16];
+  const dds_return_t n = dds_waitset_wait(waitset_, triggered, 16, DDS_MSECS(timeout.count()));
+  bool fired = false;
+  dds_take_guardcondition(guard_, &fired);
+  return n > 0 || fired;
+}
+
+// The protocol's types.
+template class Writer<ignav_msg_Command>;
+template class Reader<ignav_msg_Command>;
+template class Writer<ignav_msg_Reply>;
+template class Reader<ignav_msg_Reply>;
+template class Writer<ignav_msg_SliceRequest>;
+template class Reader<ignav_msg_SliceRequest>;
+template class Writer<ignav_msg_SliceReply>;
+template class Reader<ignav_msg_SliceReply>;
+template class Writer<ignav_msg_WorkflowState>;
+template class Reader<ignav_msg_WorkflowState>;
+template class Writer<ignav_msg_RobotState>;
+template class Reader<ignav_msg_RobotState>;
+template class Writer<ignav_msg_VolumeState>;
+template class Reader<ignav_msg_VolumeState>;
+template class Writer<ignav_msg_RegistrationState>;
+template class Reader<ignav_msg_RegistrationState>;
+template class Writer<ignav_msg_TargetState>;
+template class Reader<ignav_msg_TargetState>;
+template class Writer<ignav_msg_Health>;
+template class Reader<ignav_msg_Health>;
+
+}  // namespace ignav::protocol

@@ -1,0 +1,595 @@
+#include "server.hpp"
+
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+#include <yaml-cpp/yaml.h>
+
+#include <chrono>
+#include <ctime>
+#include <deque>
+#include <filesystem>
+#include <iostream>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include "ignav/config/robot_config.hpp"
+#include "ignav/journal/journal.hpp"
+#include "ignav/protocol/messages.hpp"
+#include "ignav/registration/robot_phantom.hpp"
+#include "ignav/registration/slicer_export.hpp"
+#include "ignav/volume/load.hpp"
+#include "ignav/volume/phantom.hpp"
+#include "ignav/volume/render.hpp"
+#include "ignav/workflow/reducer.hpp"
+
+namespace ignav::server {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace ignav::protocol;
+using workflow::Input;
+using workflow::InputKind;
+using workflow::Session;
+using Clock = std::chrono::steady_clock;
+
+constexpr const char* kVersion = "0.1.0";
+constexpr const char* kPhantomSource = "phantom:";
+
+struct ConfigError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+std::string sessionName() {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char buf[64];
+  std::strftime(buf, sizeof buf, "%Y%m%dT%H%M%SZ", &tm);
+  return std::string(buf) + "-" + std::to_string(::getpid());
+}
+
+// The volume load runs off the event thread; its result comes back as an input.
+class Loader {
+ public:
+  explicit Loader(WaitSet& waitset) : waitset_(waitset) {}
+  ~Loader() {
+    if (thread_.joinable()) thread_.join();
+  }
+  Loader(const Loader&) = delete;
+  Loader& operator=(const Loader&) = delete;
+
+  void start(const std::string& source, const config::Robot& robot, const fs::path& session_dir) {
+    if (thread_.joinable()) thread_.join();
+    thread_ = std::thread([this, source, &robot, session_dir] {
+      Input in = load(source, robot, session_dir);
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        done_.push_back(std::move(in));
+      }
+      waitset_.trigger();
+    });
+  }
+
+  std::vector<Input> finished() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::vector<Input> out(done_.begin(), done_.end());
+    done_.clear();
+    return out;
+  }
+
+ private:
+  static Input load(const std::string& source, const config::Robot& robot,
+                    const fs::path& session_dir) {
+    Input in;
+    std::string path = source;
+    if (source == kPhantomSource) {
+      // The built-in phantom is written as a real DICOM series into the session and read back
+      // like any scan.
+      auto rp = registration::makeRobotPhantom(robot.kinematics, robot.config.registration.scan);
+      if (!rp) return failed(rp.error().message);
+      rp->spec.oblique = true;
+      rp->spec.noise_sigma_hu = 8.0;
+      auto v = volume::makePhantom(rp->spec);
+      if (!v) return failed(v.error().message);
+      path = (session_dir / "phantom_ct").string();
+      auto files = volume::writeDicomSeries(*v, path);
+      if (!files) return failed(files.error().message);
+    }
+    auto loaded = volume::loadVolume(path, {});
+    if (!loaded) return failed(loaded.error().message);
+    in.kind = InputKind::kVolumeLoaded;
+    const auto& g = loaded->volume.geometry;
+    in.loaded.source = source;
+    in.loaded.description =
+        fmt::format("{} x {} x {} voxels, {:.2f} x {:.2f} x {:.2f} mm, {}", g.dims[0], g.dims[1],
+                    g.dims[2], g.spacing_mm.x(), g.spacing_mm.y(), g.spacing_mm.z(),
+                    loaded->volume.description);
+    in.loaded.volume = std::make_shared<const volume::Volume>(std::move(loaded->volume));
+    return in;
+  }
+
+  static Input failed(const std::string& why) {
+    Input in;
+    in.kind = InputKind::kVolumeLoadFailed;
+    in.error = why;
+    return in;
+  }
+
+  WaitSet& waitset_;
+  std::thread thread_;
+  std::mutex mutex_;
+  std::deque<Input> done_;
+};
+
+class Server {
+ public:
+  Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robot, fs::path session_dir,
+         journal::Journal journal)
+      : options_(o),
+        participant_(o.domain_id, o.dds_config.empty() ? "" : readConfigFile(o.dds_config)),
+        commands_(participant_, &ignav_msg_Command_desc, topic::kCommand, Qos::kRequest),
+        replies_(participant_, &ignav_msg_Reply_desc, topic::kReply, Qos::kRequest),
+        slice_requests_(participant_, &ignav_msg_SliceRequest_desc, topic::kSliceRequest,
+                        Qos::kRequest),
+        slice_replies_(participant_, &ignav_msg_SliceReply_desc, topic::kSliceReply,
+                       Qos::kRequest),
+        workflow_(participant_, &ignav_msg_WorkflowState_desc, topic::kWorkflow, Qos::kState),
+        robot_(participant_, &ignav_msg_RobotState_desc, topic::kRobot, Qos::kState),
+        volume_(participant_, &ignav_msg_VolumeState_desc, topic::kVolume, Qos::kState),
+        registration_(participant_, &ignav_msg_RegistrationState_desc, topic::kRegistration,
+                      Qos::kState),
+        target_(participant_, &ignav_msg_TargetState_desc, topic::kTarget, Qos::kState),
+        health_(participant_, &ignav_msg_Health_desc, topic::kHealth, Qos::kState),
+        waitset_(participant_),
+        loader_(waitset_),
+        session_dir_(std::move(session_dir)),
+        journal_(std::move(journal)),
+        started_(Clock::now()) {
+    waitset_.attach(commands_.handle());
+    waitset_.attach(slice_requests_.handle());
+    session_ = workflow::newSession(session_dir_.filename().string(), std::move(robot),
+                                    o.robot_config);
+  }
+
+  int run(const std::atomic<bool>& stop) {
+    Input config_loaded;
+    config_loaded.kind = InputKind::kConfigLoaded;
+    if (!step(config_loaded)) return 3;
+    std::cout << "ignav-server ready domain=" << options_.domain_id
+              << " session=" << session_dir_.string() << std::endl;
+    auto last_health = Clock::now();
+    while (!stop.load()) {
+      waitset_.wait(std::chrono::milliseconds(200));
+      for (auto& in : loader_.finished()) {
+        if (!step(in)) return 3;
+      }
+      bool failed = false;
+      commands_.take([&](const ignav_msg_Command& c) {
+        if (failed) return;
+        auto in = toInput(c);
+        if (!in) {
+          workflow::Reply r{c.client_id ? c.client_id : "", c.request_id, false, "unknown_command",
+                            fmt::format("command kind {} is not one of ours",
+                                        static_cast<int>(c.kind)),
+                            0, session_.revision};
+          sendReply(r);
+          return;
+        }
+        if (auto bad = checkPath(*in)) {
+          sendReply(*bad);
+          return;
+        }
+        if (!step(*in)) failed = true;
+      });
+      if (failed) return 3;
+      slice_requests_.take([&](const ignav_msg_SliceRequest& r) { answerSlice(r); });
+      if (Clock::now() - last_health > std::chrono::seconds(1)) {
+        publishHealth();
+        last_health = Clock::now();
+      }
+    }
+    spdlog::info("shutting down: {} commands accepted, {} rejected", session_.accepted,
+                 session_.rejected);
+    return 0;
+  }
+
+ private:
+  double now_s() const {
+    return std::chrono::duration<double>(Clock::now() - started_).count();
+  }
+
+  // One input through the reducer, then its effects in the order DESIGN.md requires.
+  bool step(Input in) {
+    in.time_s = now_s();
+    workflow::Step s = workflow::reduce(session_, in);
+    for (const auto& line : s.effects.journal) {
+      if (auto ok = journal_.append(line); !ok) {
+        // Nothing is published that the journal does not hold.
+        spdlog::critical("{}", ok.error().message);
+        return false;
+      }
+    }
+    session_ = std::move(s.session);
+    const auto& e = s.effects;
+    if (!e.journal.empty() || !e.replies.empty()) {
+      spdlog::info("{} from '{}' #{}: {} -> {}", workflow::toString(in.kind), in.client_id,
+                   in.request_id,
+                   e.replies.empty() || e.replies.front().accepted
+                       ? "accepted"
+                       : "rejected (" + e.replies.front().error_code + ")",
+                   workflow::toString(session_.phase));
+    }
+    if (e.robot_changed) publishRobot();
+    if (e.volume_changed) publishVolume();
+    if (e.registration_changed) publishRegistration();
+    for (auto id : e.targets_removed) disposeTarget(id);
+    for (auto id : e.targets_changed) publishTarget(id);
+    if (e.registration_changed || !e.targets_changed.empty() || !e.targets_removed.empty()) {
+      writeExports();
+    }
+    if (e.workflow_changed) publishWorkflow();
+    if (e.health_changed) publishHealth();
+    for (const auto& r : e.replies) sendReply(r);
+    if (e.load_volume) loader_.start(*e.load_volume, *session_.robot, session_dir_);
+    return true;
+  }
+
+  // A path the server cannot read is refused before acknowledging (the reducer does no I/O).
+  std::optional<workflow::Reply> checkPath(const Input& in) const {
+    if (in.kind != InputKind::kLoadVolume || in.path == kPhantomSource || in.path.empty() ||
+        in.path.size() > workflow::kMaxPathLength) {
+      return std::nullopt;
+    }
+    std::error_code ec;
+    if (fs::exists(in.path, ec)) return std::nullopt;
+    return workflow::Reply{in.client_id,
+                           in.request_id,
+                           false,
+                           "bad_path",
+                           in.path + ": no such file or folder on the server",
+                           0,
+                           session_.revision};
+  }
+
+  void sendReply(const workflow::Reply& r) {
+    OwnedReply owned{r, {}};
+    replies_.write(owned.build());
+    if (!r.accepted) spdlog::warn("rejected: {}", r.message);
+  }
+
+  void publishWorkflow() {
+    const auto allowed = workflow::allowedCommands(session_.phase);
+    std::vector<char*> names;
+    for (auto k : allowed) names.push_back(const_cast<char*>(workflow::toString(k)));
+    const std::string phase = workflow::toString(session_.phase);
+    ignav_msg_WorkflowState w{};
+    w.session_id = cstr(session_.session_id);
+    w.phase = cstr(phase);
+    viewSequence(w.allowed_commands, names);
+    w.revision = session_.revision;
+    w.last_event = cstr(session_.last_event);
+    workflow_.write(w);
+  }
+
+  void publishRobot() {
+    const auto& robot = *session_.robot;
+    const auto ws = robot.kinematics.workspace();
+    std::vector<ignav_msg_Point3> features;
+    for (const auto& p : robot.feature_points_mm) features.push_back(toMsg(p));
+    ignav_msg_RobotState r{};
+    r.name = cstr(robot.config.name);
+    r.config_path = cstr(session_.robot_path);
+    r.r_min_mm = ws.r_min_mm;
+    r.r_max_mm = ws.r_max_mm;
+    r.cannula_travel_mm = robot.config.instrument.cannula_travel_mm;
+    r.stylet_travel_mm = robot.config.instrument.stylet_travel_mm;
+    r.feasible_volume_cm3 = ws.volume_exact_cm3;
+    viewSequence(r.feature_points_robot, features);
+    robot_.write(r);
+  }
+
+  void publishVolume() {
+    const auto& st = session_.volume_status;
+    ignav_msg_VolumeState v{};
+    v.status = cstr(st.status);
+    v.source = cstr(st.source);
+    v.message = cstr(st.message);
+    if (const auto& vol = session_.ct.volume) {
+      const auto& g = vol->geometry;
+      for (int a = 0; a < 3; ++a) {
+        v.dims[a] = static_cast<std::uint32_t>(g.dims[a]);
+        v.spacing_mm[a] = g.spacing_mm[a];
+      }
+      const Eigen::Matrix4d m = g.ijkToLps();
+      for (int i = 0; i < 16; ++i) v.ijk_to_lps[i] = m(i / 4, i % 4);
+      if (hu_range_for_ != vol.get()) {
+        hu_range_ = vol->valueRange();
+        hu_range_for_ = vol.get();
+      }
+      v.hu_min = hu_range_.first;
+      v.hu_max = hu_range_.second;
+    }
+    volume_.write(v);
+  }
+
+  void publishRegistration() {
+    const auto& st = session_.registration_status;
+    ignav_msg_RegistrationState r{};
+    r.status = cstr(st.status);
+    r.message = cstr(st.message);
+    r.auto_detected = st.auto_detected;
+    std::vector<ignav_msg_Point3> image, robot;
+    std::vector<double> residuals;
+    std::string kind;
+    if (const auto& reg = session_.registration) {
+      kind = registration::toString(reg->kind);
+      for (const auto& p : reg->image_mm) image.push_back(toMsg(p));
+      for (const auto& p : reg->robot_mm) robot.push_back(toMsg(p));
+      residuals = reg->residuals_mm;
+      const Eigen::Matrix4d m = reg->imageToRobot();
+      for (int i = 0; i < 16; ++i) r.image_to_robot[i] = m(i / 4, i % 4);
+      r.scale = reg->scale;
+      r.fre_mm = reg->fre_mm;
+    }
+    r.kind = cstr(kind);
+    viewSequence(r.image_points, image);
+    viewSequence(r.robot_points, robot);
+    viewSequence(r.residuals_mm, residuals);
+    registration_.write(r);
+  }
+
+  void publishTarget(std::uint32_t id) {
+    for (std::size_t i = 0; i < session_.targets.size(); ++i) {
+      const auto& t = session_.targets[i];
+      if (t.id != id) continue;
+      const std::string reach = kinematics::toString(t.solution.reach);
+      const std::string status = t.status();
+      ignav_msg_TargetState m{};
+      m.id = t.id;
+      m.lps = toMsg(t.lps_mm);
+      m.robot = toMsg(t.robot_mm);
+      m.registered = t.registered;
+      m.reachable = t.registered && t.solution.reachable();
+      m.reach = cstr(t.registered ? reach : std::string());
+      m.message = cstr(t.message);
+      m.theta_c_rad = t.solution.joints.theta_c_rad;
+      m.z_c_mm = t.solution.joints.z_c_mm;
+      m.z_s_mm = t.solution.joints.z_s_mm;
+      for (int a = 0; a < 3; ++a) m.steps[a] = t.steps.motor[static_cast<std::size_t>(a)];
+      m.tre_mm = t.tre_mm;
+      m.tre_warning = t.tre_warning;
+      m.order = static_cast<std::uint32_t>(i + 1);
+      m.status = cstr(status);
+      target_.write(m);
+      return;
+    }
+  }
+
+  void disposeTarget(std::uint32_t id) {
+    ignav_msg_TargetState m{};
+    m.id = id;
+    const std::string empty;
+    m.reach = m.message = m.status = cstr(empty);
+    target_.dispose(m);
+  }
+
+  void publishHealth() {
+    const std::string version = kVersion;
+    const std::string dir = session_dir_.string();
+    ignav_msg_Health h{};
+    h.version = cstr(version);
+    h.session_id = cstr(session_.session_id);
+    h.session_dir = cstr(dir);
+    h.uptime_s = now_s();
+    h.commands_accepted = session_.accepted;
+    h.commands_rejected = session_.rejected;
+    health_.write(h);
+  }
+
+  // The session's files for 3D Slicer, rewritten whenever they change.
+  void writeExports() {
+    if (session_.registration) {
+      const auto& reg = *session_.registration;
+      (void)registration::writeItkTransform(reg, (session_dir_ / "image_to_robot.tfm").string());
+      std::vector<registration::MarkupPoint> fiducials;
+      for (std::size_t i = 0; i < reg.image_mm.size() && i < 3; ++i) {
+        fiducials.push_back(
+            {registration::toString(static_cast<registration::FeaturePoint>(i)), reg.image_mm[i],
+             fmt::format("residual {:.3f} mm", reg.residuals_mm[i]), true});
+      }
+      (void)registration::writeMarkupsJson("ignav fiducials", fiducials,
+                                           (session_dir_ / "fiducials.mrk.json").string());
+    }
+    std::vector<registration::MarkupPoint> targets;
+    for (const auto& t : session_.targets) {
+      targets.push_back({"T" + std::to_string(t.id), t.lps_mm, t.message, false});
+    }
+    (void)registration::writeMarkupsJson("ignav targets", targets,
+                                         (session_dir_ / "targets.mrk.json").string());
+  }
+
+  void answerSlice(const ignav_msg_SliceRequest& req) {
+    SliceResultOwned out;
+    out.client_id = req.client_id ? req.client_id : "";
+    out.request_id = req.request_id;
+    auto fail = [&](const std::string& why) {
+      out.message = why;
+      sendSlice(out);
+    };
+    if (!session_.ct.volume) return fail("no CT is loaded");
+    const std::string view = req.view ? req.view : "";
+    volume::SliceSpec spec;
+    if (view == "axial") {
+      spec.view = volume::View::kAxial;
+    } else if (view == "coronal") {
+      spec.view = volume::View::kCoronal;
+    } else if (view == "sagittal") {
+      spec.view = volume::View::kSagittal;
+    } else {
+      return fail("view '" + view + "' is not axial, coronal or sagittal");
+    }
+    const Eigen::Vector3d centre = fromMsg(req.centre_lps);
+    if (!centre.allFinite() || !std::isfinite(req.pixel_mm) || !std::isfinite(req.window) ||
+        !std::isfinite(req.level)) {
+      return fail("centre_lps, pixel_mm, window and level must be finite");
+    }
+    if (req.size_px > 2048) return fail(fmt::format("size_px {} exceeds 2048", req.size_px));
+    spec.centre_lps_mm = centre;
+    spec.width_px = spec.height_px = static_cast<int>(req.size_px);
+    spec.pixel_size_mm = req.pixel_mm;
+    spec.window = volume::kWindowBone;
+    if (req.window > 0.0) spec.window = {req.window, req.level};
+    auto slice = volume::reslice(*session_.ct.volume, spec);
+    if (!slice) return fail(slice.error().message);
+    volume::Overlays overlays;
+    if (req.overlays) overlays = overlaysFor();
+    auto png = volume::renderPng(*slice, overlays);
+    if (!png) return fail(png.error().message);
+    out.ok = true;
+    out.width = static_cast<std::uint32_t>(slice->width);
+    out.height = static_cast<std::uint32_t>(slice->height);
+    out.pixel_to_lps = slice->pixel_to_lps;
+    out.png = std::move(png).value();
+    sendSlice(out);
+  }
+
+  volume::Overlays overlaysFor() const {
+    volume::Overlays o;
+    if (const auto& reg = session_.registration) {
+      for (std::size_t i = 0; i < reg->image_mm.size(); ++i) {
+        o.points.push_back({reg->image_mm[i], "F" + std::to_string(i + 1), {255, 255, 0}, 4});
+      }
+      const auto robot = session_.robot;
+      const registration::Registration r = *reg;
+      o.regions.push_back({[robot, r](const Eigen::Vector3d& lps) {
+                             const auto s = robot->kinematics.inverse(r.toRobot(lps));
+                             return s.ok() && s->reachable();
+                           },
+                           {},
+                           {0, 200, 80},
+                           0.25});
+    }
+    for (const auto& t : session_.targets) {
+      const volume::Rgb colour = !t.registered               ? volume::Rgb{160, 160, 160}
+                                 : t.solution.reachable() ? volume::Rgb{0, 255, 0}
+                                                          : volume::Rgb{255, 60, 60};
+      o.points.push_back({t.lps_mm, "T" + std::to_string(t.id), colour, 5});
+    }
+    return o;
+  }
+
+  struct SliceResultOwned {
+    std::string client_id, message;
+    std::uint64_t request_id = 0;
+    bool ok = false;
+    std::uint32_t width = 0, height = 0;
+    Eigen::Matrix4d pixel_to_lps = Eigen::Matrix4d::Identity();
+    std::vector<std::uint8_t> png;
+  };
+
+  void sendSlice(SliceResultOwned& s) {
+    ignav_msg_SliceReply r{};
+    r.client_id = cstr(s.client_id);
+    r.request_id = s.request_id;
+    r.ok = s.ok;
+    r.message = cstr(s.message);
+    r.width = s.width;
+    r.height = s.height;
+    for (int i = 0; i < 16; ++i) r.pixel_to_lps[i] = s.pixel_to_lps(i / 4, i % 4);
+    viewSequence(r.png, s.png);
+    slice_replies_.write(r);
+  }
+
+  ServerOptions options_;
+  Participant participant_;
+  Reader<ignav_msg_Command> commands_;
+  Writer<ignav_msg_Reply> replies_;
+  Reader<ignav_msg_SliceRequest> slice_requests_;
+  Writer<ignav_msg_SliceReply> slice_replies_;
+  Writer<ignav_msg_WorkflowState> workflow_;
+  Writer<ignav_msg_RobotState> robot_;
+  Writer<ignav_msg_VolumeState> volume_;
+  Writer<ignav_msg_RegistrationState> registration_;
+  Writer<ignav_msg_TargetState> target_;
+  Writer<ignav_msg_Health> health_;
+  WaitSet waitset_;
+  Loader loader_;
+  fs::path session_dir_;
+  journal::Journal journal_;
+  Session session_;
+  Clock::time_point started_;
+  const volume::Volume* hu_range_for_ = nullptr;
+  std::pair<double, double> hu_range_{0.0, 0.0};
+};
+
+std::string resolve(const fs::path& base, const std::string& p) {
+  if (p.empty() || fs::path(p).is_absolute()) return p;
+  return (base / p).lexically_normal().string();
+}
+
+}  // namespace
+
+ServerOptions loadServerOptions(const std::string& path) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(path + ": " + e.what());
+  }
+  const fs::path base = fs::path(path).parent_path();
+  ServerOptions o;
+  const YAML::Node s = root["server"];
+  if (!s || !s.IsMap()) throw ConfigError(path + ": server: is missing");
+  for (const auto& kv : s) {
+    const std::string key = kv.first.Scalar();
+    if (key != "robot_config" && key != "dds" && key != "session_root") {
+      throw ConfigError(path + ": server." + key +
+                        ": unknown key; expected robot_config, dds, session_root");
+    }
+  }
+  try {
+    o.robot_config = resolve(base, s["robot_config"].as<std::string>());
+    if (s["session_root"]) o.session_root = resolve(base, s["session_root"].as<std::string>());
+    if (const YAML::Node d = s["dds"]) {
+      if (d["domain_id"]) o.domain_id = d["domain_id"].as<std::uint32_t>();
+      if (d["config"]) o.dds_config = resolve(base, d["config"].as<std::string>());
+    }
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(path + ": server: " + e.what());
+  }
+  return o;
+}
+
+int runServer(const ServerOptions& options, const std::atomic<bool>& stop) {
+  auto robot = config::loadRobot(options.robot_config);
+  if (!robot) {
+    spdlog::error("{}", robot.error().message);
+    return 2;
+  }
+  fs::path dir = options.session_dir.empty()
+                     ? fs::path(options.session_root.empty() ? "sessions" : options.session_root) /
+                           sessionName()
+                     : fs::path(options.session_dir);
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) {
+    spdlog::error("{}: cannot create the session folder: {}", dir.string(), ec.message());
+    return 2;
+  }
+  auto journal = journal::Journal::open((dir / "journal.jsonl").string());
+  if (!journal) {
+    spdlog::error("{}", journal.error().message);
+    return 2;
+  }
+  try {
+    Server server(options, std::make_shared<const config::Robot>(std::move(robot).value()), dir,
+                  std::move(journal).value());
+    return server.run(stop);
+  } catch (const DdsError& e) {
+    spdlog::error("DDS: {}", e.what());
+    return 1;
+  }
+}
+
+}  // namespace ignav::server

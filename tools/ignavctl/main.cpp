@@ -1,0 +1,402 @@
+// ignavctl: a human and scripted client of ignav-server over DDS.
+//   ignavctl status | load PATH|phantom | fiducials auto | fiducials set P1 P2 P3
+//   ignavctl targets add X,Y,Z | rm ID | ls | clear | lock | unlock
+//   ignavctl slice --view axial --lps X,Y,Z --out s.png | watch | run script.yaml
+#include <CLI/CLI.hpp>
+#include <yaml-cpp/yaml.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <thread>
+
+#include "ignav/protocol/client.hpp"
+
+namespace {
+
+using ignav::protocol::Client;
+using ignav::protocol::CommandArgs;
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+constexpr int kExitRejected = 1;
+constexpr int kExitUsage = 2;
+constexpr int kExitNoServer = 3;
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+Eigen::Vector3d triple(const std::string& text) {
+  Eigen::Vector3d p;
+  char extra = 0;
+  if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &p.x(), &p.y(), &p.z(), &extra) != 3 ||
+      !p.allFinite()) {
+    throw UsageError("'" + text + "' is not X,Y,Z");
+  }
+  return p;
+}
+
+void printReply(const ignav::workflow::Reply& r, bool as_json) {
+  if (as_json) {
+    std::cout << json{{"accepted", r.accepted},     {"error_code", r.error_code},
+                      {"message", r.message},       {"target_id", r.target_id},
+                      {"request_id", r.request_id}, {"revision", r.revision}}
+                     .dump()
+              << "\n";
+  } else if (r.accepted) {
+    std::cout << "accepted" << (r.target_id ? " (target " + std::to_string(r.target_id) + ")" : "")
+              << ": " << r.message << "\n";
+  } else {
+    std::cout << "REJECTED [" << r.error_code << "]: " << r.message << "\n";
+  }
+}
+
+std::string fmt3(const json& p) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "(%7.2f, %7.2f, %7.2f)", p[0].get<double>(), p[1].get<double>(),
+                p[2].get<double>());
+  return buf;
+}
+
+void printTargets(const json& state) {
+  std::printf("%-4s %-5s %-26s %-26s %-12s %8s %8s %8s %6s\n", "id", "order", "LPS (mm)",
+              "robot (mm)", "status", "θc(deg)", "zc(mm)", "zs(mm)", "TRE");
+  std::vector<json> rows;
+  for (const auto& [id, t] : state["targets"].items()) rows.push_back(t);
+  std::sort(rows.begin(), rows.end(),
+            [](const json& a, const json& b) { return a["order"] < b["order"]; });
+  for (const auto& t : rows) {
+    std::printf("%-4u %-5u %-26s %-26s %-12s %8.2f %8.3f %8.3f %6.2f\n", t["id"].get<unsigned>(),
+                t["order"].get<unsigned>(), fmt3(t["lps"]).c_str(), fmt3(t["robot"]).c_str(),
+                t["status"].get<std::string>().c_str(),
+                t["joints"][0].get<double>() * 180.0 / M_PI, t["joints"][1].get<double>(),
+                t["joints"][2].get<double>(), t["tre_mm"].get<double>());
+    if (t["status"] != "planned") std::printf("     %s\n", t["message"].get<std::string>().c_str());
+  }
+}
+
+void printStatus(const json& s) {
+  const auto get = [&](const char* a, const char* b) {
+    return s.contains(a) && s[a].contains(b) ? s[a][b].dump() : std::string("-");
+  };
+  std::cout << "session      " << get("health", "session_dir") << "\n"
+            << "phase        " << get("workflow", "phase") << " (revision "
+            << get("workflow", "revision") << ")\n"
+            << "allowed      " << get("workflow", "allowed_commands") << "\n"
+            << "robot        " << get("robot", "name") << "\n"
+            << "volume       " << get("volume", "status") << " " << get("volume", "message")
+            << "\n"
+            << "registration " << get("registration", "status") << " "
+            << get("registration", "message") << "\n"
+            << "targets      " << s["targets"].size() << "\n";
+}
+
+Eigen::Vector3d jsonPoint(const json& p) {
+  return {p.at(0).get<double>(), p.at(1).get<double>(), p.at(2).get<double>()};
+}
+
+// Robot-frame points become LPS through the current registration (scripts plan in the robot
+// frame so they do not depend on where the phantom lies).
+Eigen::Vector3d robotToLps(const json& state, const Eigen::Vector3d& robot) {
+  if (!state.contains("registration") || state["registration"]["status"] != "registered") {
+    throw UsageError("robot_mm needs a registration");
+  }
+  Eigen::Matrix4d m;
+  for (int i = 0; i < 16; ++i) m(i / 4, i % 4) = state["registration"]["image_to_robot"][i];
+  const Eigen::Vector4d lps = m.inverse() * robot.homogeneous();
+  return lps.head<3>();
+}
+
+// Dotted path into the state ("volume.status", "targets.3.status").
+const json* at(const json& state, const std::string& path) {
+  const json* node = &state;
+  std::size_t start = 0;
+  while (start <= path.size()) {
+    const std::size_t dot = path.find('.', start);
+    const std::string key = path.substr(start, dot == std::string::npos ? std::string::npos
+                                                                         : dot - start);
+    if (!node->is_object() || !node->contains(key)) return nullptr;
+    node = &(*node)[key];
+    if (dot == std::string::npos) break;
+    start = dot + 1;
+  }
+  return node;
+}
+
+json yamlToJson(const YAML::Node& n) {
+  if (n.IsSequence()) {
+    json a = json::array();
+    for (const auto& e : n) a.push_back(yamlToJson(e));
+    return a;
+  }
+  if (n.IsMap()) {
+    json o = json::object();
+    for (const auto& kv : n) o[kv.first.Scalar()] = yamlToJson(kv.second);
+    return o;
+  }
+  const std::string s = n.Scalar();
+  if (s == "true" || s == "false") return s == "true";
+  try {
+    std::size_t used = 0;
+    const double d = std::stod(s, &used);
+    if (used == s.size()) return d;
+  } catch (const std::exception&) {
+  }
+  return s;
+}
+
+bool matches(const json& actual, const json& expected) {
+  if (expected.is_number() && actual.is_number()) {
+    return std::abs(actual.get<double>() - expected.get<double>()) < 1e-9;
+  }
+  return actual == expected;
+}
+
+// `ignavctl run`: each step sends a command (and checks the reply), waits for a state, or
+// fetches a slice. Any mismatch stops the script with exit code 1.
+int runScript(Client& client, const std::string& path, const std::string& out_dir, bool as_json) {
+  YAML::Node doc;
+  try {
+    doc = YAML::LoadFile(path);
+  } catch (const YAML::Exception& e) {
+    throw UsageError(path + ": " + e.what());
+  }
+  if (!doc["steps"] || !doc["steps"].IsSequence()) throw UsageError(path + ": steps: is missing");
+  std::map<std::string, std::uint32_t> names;
+  int index = 0;
+  for (const auto& step_node : doc["steps"]) {
+    ++index;
+    const json step = yamlToJson(step_node);
+    const std::string where = path + ": step " + std::to_string(index);
+    client.poll();
+    if (step.contains("send")) {
+      CommandArgs args;
+      if (step.contains("path")) args.path = step["path"];
+      for (const auto& p : step.value("points", json::array())) {
+        args.points.push_back(jsonPoint(p));
+      }
+      for (const auto& p : step.value("robot_mm", json::array())) {
+        args.points.push_back(robotToLps(client.state(), jsonPoint(p)));
+      }
+      for (const auto& id : step.value("ids", json::array())) {
+        args.ids.push_back(id.is_string() ? names.at(id.get<std::string>())
+                                          : id.get<std::uint32_t>());
+      }
+      const auto reply = client.send(step["send"], args);
+      std::cout << where << " " << step["send"].get<std::string>() << ": ";
+      printReply(reply, as_json);
+      const std::string expect = step.value("expect", "accepted");
+      if ((expect == "accepted") != reply.accepted) {
+        std::cerr << where << ": expected " << expect << "\n";
+        return kExitRejected;
+      }
+      if (step.contains("error_code") && step["error_code"] != reply.error_code) {
+        std::cerr << where << ": expected error_code " << step["error_code"] << "\n";
+        return kExitRejected;
+      }
+      if (step.contains("name")) names[step["name"]] = reply.target_id;
+    } else if (step.contains("wait")) {
+      const json want = step["wait"];
+      const double seconds = step.value("timeout_s", 60.0);
+      client.waitFor(
+          [&](const json& s) {
+            for (const auto& [key, value] : want.items()) {
+              const json* actual = at(s, key);
+              if (!actual || !matches(*actual, value)) return false;
+            }
+            return true;
+          },
+          std::chrono::milliseconds(static_cast<long>(seconds * 1000)));
+      std::cout << where << " wait: " << want.dump() << " ok\n";
+    } else if (step.contains("slice")) {
+      const json s = step["slice"];
+      ignav::protocol::SliceArgs a;
+      a.view = s.value("view", "axial");
+      if (s.contains("lps")) {
+        a.centre_lps = jsonPoint(s["lps"]);
+      } else if (s.contains("target")) {
+        const auto id = std::to_string(names.at(s["target"].get<std::string>()));
+        const auto& p = client.state()["targets"][id]["lps"];
+        a.centre_lps = jsonPoint(p);
+      }
+      a.size_px = s.value("size", 512u);
+      a.pixel_mm = s.value("pixel_mm", 0.0);
+      const auto result = client.slice(a);
+      if (!result.ok) {
+        std::cerr << where << ": slice failed: " << result.message << "\n";
+        return kExitRejected;
+      }
+      const std::string file = out_dir + "/" + s.value("out", "slice.png");
+      std::ofstream(file, std::ios::binary)
+          .write(reinterpret_cast<const char*>(result.png.data()),
+                 static_cast<std::streamsize>(result.png.size()));
+      std::cout << where << " slice: " << file << " (" << result.width << "x" << result.height
+                << ")\n";
+    } else {
+      throw UsageError(where + ": expected send, wait or slice");
+    }
+  }
+  client.poll();
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ignavctl: drive ignav-server over DDS"};
+  app.require_subcommand(1);
+  std::uint32_t domain = 0;
+  std::string dds_config = "configs/dds/loopback.xml";
+  std::string client_id = "ignavctl-" + std::to_string(::getpid());
+  bool as_json = false;
+  double wait_s = 10.0;
+  app.add_option("--domain", domain, "DDS domain id");
+  app.add_option("--dds-config", dds_config, "Cyclone XML ('' = defaults)");
+  app.add_option("--client-id", client_id, "who this client is in replies and the journal");
+  app.add_flag("--json", as_json, "machine-readable output");
+  app.add_option("--wait-server", wait_s, "seconds to wait for the server");
+
+  auto* status = app.add_subcommand("status", "phase, volume, registration, targets");
+  std::string load_path;
+  auto* load = app.add_subcommand("load", "load a CT: a server-side path, or 'phantom'");
+  load->add_option("path", load_path)->required();
+  std::vector<std::string> fid_args;
+  auto* fid = app.add_subcommand("fiducials", "'auto', or 'set X,Y,Z X,Y,Z X,Y,Z' (LPS)");
+  fid->add_option("args", fid_args)->required();
+  std::vector<std::string> target_args;
+  auto* targets = app.add_subcommand("targets", "add X,Y,Z | rm ID | ls | clear | lock | unlock");
+  targets->add_option("args", target_args)->required();
+  std::string view = "axial", lps_text, out = "slice.png";
+  std::uint32_t size = 512;
+  auto* slice = app.add_subcommand("slice", "a slice as PNG, with its pixel -> LPS mapping");
+  slice->add_option("--view", view);
+  slice->add_option("--lps", lps_text, "X,Y,Z centre");
+  slice->add_option("--size", size);
+  slice->add_option("--out", out);
+  double watch_s = 0.0;
+  auto* watch = app.add_subcommand("watch", "print state changes as they happen");
+  watch->add_option("--seconds", watch_s, "stop after this long (0 = until Ctrl-C)");
+  std::string script, script_out = ".";
+  auto* run = app.add_subcommand("run", "run a script of commands and expected replies");
+  run->add_option("script", script)->required();
+  run->add_option("--out-dir", script_out, "where slices go");
+  std::string simple;
+  for (const char* name : {"stop", "resume", "emergency-stop", "reset-emergency", "query"}) {
+    app.add_subcommand(name, std::string("send ") + name)->callback([&simple, name] {
+      simple = name;
+    });
+  }
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    const std::string xml =
+        dds_config.empty() ? "" : ignav::protocol::readConfigFile(dds_config);
+    Client client(domain, xml, client_id);
+    if (!client.waitForServer(std::chrono::milliseconds(static_cast<long>(wait_s * 1000)))) {
+      std::cerr << "ignavctl: no ignav-server on DDS domain " << domain << "\n";
+      return kExitNoServer;
+    }
+    // The state topics are transient-local: a late joiner gets the present at once.
+    client.waitFor([](const json& s) { return s.contains("workflow"); }, 5s);
+    auto send = [&](const std::string& command, const CommandArgs& args = {}) {
+      const auto r = client.send(command, args);
+      printReply(r, as_json);
+      return r.accepted ? 0 : kExitRejected;
+    };
+    if (*status) {
+      client.poll();
+      if (as_json) {
+        std::cout << client.state().dump(2) << "\n";
+      } else {
+        printStatus(client.state());
+      }
+      return 0;
+    }
+    if (*load) return send("load_volume", {load_path == "phantom" ? "phantom:" : load_path, {}, {}});
+    if (*fid) {
+      if (fid_args[0] == "auto") return send("auto_fiducials");
+      if (fid_args[0] == "set" && fid_args.size() == 4) {
+        return send("set_fiducials",
+                    {"", {triple(fid_args[1]), triple(fid_args[2]), triple(fid_args[3])}, {}});
+      }
+      throw UsageError("fiducials: 'auto' or 'set P1 P2 P3'");
+    }
+    if (*targets) {
+      const std::string& verb = target_args[0];
+      if (verb == "add" && target_args.size() == 2) {
+        return send("add_target", {"", {triple(target_args[1])}, {}});
+      }
+      if (verb == "rm" && target_args.size() == 2) {
+        return send("remove_target",
+                    {"", {}, {static_cast<std::uint32_t>(std::stoul(target_args[1]))}});
+      }
+      if (verb == "clear") return send("clear_targets");
+      if (verb == "lock") return send("lock_plan");
+      if (verb == "unlock") return send("unlock_plan");
+      if (verb == "ls") {
+        client.poll();
+        if (as_json) {
+          std::cout << client.state()["targets"].dump(2) << "\n";
+        } else {
+          printTargets(client.state());
+        }
+        return 0;
+      }
+      throw UsageError("targets: add X,Y,Z | rm ID | ls | clear | lock | unlock");
+    }
+    if (*slice) {
+      ignav::protocol::SliceArgs a;
+      a.view = view;
+      if (!lps_text.empty()) a.centre_lps = triple(lps_text);
+      a.size_px = size;
+      const auto r = client.slice(a);
+      if (!r.ok) {
+        std::cerr << "ignavctl: slice: " << r.message << "\n";
+        return kExitRejected;
+      }
+      std::ofstream(out, std::ios::binary)
+          .write(reinterpret_cast<const char*>(r.png.data()),
+                 static_cast<std::streamsize>(r.png.size()));
+      json m = json::array();
+      for (int i = 0; i < 4; ++i) {
+        m.push_back({r.pixel_to_lps(i, 0), r.pixel_to_lps(i, 1), r.pixel_to_lps(i, 2),
+                     r.pixel_to_lps(i, 3)});
+      }
+      std::cout << json{{"out", out}, {"width", r.width}, {"height", r.height},
+                        {"pixel_to_lps", m}}
+                       .dump(as_json ? -1 : 2)
+                << "\n";
+      return 0;
+    }
+    if (*watch) {
+      const auto end = std::chrono::steady_clock::now() +
+                       std::chrono::milliseconds(static_cast<long>(watch_s * 1000));
+      while (watch_s <= 0 || std::chrono::steady_clock::now() < end) {
+        for (const auto& topic : client.poll()) {
+          const json& s = client.state();
+          const json v = topic == "target" ? s["targets"] : s.value(topic, json());
+          std::cout << topic << " " << v.dump() << "\n" << std::flush;
+        }
+        std::this_thread::sleep_for(20ms);
+      }
+      return 0;
+    }
+    if (*run) return runScript(client, script, script_out, as_json);
+    if (!simple.empty()) {
+      std::string command = simple;
+      std::replace(command.begin(), command.end(), '-', '_');
+      return send(command);
+    }
+  } catch (const UsageError& e) {
+    std::cerr << "ignavctl: " << e.what() << "\n";
+    return kExitUsage;
+  } catch (const std::exception& e) {
+    std::cerr << "ignavctl: " << e.what() << "\n";
+    return kExitRejected;
+  }
+  return 0;
+}
