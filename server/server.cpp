@@ -101,10 +101,9 @@ class Loader {
     in.kind = InputKind::kVolumeLoaded;
     const auto& g = loaded->volume.geometry;
     in.loaded.source = source;
-    in.loaded.description =
-        fmt::format("{} x {} x {} voxels, {:.2f} x {:.2f} x {:.2f} mm, {}", g.dims[0], g.dims[1],
-                    g.dims[2], g.spacing_mm.x(), g.spacing_mm.y(), g.spacing_mm.z(),
-                    loaded->volume.description);
+    in.loaded.description = fmt::format(
+        "{} x {} x {} voxels, {:.2f} x {:.2f} x {:.2f} mm, {}", g.dims[0], g.dims[1], g.dims[2],
+        g.spacing_mm.x(), g.spacing_mm.y(), g.spacing_mm.z(), loaded->volume.description);
     in.loaded.volume = std::make_shared<const volume::Volume>(std::move(loaded->volume));
     return in;
   }
@@ -132,8 +131,7 @@ class Server {
         replies_(participant_, &ignav_msg_Reply_desc, topic::kReply, Qos::kRequest),
         slice_requests_(participant_, &ignav_msg_SliceRequest_desc, topic::kSliceRequest,
                         Qos::kRequest),
-        slice_replies_(participant_, &ignav_msg_SliceReply_desc, topic::kSliceReply,
-                       Qos::kRequest),
+        slice_replies_(participant_, &ignav_msg_SliceReply_desc, topic::kSliceReply, Qos::kRequest),
         workflow_(participant_, &ignav_msg_WorkflowState_desc, topic::kWorkflow, Qos::kState),
         robot_(participant_, &ignav_msg_RobotState_desc, topic::kRobot, Qos::kState),
         volume_(participant_, &ignav_msg_VolumeState_desc, topic::kVolume, Qos::kState),
@@ -148,8 +146,8 @@ class Server {
         started_(Clock::now()) {
     waitset_.attach(commands_.handle());
     waitset_.attach(slice_requests_.handle());
-    session_ = workflow::newSession(session_dir_.filename().string(), std::move(robot),
-                                    o.robot_config);
+    session_ =
+        workflow::newSession(session_dir_.filename().string(), std::move(robot), o.robot_config);
   }
 
   int run(const std::atomic<bool>& stop) {
@@ -169,10 +167,14 @@ class Server {
         if (failed) return;
         auto in = toInput(c);
         if (!in) {
-          workflow::Reply r{c.client_id ? c.client_id : "", c.request_id, false, "unknown_command",
-                            fmt::format("command kind {} is not one of ours",
-                                        static_cast<int>(c.kind)),
-                            0, session_.revision};
+          workflow::Reply r{
+              c.client_id ? c.client_id : "",
+              c.request_id,
+              false,
+              "unknown_command",
+              fmt::format("command kind {} is not one of ours", static_cast<int>(c.kind)),
+              0,
+              session_.revision};
           sendReply(r);
           return;
         }
@@ -195,9 +197,7 @@ class Server {
   }
 
  private:
-  double now_s() const {
-    return std::chrono::duration<double>(Clock::now() - started_).count();
-  }
+  double now_s() const { return std::chrono::duration<double>(Clock::now() - started_).count(); }
 
   // One input through the reducer, then its effects in the order DESIGN.md requires.
   bool step(Input in) {
@@ -223,14 +223,17 @@ class Server {
     if (e.robot_changed) publishRobot();
     if (e.volume_changed) publishVolume();
     if (e.registration_changed) publishRegistration();
-    for (auto id : e.targets_removed) disposeTarget(id);
-    for (auto id : e.targets_changed) publishTarget(id);
+    for (auto id : e.targets_removed)
+      disposeTarget(id);
+    for (auto id : e.targets_changed)
+      publishTarget(id);
     if (e.registration_changed || !e.targets_changed.empty() || !e.targets_removed.empty()) {
       writeExports();
     }
     if (e.workflow_changed) publishWorkflow();
     if (e.health_changed) publishHealth();
-    for (const auto& r : e.replies) sendReply(r);
+    for (const auto& r : e.replies)
+      sendReply(r);
     if (e.load_volume) loader_.start(*e.load_volume, *session_.robot, session_dir_);
     return true;
   }
@@ -261,7 +264,8 @@ class Server {
   void publishWorkflow() {
     const auto allowed = workflow::allowedCommands(session_.phase);
     std::vector<char*> names;
-    for (auto k : allowed) names.push_back(const_cast<char*>(workflow::toString(k)));
+    for (auto k : allowed)
+      names.push_back(const_cast<char*>(workflow::toString(k)));
     const std::string phase = workflow::toString(session_.phase);
     ignav_msg_WorkflowState w{};
     w.session_id = cstr(session_.session_id);
@@ -276,7 +280,8 @@ class Server {
     const auto& robot = *session_.robot;
     const auto ws = robot.kinematics.workspace();
     std::vector<ignav_msg_Point3> features;
-    for (const auto& p : robot.feature_points_mm) features.push_back(toMsg(p));
+    for (const auto& p : robot.feature_points_mm)
+      features.push_back(toMsg(p));
     ignav_msg_RobotState r{};
     r.name = cstr(robot.config.name);
     r.config_path = cstr(session_.robot_path);
@@ -302,7 +307,8 @@ class Server {
         v.spacing_mm[a] = g.spacing_mm[a];
       }
       const Eigen::Matrix4d m = g.ijkToLps();
-      for (int i = 0; i < 16; ++i) v.ijk_to_lps[i] = m(i / 4, i % 4);
+      for (int i = 0; i < 16; ++i)
+        v.ijk_to_lps[i] = m(i / 4, i % 4);
       if (hu_range_for_ != vol.get()) {
         hu_range_ = vol->valueRange();
         hu_range_for_ = vol.get();
@@ -324,11 +330,14 @@ class Server {
     std::string kind;
     if (const auto& reg = session_.registration) {
       kind = registration::toString(reg->kind);
-      for (const auto& p : reg->image_mm) image.push_back(toMsg(p));
-      for (const auto& p : reg->robot_mm) robot.push_back(toMsg(p));
+      for (const auto& p : reg->image_mm)
+        image.push_back(toMsg(p));
+      for (const auto& p : reg->robot_mm)
+        robot.push_back(toMsg(p));
       residuals = reg->residuals_mm;
       const Eigen::Matrix4d m = reg->imageToRobot();
-      for (int i = 0; i < 16; ++i) r.image_to_robot[i] = m(i / 4, i % 4);
+      for (int i = 0; i < 16; ++i)
+        r.image_to_robot[i] = m(i / 4, i % 4);
       r.scale = reg->scale;
       r.fre_mm = reg->fre_mm;
     }
@@ -356,7 +365,8 @@ class Server {
       m.theta_c_rad = t.solution.joints.theta_c_rad;
       m.z_c_mm = t.solution.joints.z_c_mm;
       m.z_s_mm = t.solution.joints.z_s_mm;
-      for (int a = 0; a < 3; ++a) m.steps[a] = t.steps.motor[static_cast<std::size_t>(a)];
+      for (int a = 0; a < 3; ++a)
+        m.steps[a] = t.steps.motor[static_cast<std::size_t>(a)];
       m.tre_mm = t.tre_mm;
       m.tre_warning = t.tre_warning;
       m.order = static_cast<std::uint32_t>(i + 1);
@@ -394,9 +404,9 @@ class Server {
       (void)registration::writeItkTransform(reg, (session_dir_ / "image_to_robot.tfm").string());
       std::vector<registration::MarkupPoint> fiducials;
       for (std::size_t i = 0; i < reg.image_mm.size() && i < 3; ++i) {
-        fiducials.push_back(
-            {registration::toString(static_cast<registration::FeaturePoint>(i)), reg.image_mm[i],
-             fmt::format("residual {:.3f} mm", reg.residuals_mm[i]), true});
+        fiducials.push_back({registration::toString(static_cast<registration::FeaturePoint>(i)),
+                             reg.image_mm[i],
+                             fmt::format("residual {:.3f} mm", reg.residuals_mm[i]), true});
       }
       (void)registration::writeMarkupsJson("ignav fiducials", fiducials,
                                            (session_dir_ / "fiducials.mrk.json").string());
@@ -471,7 +481,7 @@ class Server {
                            0.25});
     }
     for (const auto& t : session_.targets) {
-      const volume::Rgb colour = !t.registered               ? volume::Rgb{160, 160, 160}
+      const volume::Rgb colour = !t.registered            ? volume::Rgb{160, 160, 160}
                                  : t.solution.reachable() ? volume::Rgb{0, 255, 0}
                                                           : volume::Rgb{255, 60, 60};
       o.points.push_back({t.lps_mm, "T" + std::to_string(t.id), colour, 5});
@@ -496,7 +506,8 @@ class Server {
     r.message = cstr(s.message);
     r.width = s.width;
     r.height = s.height;
-    for (int i = 0; i < 16; ++i) r.pixel_to_lps[i] = s.pixel_to_lps(i / 4, i % 4);
+    for (int i = 0; i < 16; ++i)
+      r.pixel_to_lps[i] = s.pixel_to_lps(i / 4, i % 4);
     viewSequence(r.png, s.png);
     slice_replies_.write(r);
   }

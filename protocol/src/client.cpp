@@ -10,12 +10,17 @@ namespace {
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
-std::string str(const char* s) { return s ? s : ""; }
-json point(const ignav_msg_Point3& p) { return {p.x, p.y, p.z}; }
+std::string str(const char* s) {
+  return s ? s : "";
+}
+json point(const ignav_msg_Point3& p) {
+  return {p.x, p.y, p.z};
+}
 template <typename Seq>
 json points(const Seq& seq) {
   json out = json::array();
-  for (std::uint32_t i = 0; i < seq._length; ++i) out.push_back(point(seq._buffer[i]));
+  for (std::uint32_t i = 0; i < seq._length; ++i)
+    out.push_back(point(seq._buffer[i]));
   return out;
 }
 template <std::size_t N>
@@ -86,7 +91,8 @@ workflow::Reply Client::send(const std::string& command, const CommandArgs& args
   OwnedCommand owned;
   owned.client_id = client_id_;
   owned.path = args.path;
-  for (const auto& p : args.points) owned.points.push_back(toMsg(p));
+  for (const auto& p : args.points)
+    owned.points.push_back(toMsg(p));
   owned.ids = args.ids;
   impl_->commands.write(owned.build(request_id, *kind));
   const auto end = Clock::now() + timeout;
@@ -128,7 +134,8 @@ SliceResult Client::slice(const SliceArgs& args, std::chrono::milliseconds timeo
       s.message = str(r.message);
       s.width = r.width;
       s.height = r.height;
-      for (int i = 0; i < 16; ++i) s.pixel_to_lps(i / 4, i % 4) = r.pixel_to_lps[i];
+      for (int i = 0; i < 16; ++i)
+        s.pixel_to_lps(i / 4, i % 4) = r.pixel_to_lps[i];
       s.png.assign(r.png._buffer, r.png._buffer + r.png._length);
       mine = std::move(s);
     });

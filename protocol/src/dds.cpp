@@ -138,13 +138,14 @@ WaitSet::WaitSet(const Participant& p) {
 }
 
 void WaitSet::attach(dds_entity_t reader) {
-  const dds_entity_t cond =
-      check(dds_create_readcondition(reader, DDS_ANY_STATE), "readcondition");
+  const dds_entity_t cond = check(dds_create_readcondition(reader, DDS_ANY_STATE), "readcondition");
   conditions_.push_back(cond);
   check(dds_waitset_attach(waitset_, cond, reader), "attach reader");
 }
 
-void WaitSet::trigger() { dds_set_guardcondition(guard_, true); }
+void WaitSet::trigger() {
+  dds_set_guardcondition(guard_, true);
+}
 
 bool WaitSet::wait(std::chrono::milliseconds timeout) {
   dds_attach_t triggered[16];

@@ -26,7 +26,9 @@ constexpr KindName kKinds[] = {
     {ignav_msg_CMD_QUERY, workflow::InputKind::kQuery},
 };
 
-std::string copy(const char* s) { return s ? std::string(s) : std::string(); }
+std::string copy(const char* s) {
+  return s ? std::string(s) : std::string();
+}
 
 }  // namespace
 
@@ -60,12 +62,12 @@ std::optional<workflow::Input> toInput(const ignav_msg_Command& c) {
   for (std::uint32_t i = 0; i < c.points._length && i < cap; ++i) {
     in.points.push_back(fromMsg(c.points._buffer[i]));
   }
-  for (std::uint32_t i = 0; i < c.ids._length && i < cap; ++i) in.ids.push_back(c.ids._buffer[i]);
+  for (std::uint32_t i = 0; i < c.ids._length && i < cap; ++i)
+    in.ids.push_back(c.ids._buffer[i]);
   return in;
 }
 
-const ignav_msg_Command& OwnedCommand::build(std::uint64_t request_id,
-                                             ignav_msg_CommandKind kind) {
+const ignav_msg_Command& OwnedCommand::build(std::uint64_t request_id, ignav_msg_CommandKind kind) {
   msg = {};
   msg.client_id = cstr(client_id);
   msg.request_id = request_id;
@@ -89,8 +91,8 @@ const ignav_msg_Reply& OwnedReply::build() {
 }
 
 workflow::Reply fromMsg(const ignav_msg_Reply& m) {
-  return {copy(m.client_id), m.request_id,  m.accepted,  copy(m.error_code),
-          copy(m.message),   m.target_id,   m.revision};
+  return {copy(m.client_id), m.request_id, m.accepted, copy(m.error_code),
+          copy(m.message),   m.target_id,  m.revision};
 }
 
 }  // namespace ignav::protocol

@@ -2,8 +2,8 @@
 //   ignavctl status | load PATH|phantom | fiducials auto | fiducials set P1 P2 P3
 //   ignavctl targets add X,Y,Z | rm ID | ls | clear | lock | unlock
 //   ignavctl slice --view axial --lps X,Y,Z --out s.png | watch | run script.yaml
-#include <CLI/CLI.hpp>
 #include <yaml-cpp/yaml.h>
+#include <CLI/CLI.hpp>
 
 #include <Eigen/Dense>
 #include <cmath>
@@ -66,15 +66,16 @@ void printTargets(const json& state) {
   std::printf("%-4s %-5s %-26s %-26s %-12s %8s %8s %8s %6s\n", "id", "order", "LPS (mm)",
               "robot (mm)", "status", "θc(deg)", "zc(mm)", "zs(mm)", "TRE");
   std::vector<json> rows;
-  for (const auto& [id, t] : state["targets"].items()) rows.push_back(t);
+  for (const auto& [id, t] : state["targets"].items())
+    rows.push_back(t);
   std::sort(rows.begin(), rows.end(),
             [](const json& a, const json& b) { return a["order"] < b["order"]; });
   for (const auto& t : rows) {
     std::printf("%-4u %-5u %-26s %-26s %-12s %8.2f %8.3f %8.3f %6.2f\n", t["id"].get<unsigned>(),
                 t["order"].get<unsigned>(), fmt3(t["lps"]).c_str(), fmt3(t["robot"]).c_str(),
-                t["status"].get<std::string>().c_str(),
-                t["joints"][0].get<double>() * 180.0 / M_PI, t["joints"][1].get<double>(),
-                t["joints"][2].get<double>(), t["tre_mm"].get<double>());
+                t["status"].get<std::string>().c_str(), t["joints"][0].get<double>() * 180.0 / M_PI,
+                t["joints"][1].get<double>(), t["joints"][2].get<double>(),
+                t["tre_mm"].get<double>());
     if (t["status"] != "planned") std::printf("     %s\n", t["message"].get<std::string>().c_str());
   }
 }
@@ -88,8 +89,7 @@ void printStatus(const json& s) {
             << get("workflow", "revision") << ")\n"
             << "allowed      " << get("workflow", "allowed_commands") << "\n"
             << "robot        " << get("robot", "name") << "\n"
-            << "volume       " << get("volume", "status") << " " << get("volume", "message")
-            << "\n"
+            << "volume       " << get("volume", "status") << " " << get("volume", "message") << "\n"
             << "registration " << get("registration", "status") << " "
             << get("registration", "message") << "\n"
             << "targets      " << s["targets"].size() << "\n";
@@ -106,7 +106,8 @@ Eigen::Vector3d robotToLps(const json& state, const Eigen::Vector3d& robot) {
     throw UsageError("robot_mm needs a registration");
   }
   Eigen::Matrix4d m;
-  for (int i = 0; i < 16; ++i) m(i / 4, i % 4) = state["registration"]["image_to_robot"][i];
+  for (int i = 0; i < 16; ++i)
+    m(i / 4, i % 4) = state["registration"]["image_to_robot"][i];
   const Eigen::Vector4d lps = m.inverse() * robot.homogeneous();
   return lps.head<3>();
 }
@@ -117,8 +118,8 @@ const json* at(const json& state, const std::string& path) {
   std::size_t start = 0;
   while (start <= path.size()) {
     const std::size_t dot = path.find('.', start);
-    const std::string key = path.substr(start, dot == std::string::npos ? std::string::npos
-                                                                         : dot - start);
+    const std::string key =
+        path.substr(start, dot == std::string::npos ? std::string::npos : dot - start);
     if (!node->is_object() || !node->contains(key)) return nullptr;
     node = &(*node)[key];
     if (dot == std::string::npos) break;
@@ -130,12 +131,14 @@ const json* at(const json& state, const std::string& path) {
 json yamlToJson(const YAML::Node& n) {
   if (n.IsSequence()) {
     json a = json::array();
-    for (const auto& e : n) a.push_back(yamlToJson(e));
+    for (const auto& e : n)
+      a.push_back(yamlToJson(e));
     return a;
   }
   if (n.IsMap()) {
     json o = json::object();
-    for (const auto& kv : n) o[kv.first.Scalar()] = yamlToJson(kv.second);
+    for (const auto& kv : n)
+      o[kv.first.Scalar()] = yamlToJson(kv.second);
     return o;
   }
   const std::string s = n.Scalar();
@@ -293,8 +296,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   try {
-    const std::string xml =
-        dds_config.empty() ? "" : ignav::protocol::readConfigFile(dds_config);
+    const std::string xml = dds_config.empty() ? "" : ignav::protocol::readConfigFile(dds_config);
     Client client(domain, xml, client_id);
     if (!client.waitForServer(std::chrono::milliseconds(static_cast<long>(wait_s * 1000)))) {
       std::cerr << "ignavctl: no ignav-server on DDS domain " << domain << "\n";
@@ -316,7 +318,8 @@ int main(int argc, char** argv) {
       }
       return 0;
     }
-    if (*load) return send("load_volume", {load_path == "phantom" ? "phantom:" : load_path, {}, {}});
+    if (*load)
+      return send("load_volume", {load_path == "phantom" ? "phantom:" : load_path, {}, {}});
     if (*fid) {
       if (fid_args[0] == "auto") return send("auto_fiducials");
       if (fid_args[0] == "set" && fid_args.size() == 4) {
@@ -366,8 +369,7 @@ int main(int argc, char** argv) {
         m.push_back({r.pixel_to_lps(i, 0), r.pixel_to_lps(i, 1), r.pixel_to_lps(i, 2),
                      r.pixel_to_lps(i, 3)});
       }
-      std::cout << json{{"out", out}, {"width", r.width}, {"height", r.height},
-                        {"pixel_to_lps", m}}
+      std::cout << json{{"out", out}, {"width", r.width}, {"height", r.height}, {"pixel_to_lps", m}}
                        .dump(as_json ? -1 : 2)
                 << "\n";
       return 0;

@@ -29,11 +29,15 @@ const Transition* findTransition(Phase phase, InputKind kind) {
   return nullptr;
 }
 
-std::optional<Rejection> checkShape(const Input& in) {
+std::optional<Rejection> checkClient(const Input& in) {
   if (in.client_id.empty() || in.client_id.size() > kMaxIdLength) {
     return Rejection{"bad_client_id",
                      fmt::format("client_id must have 1 to {} characters", kMaxIdLength)};
   }
+  return std::nullopt;
+}
+
+std::optional<Rejection> checkShape(const Input& in) {
   if (in.path.size() > kMaxPathLength) {
     return Rejection{"too_long", fmt::format("path has {} characters; at most {}", in.path.size(),
                                              kMaxPathLength)};
@@ -122,11 +126,11 @@ std::optional<Rejection> adoptRegistration(Session& s, const std::vector<Eigen::
                                           robot.config.registration.limits);
   if (!reg) return Rejection{reg.error().reason, reg.error().message};
   s.registration = std::move(reg).value();
-  s.registration_status = {"registered",
-                           fmt::format("FRE {:.3f} mm, scale {:.4f}{}", s.registration->fre_mm,
-                                       s.registration->scale,
-                                       auto_detected ? ", markers detected on the CT" : ""),
-                           auto_detected};
+  s.registration_status = {
+      "registered",
+      fmt::format("FRE {:.3f} mm, scale {:.4f}{}", s.registration->fre_mm, s.registration->scale,
+                  auto_detected ? ", markers detected on the CT" : ""),
+      auto_detected};
   e.registration_changed = true;
   evaluateAll(s, e);
   return std::nullopt;
@@ -172,8 +176,8 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       if (!s.ct.volume) return Rejection{"no_volume", "no CT is loaded"};
       const std::vector<Eigen::Vector3d> model(s.robot->feature_points_mm.begin(),
                                                s.robot->feature_points_mm.end());
-      auto found = registration::findFiducials(*s.ct.volume,
-                                               s.robot->config.registration.fiducials, model);
+      auto found =
+          registration::findFiducials(*s.ct.volume, s.robot->config.registration.fiducials, model);
       if (!found) return Rejection{"bad_search", found.error().message};
       if (!found->match) return Rejection{"no_match", found->summary};
       std::vector<Eigen::Vector3d> image;
@@ -214,26 +218,31 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       }
       s.targets.erase(it);
       e.targets_removed.push_back(in.ids[0]);
-      for (const auto& t : s.targets) e.targets_changed.push_back(t.id);  // orders moved up
+      for (const auto& t : s.targets)
+        e.targets_changed.push_back(t.id);  // orders moved up
       return std::nullopt;
     }
     case InputKind::kClearTargets:
-      for (const auto& t : s.targets) e.targets_removed.push_back(t.id);
+      for (const auto& t : s.targets)
+        e.targets_removed.push_back(t.id);
       s.targets.clear();
       return std::nullopt;
     case InputKind::kReorderTargets: {
       std::set<std::uint32_t> given(in.ids.begin(), in.ids.end());
       std::set<std::uint32_t> have;
-      for (const auto& t : s.targets) have.insert(t.id);
+      for (const auto& t : s.targets)
+        have.insert(t.id);
       if (given != have || in.ids.size() != s.targets.size()) {
         return Rejection{"bad_order",
                          fmt::format("reorder_targets needs each of the {} target ids exactly once",
                                      s.targets.size())};
       }
       std::vector<Target> ordered;
-      for (auto id : in.ids) ordered.push_back(*findTarget(s, id));
+      for (auto id : in.ids)
+        ordered.push_back(*findTarget(s, id));
       s.targets = std::move(ordered);
-      for (const auto& t : s.targets) e.targets_changed.push_back(t.id);
+      for (const auto& t : s.targets)
+        e.targets_changed.push_back(t.id);
       return std::nullopt;
     }
     case InputKind::kLockPlan: {
@@ -261,7 +270,8 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       return std::nullopt;
     case InputKind::kQuery:
       e.robot_changed = e.volume_changed = e.registration_changed = true;
-      for (const auto& t : s.targets) e.targets_changed.push_back(t.id);
+      for (const auto& t : s.targets)
+        e.targets_changed.push_back(t.id);
       return std::nullopt;
   }
   return Rejection{"internal", "unhandled input"};
@@ -269,7 +279,8 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
 
 json journalRecord(const Input& in, const Session& after) {
   json points = json::array();
-  for (const auto& p : in.points) points.push_back({p.x(), p.y(), p.z()});
+  for (const auto& p : in.points)
+    points.push_back({p.x(), p.y(), p.z()});
   json record = {{"t", in.time_s},
                  {"revision", after.revision},
                  {"input", toString(in.kind)},
@@ -293,7 +304,8 @@ json journalRecord(const Input& in, const Session& after) {
 void remember(Session& s, const Reply& reply) {
   auto& kept = s.replies[reply.client_id];
   kept[reply.request_id] = reply;
-  while (kept.size() > kRepliesKeptPerClient) kept.erase(kept.begin());
+  while (kept.size() > kRepliesKeptPerClient)
+    kept.erase(kept.begin());
 }
 
 }  // namespace
@@ -334,7 +346,7 @@ Step reduce(const Session& session, const Input& in) {
   };
 
   if (command) {
-    if (auto bad = checkShape(in)) return reject(*bad);
+    if (auto bad = checkClient(in)) return reject(*bad);
     const auto client = session.replies.find(in.client_id);
     if (client != session.replies.end()) {
       const auto seen = client->second.find(in.request_id);
@@ -351,9 +363,12 @@ Step reduce(const Session& session, const Input& in) {
     for (auto k : allowedCommands(session.phase)) {
       allowed += (allowed.empty() ? "" : ", ") + std::string(toString(k));
     }
-    return reject({"wrong_phase", fmt::format("{} is not allowed in {} (allowed: {})",
-                                              toString(in.kind), toString(session.phase),
-                                              allowed)});
+    return reject(
+        {"wrong_phase", fmt::format("{} is not allowed in {} (allowed: {})", toString(in.kind),
+                                    toString(session.phase), allowed)});
+  }
+  if (command) {
+    if (auto bad = checkShape(in)) return reject(*bad);
   }
   std::uint32_t new_id = 0;
   if (auto bad = apply(s, in, e, new_id)) return reject(*bad);
@@ -371,12 +386,12 @@ Step reduce(const Session& session, const Input& in) {
     reply.accepted = true;
     reply.target_id = new_id;
     reply.revision = s.revision;
-    reply.message = in.kind == InputKind::kAddTarget ? s.targets.back().message
-                    : s.registration_status.status == "registered" &&
-                            (in.kind == InputKind::kSetFiducials ||
-                             in.kind == InputKind::kAutoFiducials)
-                        ? s.registration_status.message
-                        : std::string("ok");
+    reply.message =
+        in.kind == InputKind::kAddTarget ? s.targets.back().message
+        : s.registration_status.status == "registered" &&
+                (in.kind == InputKind::kSetFiducials || in.kind == InputKind::kAutoFiducials)
+            ? s.registration_status.message
+            : std::string("ok");
     remember(s, reply);
     e.replies.push_back(reply);
   }

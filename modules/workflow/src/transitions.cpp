@@ -147,4 +147,22 @@ std::string mermaidDiagram() {
   return out;
 }
 
+std::string workflowMarkdown() {
+  std::string out =
+      "# Workflow\n\n"
+      "Generated from the transition table in modules/workflow/src/transitions.cpp by\n"
+      "`build/tools/workflow-diagram/ignav-workflow-diagram > docs/WORKFLOW.md`; a test fails "
+      "when\nthis file is not current. Every (phase, input) pair not drawn is rejected with "
+      "\"<input> is\nnot allowed in <phase>\" and changes nothing.\n\n```mermaid\n" +
+      mermaidDiagram() + "```\n\n| phase | commands a client may send |\n|---|---|\n";
+  for (Phase p : kAllPhases) {
+    std::string allowed;
+    for (auto k : allowedCommands(p)) {
+      allowed += (allowed.empty() ? "" : ", ") + std::string("`") + toString(k) + "`";
+    }
+    out += std::string("| ") + toString(p) + " | " + allowed + " |\n";
+  }
+  return out;
+}
+
 }  // namespace ignav::workflow

@@ -11,7 +11,9 @@
 
 namespace ignav::protocol {
 
-inline char* cstr(const std::string& s) { return const_cast<char*>(s.c_str()); }
+inline char* cstr(const std::string& s) {
+  return const_cast<char*>(s.c_str());
+}
 
 template <typename Seq, typename T>
 void viewSequence(Seq& seq, std::vector<T>& items) {
@@ -20,8 +22,12 @@ void viewSequence(Seq& seq, std::vector<T>& items) {
   seq._release = false;
 }
 
-inline ignav_msg_Point3 toMsg(const Eigen::Vector3d& p) { return {p.x(), p.y(), p.z()}; }
-inline Eigen::Vector3d fromMsg(const ignav_msg_Point3& p) { return {p.x, p.y, p.z}; }
+inline ignav_msg_Point3 toMsg(const Eigen::Vector3d& p) {
+  return {p.x(), p.y(), p.z()};
+}
+inline Eigen::Vector3d fromMsg(const ignav_msg_Point3& p) {
+  return {p.x, p.y, p.z};
+}
 
 // The command kinds by name ("load_volume", ...), for clients.
 std::optional<ignav_msg_CommandKind> commandKindFromName(const std::string& name);

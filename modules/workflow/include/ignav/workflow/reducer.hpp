@@ -24,6 +24,8 @@ std::vector<InputKind> allowedCommands(Phase phase);
 
 // The table as a Mermaid state diagram (docs/WORKFLOW.md holds the same text; CI checks it).
 std::string mermaidDiagram();
+// docs/WORKFLOW.md: the diagram and the table of (phase, allowed commands).
+std::string workflowMarkdown();
 
 // A fresh session for this robot (phase startup, no volume).
 Session newSession(std::string session_id, std::shared_ptr<const config::Robot> robot,

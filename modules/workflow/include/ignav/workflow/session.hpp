@@ -19,7 +19,15 @@
 
 namespace ignav::workflow {
 
-enum class Phase { kStartup, kImaging, kRegistration, kPlanning, kPlanLocked, kStopped, kEmergency };
+enum class Phase {
+  kStartup,
+  kImaging,
+  kRegistration,
+  kPlanning,
+  kPlanLocked,
+  kStopped,
+  kEmergency
+};
 constexpr Phase kAllPhases[] = {Phase::kStartup,  Phase::kImaging,    Phase::kRegistration,
                                 Phase::kPlanning, Phase::kPlanLocked, Phase::kStopped,
                                 Phase::kEmergency};
@@ -47,12 +55,12 @@ enum class InputKind {
   kVolumeLoadFailed,  // ... or failed
 };
 constexpr InputKind kAllInputs[] = {
-    InputKind::kLoadVolume,     InputKind::kSetFiducials,  InputKind::kAutoFiducials,
-    InputKind::kAddTarget,      InputKind::kMoveTarget,    InputKind::kRemoveTarget,
-    InputKind::kClearTargets,   InputKind::kReorderTargets, InputKind::kLockPlan,
-    InputKind::kUnlockPlan,     InputKind::kStop,          InputKind::kResume,
-    InputKind::kEmergencyStop,  InputKind::kResetEmergency, InputKind::kQuery,
-    InputKind::kConfigLoaded,   InputKind::kVolumeLoaded,  InputKind::kVolumeLoadFailed};
+    InputKind::kLoadVolume,    InputKind::kSetFiducials,   InputKind::kAutoFiducials,
+    InputKind::kAddTarget,     InputKind::kMoveTarget,     InputKind::kRemoveTarget,
+    InputKind::kClearTargets,  InputKind::kReorderTargets, InputKind::kLockPlan,
+    InputKind::kUnlockPlan,    InputKind::kStop,           InputKind::kResume,
+    InputKind::kEmergencyStop, InputKind::kResetEmergency, InputKind::kQuery,
+    InputKind::kConfigLoaded,  InputKind::kVolumeLoaded,   InputKind::kVolumeLoadFailed};
 const char* toString(InputKind kind);  // "load_volume", ...
 bool isCommand(InputKind kind);        // issued by clients (the rest come from the server)
 
@@ -100,7 +108,7 @@ struct Target {
   actuation::Steps steps;
   double tre_mm = 0.0;
   bool tre_warning = false;
-  std::string message;  // person-readable reachability
+  std::string message;         // person-readable reachability
   std::string status() const;  // "planned" | "unreachable" | "unregistered"
 };
 

@@ -1,0 +1,122 @@
+// A real ignav-server process for end-to-end tests: started on its own DDS domain (loopback
+// config), ready when it prints its readiness line, stopped with SIGTERM.
+#pragma once
+
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "ignav/protocol/client.hpp"
+#include "ignav/protocol/dds.hpp"
+
+extern char** environ;
+
+namespace ignav::e2e {
+
+inline std::string loopbackXml() {
+  return protocol::readConfigFile(IGNAV_SOURCE_DIR "/configs/dds/loopback.xml");
+}
+
+class ServerProcess {
+ public:
+  // Each test passes its own domain id so that tests running in parallel never meet.
+  explicit ServerProcess(std::uint32_t domain) : domain_(domain) {
+    session_dir_ = std::filesystem::temp_directory_path() /
+                   ("ignav_e2e_" + std::to_string(::getpid()) + "_" + std::to_string(domain));
+    std::filesystem::remove_all(session_dir_);
+    start();
+  }
+  ~ServerProcess() {
+    stop();
+    std::filesystem::remove_all(session_dir_);
+  }
+  ServerProcess(const ServerProcess&) = delete;
+  ServerProcess& operator=(const ServerProcess&) = delete;
+
+  void start() {
+    int out[2];
+    ASSERT_EQ(::pipe(out), 0);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_adddup2(&actions, out[1], STDOUT_FILENO);
+    posix_spawn_file_actions_addclose(&actions, out[0]);
+    const std::string log = (session_dir_.string() + ".log");
+    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, log.c_str(),
+                                     O_WRONLY | O_CREAT | O_APPEND, 0644);
+    std::vector<std::string> args{IGNAV_SERVER_EXE,
+                                  "--config",
+                                  IGNAV_SOURCE_DIR "/configs/server.yaml",
+                                  "--domain",
+                                  std::to_string(domain_),
+                                  "--session-dir",
+                                  session_dir_.string()};
+    std::vector<char*> argv;
+    for (auto& a : args)
+      argv.push_back(a.data());
+    argv.push_back(nullptr);
+    ASSERT_EQ(posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ), 0);
+    posix_spawn_file_actions_destroy(&actions);
+    ::close(out[1]);
+    // The readiness line, within 20 s.
+    std::string line;
+    pollfd p{out[0], POLLIN, 0};
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (line.find('\n') == std::string::npos && std::chrono::steady_clock::now() < end) {
+      if (::poll(&p, 1, 100) > 0) {
+        char buf[256];
+        const ssize_t n = ::read(out[0], buf, sizeof buf);
+        if (n <= 0) break;
+        line.append(buf, static_cast<std::size_t>(n));
+      }
+    }
+    ::close(out[0]);
+    ASSERT_NE(line.find("ignav-server ready"), std::string::npos) << line << serverLog();
+  }
+
+  // SIGTERM and the exit code (0 for a clean shutdown).
+  int stop() {
+    if (pid_ <= 0) return -1;
+    ::kill(pid_, SIGTERM);
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    pid_ = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+
+  std::string serverLog() const {
+    std::ifstream in(session_dir_.string() + ".log");
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  }
+
+  std::unique_ptr<protocol::Client> client(const std::string& id) const {
+    auto c = std::make_unique<protocol::Client>(domain_, loopbackXml(), id);
+    EXPECT_TRUE(c->waitForServer(std::chrono::seconds(10)));
+    c->waitFor([](const nlohmann::json& s) { return s.contains("workflow"); },
+               std::chrono::seconds(10));
+    return c;
+  }
+
+  const std::filesystem::path& sessionDir() const { return session_dir_; }
+  std::uint32_t domain() const { return domain_; }
+  pid_t pid() const { return pid_; }
+
+ private:
+  std::uint32_t domain_;
+  std::filesystem::path session_dir_;
+  pid_t pid_ = -1;
+};
+
+}  // namespace ignav::e2e

@@ -1,0 +1,160 @@
+// The reducer without DDS: every (phase, input) pair is either a declared transition or a
+// rejection that changes nothing; steps are deterministic; targets survive re-registration.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "ignav/config/robot_config.hpp"
+#include "ignav/registration/robot_phantom.hpp"
+#include "ignav/workflow/reducer.hpp"
+
+namespace ignav::workflow {
+namespace {
+
+std::shared_ptr<const config::Robot> paperRobot() {
+  static const auto robot = std::make_shared<const config::Robot>(
+      config::loadRobot(IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml").value());
+  return robot;
+}
+
+Input command(InputKind kind, std::uint64_t request, std::vector<Eigen::Vector3d> points = {},
+              std::vector<std::uint32_t> ids = {}) {
+  Input in;
+  in.kind = kind;
+  in.client_id = "test";
+  in.request_id = request;
+  in.points = std::move(points);
+  in.ids = std::move(ids);
+  in.path = kind == InputKind::kLoadVolume ? "phantom:" : "";
+  return in;
+}
+
+Input internal(InputKind kind) {
+  Input in;
+  in.kind = kind;
+  return in;
+}
+
+// The image points of the robot's feature points under a known pose: a registration a
+// set_fiducials command can use without any CT.
+std::vector<Eigen::Vector3d> clickedFeatures(double shift_mm = 0.0) {
+  const auto robot = paperRobot();
+  auto rp = registration::makeRobotPhantom(robot->kinematics, robot->config.registration.scan);
+  auto points = rp.value().spec.fiducials_lps_mm;
+  for (auto& p : points)
+    p.x() += shift_mm;
+  return points;
+}
+
+Session planningSession() {
+  Session s = newSession("t", paperRobot(), "robot.yaml");
+  s = reduce(s, internal(InputKind::kConfigLoaded)).session;
+  s = reduce(s, command(InputKind::kLoadVolume, 1)).session;
+  Input loaded = internal(InputKind::kVolumeLoaded);
+  loaded.loaded.volume = std::make_shared<volume::Volume>();
+  s = reduce(s, loaded).session;
+  s = reduce(s, command(InputKind::kSetFiducials, 2, clickedFeatures())).session;
+  EXPECT_EQ(s.phase, Phase::kPlanning);
+  return s;
+}
+
+TEST(Workflow, EveryPhaseInputPairIsATransitionOrARejectionThatChangesNothing) {
+  for (Phase phase : kAllPhases) {
+    for (InputKind kind : kAllInputs) {
+      if (!isCommand(kind)) continue;
+      Session s = planningSession();
+      s.phase = phase;
+      const auto step = reduce(s, command(kind, 100));
+      ASSERT_EQ(step.effects.replies.size(), 1u);
+      const auto& reply = step.effects.replies[0];
+      bool declared = false;
+      for (const auto& t : transitionTable())
+        declared |= t.from == phase && t.input == kind;
+      if (!declared) {
+        EXPECT_EQ(reply.error_code, "wrong_phase") << toString(phase) << " " << toString(kind);
+        EXPECT_EQ(step.session.phase, phase);
+        EXPECT_EQ(step.session.revision, s.revision);
+        EXPECT_EQ(step.session.targets.size(), s.targets.size());
+        EXPECT_TRUE(step.effects.journal.empty());
+      } else {
+        EXPECT_NE(reply.error_code, "wrong_phase") << toString(phase) << " " << toString(kind);
+      }
+    }
+  }
+}
+
+TEST(Workflow, EmergencyStopFromEveryPhaseAndOnlyResetLeavesIt) {
+  for (Phase phase : kAllPhases) {
+    Session s = planningSession();
+    s.phase = phase;
+    auto step = reduce(s, command(InputKind::kEmergencyStop, 7));
+    if (phase == Phase::kEmergency) continue;  // already there
+    EXPECT_EQ(step.session.phase, Phase::kEmergency) << toString(phase);
+    EXPECT_FALSE(reduce(step.session, command(InputKind::kResume, 8)).effects.replies[0].accepted);
+    step = reduce(step.session, command(InputKind::kResetEmergency, 9));
+    EXPECT_EQ(step.session.phase, Phase::kStopped);
+  }
+}
+
+TEST(Workflow, StopAndResumeReturnToTheInterruptedPhase) {
+  Session s = planningSession();
+  s = reduce(s, command(InputKind::kStop, 10)).session;
+  EXPECT_EQ(s.phase, Phase::kStopped);
+  s = reduce(s, command(InputKind::kResume, 11)).session;
+  EXPECT_EQ(s.phase, Phase::kPlanning);
+}
+
+TEST(Workflow, SameInputsGiveTheSameSessionsAndJournal) {
+  auto run = [] {
+    Session s = planningSession();
+    std::vector<std::string> journal;
+    for (std::uint32_t i = 0; i < 5; ++i) {
+      auto step =
+          reduce(s, command(InputKind::kAddTarget, 20 + i, {Eigen::Vector3d(1.0 * i, 2.0, 3.0)}));
+      journal.insert(journal.end(), step.effects.journal.begin(), step.effects.journal.end());
+      s = step.session;
+    }
+    return std::make_pair(s.revision, journal);
+  };
+  EXPECT_EQ(run(), run());
+}
+
+TEST(Workflow, TargetsAreReEvaluatedNotDroppedWhenTheRegistrationChanges) {
+  Session s = planningSession();
+  // The robot-frame point (8, 12, -175) is reachable; click where it lies in the image.
+  const Eigen::Vector3d click = s.registration->toImage({8.0, 12.0, -175.0});
+  auto step = reduce(s, command(InputKind::kAddTarget, 30, {click}));
+  s = step.session;
+  ASSERT_EQ(s.targets.size(), 1u);
+  EXPECT_EQ(s.targets[0].status(), "planned");
+  // Re-register with every image point 60 mm to the left: the same click is now 60 mm away in
+  // the robot frame, so the target is re-derived (unreachable) but kept.
+  step = reduce(s, command(InputKind::kSetFiducials, 31, clickedFeatures(60.0)));
+  ASSERT_TRUE(step.effects.replies[0].accepted) << step.effects.replies[0].message;
+  ASSERT_EQ(step.session.targets.size(), 1u);
+  EXPECT_EQ(step.session.targets[0].id, s.targets[0].id);
+  EXPECT_NEAR((step.session.targets[0].robot_mm - s.targets[0].robot_mm).norm(), 60.0, 1e-6);
+  EXPECT_EQ(step.session.targets[0].status(), "unreachable");
+  EXPECT_EQ(step.effects.targets_changed, std::vector<std::uint32_t>{s.targets[0].id});
+}
+
+TEST(Workflow, RepeatedRequestIsAnsweredFromMemory) {
+  Session s = planningSession();
+  const auto first = reduce(s, command(InputKind::kAddTarget, 40, {{1, 2, 3}}));
+  const auto again = reduce(first.session, command(InputKind::kAddTarget, 40, {{1, 2, 3}}));
+  EXPECT_EQ(again.session.targets.size(), 1u);
+  EXPECT_TRUE(again.effects.journal.empty());
+  EXPECT_EQ(again.effects.replies[0].target_id, first.effects.replies[0].target_id);
+}
+
+TEST(Workflow, DiagramInDocsIsCurrent) {
+  std::ifstream in(IGNAV_SOURCE_DIR "/docs/WORKFLOW.md");
+  std::stringstream text;
+  text << in.rdbuf();
+  EXPECT_EQ(text.str(), workflowMarkdown())
+      << "regenerate: build/tools/workflow-diagram/ignav-workflow-diagram > docs/WORKFLOW.md";
+}
+
+}  // namespace
+}  // namespace ignav::workflow
