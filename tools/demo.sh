@@ -10,6 +10,25 @@ plan=build/tools/ignav-plan/ignav-plan
 out=out/demo
 rm -rf "$out" && mkdir -p "$out"
 
+echo "== the server, the built-in phantom and the scripted client (configs/demo/plan.yaml)"
+session="$out/session"
+server_log="$out/server.log"
+build/server/ignav-server --config configs/server.yaml --session-dir "$session" \
+  > "$out/server.ready" 2> "$server_log" &
+server_pid=$!
+trap 'kill $server_pid 2>/dev/null || true' EXIT
+for _ in $(seq 100); do grep -q "ready" "$out/server.ready" 2>/dev/null && break; sleep 0.1; done
+cat "$out/server.ready"
+ctl="build/tools/ignavctl/ignavctl --dds-config configs/dds/loopback.xml"
+$ctl run configs/demo/plan.yaml --out-dir "$session"
+echo
+$ctl status
+echo
+$ctl targets ls | tee "$session/summary.txt"
+kill -TERM $server_pid && wait $server_pid
+trap - EXIT
+echo "server stopped cleanly; its log: $server_log"
+
 echo "== feasible volume of $robot"
 "$plan" workspace --robot "$robot" --grid-mm 0.5 --ply "$out/feasible_volume.ply" | tee "$out/workspace.json"
 
@@ -60,6 +79,8 @@ echo "== the paper's IK simulation, closed form vs exact (writes figures)"
 echo
 echo "Session folder: $out/"
 ls -1 "$out"
+echo "The server's session: $session/ (journal.jsonl, phantom_ct/, image_to_robot.tfm, fiducials and"
+echo "targets .mrk.json, slices with overlays, summary.txt)."
 echo "In 3D Slicer: load phantom_ct/ (DICOM), fiducials.mrk.json and image_to_robot.tfm, then put"
 echo "feasible_volume.ply (robot frame) under the transform to see it in the CT. The slice PNGs (with"
 echo "their pixel -> LPS mapping in the matching .json) and IK_STUDY.md open in any viewer."

@@ -143,6 +143,10 @@ json yamlToJson(const YAML::Node& n) {
   }
   const std::string s = n.Scalar();
   if (s == "true" || s == "false") return s == "true";
+  // YAML's spellings of the IEEE specials, so scripts can send them and see them refused.
+  if (s == ".nan" || s == ".NaN" || s == ".NAN") return std::nan("");
+  if (s == ".inf" || s == "+.inf" || s == ".Inf") return HUGE_VAL;
+  if (s == "-.inf" || s == "-.Inf") return -HUGE_VAL;
   try {
     std::size_t used = 0;
     const double d = std::stod(s, &used);
