@@ -341,7 +341,6 @@ Step reduce(const Session& session, const Input& in) {
       remember(rejected.session, reply);
     }
     rejected.effects.replies.push_back(reply);
-    rejected.effects.health_changed = true;
     return rejected;
   };
 
@@ -379,9 +378,9 @@ Step reduce(const Session& session, const Input& in) {
   s.last_event = toString(in.kind);
   if (command) ++s.accepted;
   e.workflow_changed = true;
-  e.health_changed = true;
   if (before != s.phase && in.kind == InputKind::kLoadVolume) e.volume_changed = true;
-  e.journal.push_back(journalRecord(in, s).dump());
+  // A query changes nothing, so there is nothing to journal (and no fsync on its path).
+  if (in.kind != InputKind::kQuery) e.journal.push_back(journalRecord(in, s).dump());
   if (command) {
     reply.accepted = true;
     reply.target_id = new_id;

@@ -1,0 +1,84 @@
+// Round trips to a running ignav-server (tools/bench/bench_latency.sh starts one):
+//   query   : command -> reply
+//   move    : move_target (a click) -> reply, with the journal fsync
+//   click   : move_target -> the target's new state sample arrives
+// Prints median and p99 in microseconds.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "ignav/protocol/client.hpp"
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using nlohmann::json;
+
+struct Stats {
+  double median_us, p99_us;
+};
+
+Stats stats(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return {v[v.size() / 2], v[std::min(v.size() - 1, v.size() * 99 / 100)]};
+}
+
+double since_us(Clock::time_point t) {
+  return std::chrono::duration<double, std::micro>(Clock::now() - t).count();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 3) {
+    std::fprintf(stderr, "usage: bench_latency DOMAIN DDS_CONFIG_XML [ROUNDS]\n");
+    return 2;
+  }
+  const auto domain = static_cast<std::uint32_t>(std::stoul(argv[1]));
+  const int rounds = argc > 3 ? std::stoi(argv[3]) : 2000;
+  ignav::protocol::Client c(domain, ignav::protocol::readConfigFile(argv[2]), "bench");
+  if (!c.waitForServer(std::chrono::seconds(10))) {
+    std::fprintf(stderr, "no server on domain %u\n", domain);
+    return 3;
+  }
+  c.waitFor([](const json& s) { return s.contains("workflow"); }, std::chrono::seconds(5));
+  // Planning needs a CT and a registration.
+  c.send("load_volume", {"phantom:", {}, {}});
+  c.waitFor([](const json& s) { return s.contains("volume") && s["volume"]["status"] == "loaded"; },
+            std::chrono::seconds(120));
+  if (!c.send("auto_fiducials").accepted) return 4;
+  const auto added = c.send("add_target", {"", {{0.0, 10.0, -30.0}}, {}});
+  const std::string id = std::to_string(added.target_id);
+
+  std::vector<double> query, move, click;
+  for (int i = 0; i < rounds / 10; ++i)
+    c.send("query");  // warm-up
+  for (int i = 0; i < rounds; ++i) {
+    auto t = Clock::now();
+    c.send("query");
+    query.push_back(since_us(t));
+  }
+  for (int i = 0; i < rounds; ++i) {
+    const Eigen::Vector3d p(0.001 * (i % 100), 10.0, -30.0);
+    auto t = Clock::now();
+    c.send("move_target", {"", {p}, {added.target_id}});
+    move.push_back(since_us(t));
+    // The state sample for this exact position (sent before the reply, so already here).
+    c.waitFor(
+        [&](const json& s) {
+          return s["targets"].contains(id) && s["targets"][id]["lps"][0].get<double>() == p.x();
+        },
+        std::chrono::seconds(5));
+    click.push_back(since_us(t));
+  }
+  for (const auto& [name, v] : {std::pair{"query command -> reply", &query},
+                                {"move_target -> reply (journal fsync)", &move},
+                                {"move_target -> target state", &click}}) {
+    const auto s = stats(*v);
+    std::printf("%-40s median %8.1f us   p99 %8.1f us   (%d rounds)\n", name, s.median_us, s.p99_us,
+                rounds);
+  }
+  return 0;
+}
