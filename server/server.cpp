@@ -177,6 +177,8 @@ class Server {
       // ~150 µs on this kind of VM, more than the command itself (docs/PERFORMANCE.md).
       if (Clock::now() - last_event >= kBusyPoll) {
         waitset_.wait(std::chrono::milliseconds(200));
+      } else {
+        std::this_thread::yield();
       }
       std::size_t handled = 0;
       for (auto& in : loader_.finished()) {

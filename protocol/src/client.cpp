@@ -105,7 +105,10 @@ workflow::Reply Client::send(const std::string& command, const CommandArgs& args
       if (str(r.client_id) == client_id_ && r.request_id == request_id) mine = fromMsg(r);
     });
     if (mine) break;
-    if (Clock::now() < spin_until) continue;
+    if (Clock::now() < spin_until) {
+      std::this_thread::yield();  // leave the core to DDS receive threads (2-core machines)
+      continue;
+    }
     const auto now = Clock::now();
     if (now >= end) {
       throw Timeout(command + " (request " + std::to_string(request_id) + "): no reply");

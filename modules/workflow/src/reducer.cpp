@@ -15,7 +15,8 @@ namespace {
 
 using nlohmann::json;
 
-constexpr std::size_t kRepliesKeptPerClient = 256;
+// Enough for any client's retries in flight; the session is copied per step, so not more.
+constexpr std::size_t kRepliesKeptPerClient = 32;
 
 struct Rejection {
   std::string code;
