@@ -70,6 +70,17 @@ TEST(WorkflowE2E, FullPlanningWorkflow) {
   const Eigen::Vector3d click = lpsOf(c->state(), goal_robot);
   auto r = c->send("add_target", {"", {click}, {}});
   ASSERT_TRUE(r.accepted) << r.message;
+  {
+    // Durable before acknowledged: the journal already holds the command when its reply comes.
+    std::ifstream journal(server.sessionDir() / "journal.jsonl");
+    bool found = false;
+    for (std::string line; std::getline(journal, line);) {
+      const json record = json::parse(line);
+      found |= record.value("input", "") == "add_target" &&
+               record.value("request_id", std::uint64_t{0}) == r.request_id;
+    }
+    EXPECT_TRUE(found) << "add_target #" << r.request_id << " is not in the journal";
+  }
   const std::string id = std::to_string(r.target_id);
   c->waitFor([&](const json& s) { return s["targets"].contains(id); }, 5s);
   const json t = c->state()["targets"][id];
