@@ -40,6 +40,7 @@ class ServerProcess {
   ~ServerProcess() {
     stop();
     std::filesystem::remove_all(session_dir_);
+    std::filesystem::remove(session_dir_.string() + ".log");
   }
   ServerProcess(const ServerProcess&) = delete;
   ServerProcess& operator=(const ServerProcess&) = delete;
