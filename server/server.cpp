@@ -168,6 +168,7 @@ class Server {
     Input config_loaded;
     config_loaded.kind = InputKind::kConfigLoaded;
     if (!step(config_loaded)) return 3;
+    publishHealth();  // then once a second
     std::cout << "ignav-server ready domain=" << options_.domain_id
               << " session=" << session_dir_.string() << std::endl;
     auto last_health = Clock::now();
@@ -256,7 +257,6 @@ class Server {
     for (auto id : e.targets_changed)
       publishTarget(id);
     if (e.workflow_changed) publishWorkflow();
-    if (e.health_changed) publishHealth();
     for (const auto& r : e.replies)
       sendReply(r);
     // The Slicer files after the replies: they are for people, not on the command's path.

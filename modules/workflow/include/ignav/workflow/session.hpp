@@ -152,7 +152,6 @@ struct Effects {
   bool robot_changed = false;
   bool volume_changed = false;
   bool registration_changed = false;
-  bool health_changed = false;
   std::vector<std::uint32_t> targets_changed;
   std::vector<std::uint32_t> targets_removed;
   std::vector<Reply> replies;
