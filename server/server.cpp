@@ -72,6 +72,12 @@ class Loader {
     });
   }
 
+  // Loads now, on the calling thread (crash recovery); the same code the thread runs.
+  Input loadNow(const std::string& source, const config::Robot& robot,
+                const fs::path& session_dir) {
+    return load(source, robot, session_dir);
+  }
+
   // Files read so far and in all (0 when unknown), updated from the loader thread.
   std::pair<std::size_t, std::size_t> progress() const { return {done_files_, total_files_}; }
 
@@ -86,7 +92,9 @@ class Loader {
   Input load(const std::string& source, const config::Robot& robot, const fs::path& session_dir) {
     Input in;
     std::string path = source;
-    if (source == kPhantomSource) {
+    if (source == kPhantomSource && fs::exists(session_dir / "phantom_ct")) {
+      path = (session_dir / "phantom_ct").string();  // recovery: the series written before
+    } else if (source == kPhantomSource) {
       // The built-in phantom is written as a real DICOM series into the session and read back
       // like any scan.
       auto rp = registration::makeRobotPhantom(robot.kinematics, robot.config.registration.scan);
@@ -164,10 +172,18 @@ class Server {
         workflow::newSession(session_dir_.filename().string(), std::move(robot), o.robot_config);
   }
 
-  int run(const std::atomic<bool>& stop) {
-    Input config_loaded;
-    config_loaded.kind = InputKind::kConfigLoaded;
-    if (!step(config_loaded)) return 3;
+  int run(const std::atomic<bool>& stop, const std::vector<std::string>& journal_lines) {
+    if (journal_lines.empty()) {
+      Input config_loaded;
+      config_loaded.kind = InputKind::kConfigLoaded;
+      if (!step(config_loaded)) return 3;
+    } else {
+      if (auto ok = recover(journal_lines); !ok) {
+        spdlog::error("{}", ok.error().message);
+        return 2;
+      }
+      publishEverything();
+    }
     publishHealth();  // then once a second
     std::cout << "ignav-server ready domain=" << options_.domain_id
               << " session=" << session_dir_.string() << std::endl;
@@ -227,6 +243,54 @@ class Server {
 
  private:
   double now_s() const { return std::chrono::duration<double>(Clock::now() - started_).count(); }
+
+  // Rebuilds the session by feeding the journal through the same reducer, checking each
+  // record's revision and phase; nothing is published or journaled again, and no load pending
+  // at the crash is lost (it is started again).
+  Status recover(const std::vector<std::string>& lines) {
+    const std::string journal = (session_dir_ / "journal.jsonl").string();
+    for (std::size_t i = 0; i < lines.size(); ++i) {
+      const std::string where = fmt::format("{} line {}", journal, i + 1);
+      auto entry = workflow::parseJournalRecord(lines[i]);
+      if (!entry) return makeError(ErrorCode::kFormat, where + ": " + entry.error().message);
+      Input in = entry->input;
+      if (in.kind == InputKind::kVolumeLoaded) {
+        Input reloaded = loader_.loadNow(in.loaded.source, *session_.robot, session_dir_);
+        if (reloaded.kind != InputKind::kVolumeLoaded) {
+          return makeError(ErrorCode::kIo,
+                           where + ": cannot load the CT again (" + reloaded.error + ")");
+        }
+        in.loaded = reloaded.loaded;
+      }
+      const auto step = workflow::reduce(session_, in);
+      if (step.session.revision != entry->revision ||
+          workflow::toString(step.session.phase) != entry->phase) {
+        return makeError(
+            ErrorCode::kFormat,
+            fmt::format("{}: replaying it gives revision {} in {}, the record says "
+                        "revision {} in {}",
+                        where, step.session.revision, workflow::toString(step.session.phase),
+                        entry->revision, entry->phase));
+      }
+      session_ = step.session;
+    }
+    if (session_.volume_status.status == "loading") {
+      loader_.start(session_.volume_status.source, *session_.robot, session_dir_);
+    }
+    spdlog::info("recovered {} journal records: revision {}, phase {}, {} targets", lines.size(),
+                 session_.revision, workflow::toString(session_.phase), session_.targets.size());
+    return Ok{};
+  }
+
+  void publishEverything() {
+    publishRobot();
+    publishVolume();
+    publishRegistration();
+    for (const auto& t : session_.targets)
+      publishTarget(t.id);
+    publishWorkflow();
+    writeExports();
+  }
 
   // One input through the reducer, then its effects in the order DESIGN.md requires.
   bool step(Input in) {
@@ -623,7 +687,23 @@ int runServer(const ServerOptions& options, const std::atomic<bool>& stop) {
     spdlog::error("{}: cannot create the session folder: {}", dir.string(), ec.message());
     return 2;
   }
-  auto journal = journal::Journal::open((dir / "journal.jsonl").string());
+  // An existing session is recovered from its journal; a write torn by a crash is cut off.
+  const std::string journal_path = (dir / "journal.jsonl").string();
+  auto contents = journal::readJournal(journal_path);
+  if (!contents) {
+    spdlog::error("{}", contents.error().message);
+    return 2;
+  }
+  if (contents->torn_tail) {
+    spdlog::warn("{}: the last record was cut short (a crash while writing); dropped",
+                 journal_path);
+    fs::resize_file(journal_path, contents->valid_bytes, ec);
+    if (ec) {
+      spdlog::error("{}: cannot drop the torn record: {}", journal_path, ec.message());
+      return 2;
+    }
+  }
+  auto journal = journal::Journal::open(journal_path);
   if (!journal) {
     spdlog::error("{}", journal.error().message);
     return 2;
@@ -631,7 +711,7 @@ int runServer(const ServerOptions& options, const std::atomic<bool>& stop) {
   try {
     Server server(options, std::make_shared<const config::Robot>(std::move(robot).value()), dir,
                   std::move(journal).value());
-    return server.run(stop);
+    return server.run(stop, contents->lines);
   } catch (const DdsError& e) {
     spdlog::error("DDS: {}", e.what());
     return 1;

@@ -95,6 +95,14 @@ class ServerProcess {
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
 
+  // SIGKILL: no shutdown code runs, as in a crash or power loss.
+  void crash() {
+    if (pid_ <= 0) return;
+    ::kill(pid_, SIGKILL);
+    ::waitpid(pid_, nullptr, 0);
+    pid_ = -1;
+  }
+
   std::string serverLog() const {
     std::ifstream in(session_dir_.string() + ".log");
     std::stringstream s;

@@ -48,5 +48,22 @@ TEST(Journal, RefusesMultiLineRecordsAndUnwritablePaths) {
   EXPECT_NE(bad.error().message.find("/proc/ignav/journal.jsonl"), std::string::npos);
 }
 
+TEST(Journal, ReadsBackAndDropsATornLastLine) {
+  const auto path = scratch("torn.jsonl");
+  {
+    std::ofstream out(path, std::ios::trunc);
+    out << "{\"a\":1}\n{\"b\":2}\n{\"c\":";  // the crash came mid-write
+  }
+  auto read = readJournal(path.string());
+  ASSERT_TRUE(read.ok());
+  EXPECT_EQ(read->lines, (std::vector<std::string>{"{\"a\":1}", "{\"b\":2}"}));
+  EXPECT_TRUE(read->torn_tail);
+  EXPECT_EQ(read->valid_bytes, std::string("{\"a\":1}\n{\"b\":2}\n").size());
+  const auto missing = readJournal(scratch("none.jsonl").string());
+  ASSERT_TRUE(missing.ok());
+  EXPECT_TRUE(missing->lines.empty());
+  EXPECT_FALSE(missing->torn_tail);
+}
+
 }  // namespace
 }  // namespace ignav::journal

@@ -148,6 +148,44 @@ TEST(Workflow, RepeatedRequestIsAnsweredFromMemory) {
   EXPECT_EQ(again.effects.replies[0].target_id, first.effects.replies[0].target_id);
 }
 
+TEST(Workflow, JournalRecordsReplayToTheSameSession) {
+  // Run a session, keep its journal, then feed the parsed records to a fresh session.
+  Session live = newSession("t", paperRobot(), "robot.yaml");
+  std::vector<std::string> journal;
+  auto run = [&](const Input& in) {
+    auto step = reduce(live, in);
+    journal.insert(journal.end(), step.effects.journal.begin(), step.effects.journal.end());
+    live = step.session;
+  };
+  run(internal(InputKind::kConfigLoaded));
+  run(command(InputKind::kLoadVolume, 1));
+  Input loaded = internal(InputKind::kVolumeLoaded);
+  loaded.loaded.volume = std::make_shared<volume::Volume>();
+  run(loaded);
+  run(command(InputKind::kSetFiducials, 2, clickedFeatures()));
+  run(command(InputKind::kAddTarget, 3, {{1.0 / 3.0, 19.1, -22.7}}));
+  run(command(InputKind::kQuery, 4));  // not journaled
+  run(command(InputKind::kStop, 5));
+  ASSERT_EQ(journal.size(), 6u);
+
+  Session replayed = newSession("t", paperRobot(), "robot.yaml");
+  for (const auto& line : journal) {
+    auto entry = parseJournalRecord(line);
+    ASSERT_TRUE(entry.ok()) << entry.error().message << ": " << line;
+    if (entry->input.kind == InputKind::kVolumeLoaded) entry->input.loaded = loaded.loaded;
+    replayed = reduce(replayed, entry->input).session;
+    EXPECT_EQ(replayed.revision, entry->revision);
+    EXPECT_EQ(toString(replayed.phase), entry->phase);
+  }
+  EXPECT_EQ(replayed.phase, live.phase);
+  ASSERT_EQ(replayed.targets.size(), 1u);
+  // Bit-exact: the points went through the text at full precision.
+  EXPECT_EQ(replayed.targets[0].lps_mm, live.targets[0].lps_mm);
+  EXPECT_EQ(replayed.targets[0].solution.joints.z_s_mm, live.targets[0].solution.joints.z_s_mm);
+  EXPECT_FALSE(parseJournalRecord("{\"v\":2}").ok());
+  EXPECT_FALSE(parseJournalRecord("not json").ok());
+}
+
 TEST(Workflow, DiagramInDocsIsCurrent) {
   std::ifstream in(IGNAV_SOURCE_DIR "/docs/WORKFLOW.md");
   std::stringstream text;

@@ -6,6 +6,8 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <utility>
 
 namespace ignav::journal {
@@ -57,6 +59,27 @@ Status Journal::append(const std::string& line) {
   }
   ++records_;
   return Ok{};
+}
+
+Expected<JournalContents> readJournal(const std::string& path) {
+  JournalContents out;
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return out;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return makeError(ErrorCode::kIo, path + ": cannot read the journal");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::size_t start = 0;
+  while (start < text.size()) {
+    const std::size_t end = text.find('\n', start);
+    if (end == std::string::npos) {
+      out.torn_tail = true;
+      break;
+    }
+    out.lines.push_back(text.substr(start, end - start));
+    start = end + 1;
+  }
+  out.valid_bytes = start;
+  return out;
 }
 
 }  // namespace ignav::journal

@@ -282,7 +282,8 @@ json journalRecord(const Input& in, const Session& after) {
   json points = json::array();
   for (const auto& p : in.points)
     points.push_back({p.x(), p.y(), p.z()});
-  json record = {{"t", in.time_s},
+  json record = {{"v", kJournalFormat},
+                 {"t", in.time_s},
                  {"revision", after.revision},
                  {"input", toString(in.kind)},
                  {"phase", toString(after.phase)}};
@@ -296,10 +297,22 @@ json journalRecord(const Input& in, const Session& after) {
   if (in.kind == InputKind::kVolumeLoaded && in.loaded.volume) {
     const auto& g = in.loaded.volume->geometry;
     record["source"] = in.loaded.source;
+    record["description"] = in.loaded.description;
     record["dims"] = {g.dims[0], g.dims[1], g.dims[2]};
   }
   if (!in.error.empty()) record["error"] = in.error;
   return record;
+}
+
+InputKind inputKindFromName(const std::string& name, bool& found) {
+  for (InputKind k : kAllInputs) {
+    if (name == toString(k)) {
+      found = true;
+      return k;
+    }
+  }
+  found = false;
+  return InputKind::kQuery;
 }
 
 void remember(Session& s, const Reply& reply) {
@@ -310,6 +323,41 @@ void remember(Session& s, const Reply& reply) {
 }
 
 }  // namespace
+
+Expected<JournalEntry> parseJournalRecord(const std::string& line) {
+  const json r = json::parse(line, nullptr, /*allow_exceptions=*/false);
+  auto bad = [](const std::string& why) { return makeError(ErrorCode::kFormat, why); };
+  if (r.is_discarded() || !r.is_object()) return bad("not a JSON object");
+  try {
+    if (r.value("v", 0) != kJournalFormat) {
+      return bad("format version " + r.value("v", json(0)).dump() + ", this server reads " +
+                 std::to_string(kJournalFormat));
+    }
+    JournalEntry e;
+    bool known = false;
+    e.input.kind = inputKindFromName(r.at("input").get<std::string>(), known);
+    if (!known) return bad("unknown input '" + r.at("input").get<std::string>() + "'");
+    e.input.time_s = r.at("t").get<double>();
+    e.revision = r.at("revision").get<std::uint64_t>();
+    e.phase = r.at("phase").get<std::string>();
+    e.input.client_id = r.value("client_id", "");
+    e.input.request_id = r.value("request_id", std::uint64_t{0});
+    e.input.path = r.value("path", "");
+    for (const auto& p : r.value("points", json::array())) {
+      e.input.points.emplace_back(p.at(0).get<double>(), p.at(1).get<double>(),
+                                  p.at(2).get<double>());
+    }
+    for (const auto& id : r.value("ids", json::array())) {
+      e.input.ids.push_back(id.get<std::uint32_t>());
+    }
+    e.input.error = r.value("error", "");
+    e.input.loaded.source = r.value("source", "");
+    e.input.loaded.description = r.value("description", "");
+    return e;
+  } catch (const json::exception& ex) {
+    return bad(ex.what());
+  }
+}
 
 std::string Target::status() const {
   if (!registered) return "unregistered";

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "ignav/core/expected.hpp"
 
@@ -29,5 +30,16 @@ class Journal {
   std::string path_;
   std::size_t records_ = 0;
 };
+
+// The records of a journal file. A last line without its newline is a write cut short by a crash
+// or power loss: it is dropped (torn_tail) and valid_bytes says where the good part ends, so
+// the file can be truncated there before appending again.
+struct JournalContents {
+  std::vector<std::string> lines;
+  bool torn_tail = false;
+  std::size_t valid_bytes = 0;
+};
+// A missing file reads as empty.
+Expected<JournalContents> readJournal(const std::string& path);
 
 }  // namespace ignav::journal

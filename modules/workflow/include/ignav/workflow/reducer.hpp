@@ -34,4 +34,18 @@ Session newSession(std::string session_id, std::shared_ptr<const config::Robot> 
 // Deterministic: the same inputs in the same order give the same sessions and effects.
 Step reduce(const Session& session, const Input& input);
 
+// The session journal: one JSON object per line, per accepted input that changes the session:
+//   {"v": 1, "revision": N, "t": seconds since start, "input": "add_target", "phase": after,
+//    "client_id", "request_id", "path", "points", "ids", "error", "source", "description"}
+// Revisions run 1, 2, 3 ... with no gaps, so they double as the record's sequence number.
+constexpr int kJournalFormat = 1;
+
+struct JournalEntry {
+  Input input;  // for volume_loaded, the caller loads input.loaded.source again
+  std::uint64_t revision = 0;
+  std::string phase;
+};
+// Errors (kFormat) say what is wrong with the record.
+Expected<JournalEntry> parseJournalRecord(const std::string& line);
+
 }  // namespace ignav::workflow
