@@ -248,32 +248,17 @@ class Server {
   // record's revision and phase; nothing is published or journaled again, and no load pending
   // at the crash is lost (it is started again).
   Status recover(const std::vector<std::string>& lines) {
-    const std::string journal = (session_dir_ / "journal.jsonl").string();
-    for (std::size_t i = 0; i < lines.size(); ++i) {
-      const std::string where = fmt::format("{} line {}", journal, i + 1);
-      auto entry = workflow::parseJournalRecord(lines[i]);
-      if (!entry) return makeError(ErrorCode::kFormat, where + ": " + entry.error().message);
-      Input in = entry->input;
-      if (in.kind == InputKind::kVolumeLoaded) {
-        Input reloaded = loader_.loadNow(in.loaded.source, *session_.robot, session_dir_);
-        if (reloaded.kind != InputKind::kVolumeLoaded) {
-          return makeError(ErrorCode::kIo,
-                           where + ": cannot load the CT again (" + reloaded.error + ")");
-        }
-        in.loaded = reloaded.loaded;
+    auto load_ct = [this](const std::string& source) -> Expected<workflow::LoadedCt> {
+      Input reloaded = loader_.loadNow(source, *session_.robot, session_dir_);
+      if (reloaded.kind != InputKind::kVolumeLoaded) {
+        return makeError(ErrorCode::kIo, reloaded.error);
       }
-      const auto step = workflow::reduce(session_, in);
-      if (step.session.revision != entry->revision ||
-          workflow::toString(step.session.phase) != entry->phase) {
-        return makeError(
-            ErrorCode::kFormat,
-            fmt::format("{}: replaying it gives revision {} in {}, the record says "
-                        "revision {} in {}",
-                        where, step.session.revision, workflow::toString(step.session.phase),
-                        entry->revision, entry->phase));
-      }
-      session_ = step.session;
-    }
+      return reloaded.loaded;
+    };
+    auto recovered = workflow::replayJournal(session_, lines, load_ct,
+                                             (session_dir_ / "journal.jsonl").string());
+    if (!recovered) return recovered.error();
+    session_ = std::move(recovered).value();
     if (session_.volume_status.status == "loading") {
       loader_.start(session_.volume_status.source, *session_.robot, session_dir_);
     }

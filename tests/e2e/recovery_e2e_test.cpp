@@ -62,6 +62,24 @@ TEST(RecoveryE2E, KilledServerComesBackWithEveryAcknowledgedChange) {
   // were answered before the crash: a fresh request id is needed, exactly as for retries.)
   const auto next = c->send("add_target", {"", {lpsOf(after, {5, 10, -170})}, {}}, 10s, 1001);
   EXPECT_EQ(next.target_id, 4u);
+
+  // Offline, ignav-plan re-derives the same session from the journal and checks every record.
+  EXPECT_EQ(server.stop(), 0);
+  const std::string cmd = std::string(IGNAV_PLAN_EXE) + " replay " + server.sessionDir().string() +
+                          " --verify --robot " IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml";
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string out;
+  char buf[4096];
+  while (std::size_t n = fread(buf, 1, sizeof buf, p))
+    out.append(buf, n);
+  ASSERT_EQ(pclose(p), 0) << out;
+  const json replay = json::parse(out);
+  EXPECT_TRUE(replay["verified"].get<bool>());
+  ASSERT_EQ(replay["targets"].size(), 3u);
+  const json& t1 = replay["targets"][0];
+  const json& live = after["targets"][std::to_string(t1["id"].get<int>())];
+  EXPECT_DOUBLE_EQ(t1["joints"]["z_s_mm"].get<double>(), live["joints"][2].get<double>());
+  EXPECT_EQ(t1["steps"], live["steps"]);
 }
 
 TEST(RecoveryE2E, CorruptJournalIsRefusedWithTheLine) {

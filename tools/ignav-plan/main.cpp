@@ -11,6 +11,7 @@
 #include "ignav/kinematics/ik_study.hpp"
 #include "ignav/kinematics/workspace_map.hpp"
 #include "registration_commands.hpp"
+#include "session_commands.hpp"
 #include "study_report.hpp"
 #include "volume_commands.hpp"
 
@@ -261,6 +262,14 @@ int main(int argc, char** argv) {
   reg->add_option("--tre", tre_targets, "X,Y,Z image mm: expected TRE there (repeatable)");
   reg->add_option("--tfm", register_args.tfm_out, "write the transform for 3D Slicer (.tfm)");
   reg->add_option("--markups", register_args.markups_out, "write the image points (.mrk.json)");
+  ignav::plan::ReplayArgs replay_args;
+  bool verify = false;
+  auto* replay = app.add_subcommand(
+      "replay", "re-derive a recorded session from its journal and check every record");
+  replay->add_option("session", replay_args.session_dir, "session folder")->required();
+  replay->add_option("--robot", replay_args.robot_path, "the robot YAML the server ran with")
+      ->required();
+  replay->add_flag("--verify", verify, "check each record's revision and phase (always done)");
   ignav::plan::FindFiducialsArgs find_args;
   double min_hu = 0.0;
   auto* find = app.add_subcommand("find-fiducials", "locate marker beads on a CT");
@@ -290,6 +299,10 @@ int main(int argc, char** argv) {
       const auto outcome = ignav::plan::registerPairs(register_args);
       std::cout << outcome.json.dump(2) << "\n";
       return outcome.exit_code;
+    }
+    if (*replay) {
+      std::cout << ignav::plan::replaySession(replay_args).dump(2) << "\n";
+      return 0;
     }
     if (*find) {
       if (min_hu_option->count() > 0) find_args.min_hu = min_hu;

@@ -330,7 +330,7 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
   if (r.is_discarded() || !r.is_object()) return bad("not a JSON object");
   try {
     if (r.value("v", 0) != kJournalFormat) {
-      return bad("format version " + r.value("v", json(0)).dump() + ", this server reads " +
+      return bad("format version " + r.value("v", json(0)).dump() + ", this build reads " +
                  std::to_string(kJournalFormat));
     }
     JournalEntry e;
@@ -357,6 +357,34 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
   } catch (const json::exception& ex) {
     return bad(ex.what());
   }
+}
+
+Expected<Session> replayJournal(Session session, const std::vector<std::string>& lines,
+                                const CtLoader& load_ct, const std::string& journal_name) {
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    const std::string where = fmt::format("{} line {}", journal_name, i + 1);
+    auto entry = parseJournalRecord(lines[i]);
+    if (!entry) return makeError(ErrorCode::kFormat, where + ": " + entry.error().message);
+    Input& in = entry->input;
+    if (in.kind == InputKind::kVolumeLoaded) {
+      auto ct = load_ct(in.loaded.source);
+      if (!ct) {
+        return makeError(ErrorCode::kIo,
+                         where + ": cannot load the CT again (" + ct.error().message + ")");
+      }
+      in.loaded = std::move(ct).value();
+    }
+    Step step = reduce(session, in);
+    if (step.session.revision != entry->revision || toString(step.session.phase) != entry->phase) {
+      return makeError(ErrorCode::kFormat,
+                       fmt::format("{}: replaying it gives revision {} in {}, the record says "
+                                   "revision {} in {}",
+                                   where, step.session.revision, toString(step.session.phase),
+                                   entry->revision, entry->phase));
+    }
+    session = std::move(step.session);
+  }
+  return session;
 }
 
 std::string Target::status() const {

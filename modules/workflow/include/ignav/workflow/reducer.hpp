@@ -1,6 +1,7 @@
 // The workflow as a table and a pure reducer: (session, input) -> (session', effects).
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -47,5 +48,14 @@ struct JournalEntry {
 };
 // Errors (kFormat) say what is wrong with the record.
 Expected<JournalEntry> parseJournalRecord(const std::string& line);
+
+// Loads the CT a volume_loaded record names (I/O stays with the caller).
+using CtLoader = std::function<Expected<LoadedCt>(const std::string& source)>;
+
+// Feeds journal lines through reduce() from `start`, checking that each record gives its
+// recorded revision and phase: crash recovery and the offline determinism check. Errors name
+// `journal_name` and the line.
+Expected<Session> replayJournal(Session start, const std::vector<std::string>& lines,
+                                const CtLoader& load_ct, const std::string& journal_name);
 
 }  // namespace ignav::workflow

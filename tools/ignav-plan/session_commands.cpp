@@ -1,0 +1,72 @@
+#include "session_commands.hpp"
+
+#include <filesystem>
+#include <memory>
+
+#include "ignav/config/robot_config.hpp"
+#include "ignav/journal/journal.hpp"
+#include "ignav/volume/load.hpp"
+#include "ignav/workflow/reducer.hpp"
+
+namespace ignav::plan {
+
+nlohmann::json replaySession(const ReplayArgs& args) {
+  namespace fs = std::filesystem;
+  using nlohmann::json;
+  const fs::path dir(args.session_dir);
+  const std::string journal_path = (dir / "journal.jsonl").string();
+  if (!fs::exists(journal_path)) throw CliError{journal_path + ": no journal in this folder"};
+  auto robot = config::loadRobot(args.robot_path);
+  if (!robot) throw CliError{robot.error().message};
+  auto contents = journal::readJournal(journal_path);
+  if (!contents) throw CliError{contents.error().message};
+
+  auto load_ct = [&](const std::string& source) -> Expected<workflow::LoadedCt> {
+    // The server writes the built-in phantom into the session; everything else is a path.
+    const std::string path = source == "phantom:" ? (dir / "phantom_ct").string() : source;
+    auto loaded = volume::loadVolume(path, {});
+    if (!loaded) return loaded.error();
+    workflow::LoadedCt ct;
+    ct.source = source;
+    ct.volume = std::make_shared<const volume::Volume>(std::move(loaded->volume));
+    return ct;
+  };
+  const auto start = workflow::newSession(
+      dir.filename().string(), std::make_shared<const config::Robot>(std::move(robot).value()),
+      args.robot_path);
+  auto session = workflow::replayJournal(start, contents->lines, load_ct, journal_path);
+  if (!session) throw CliError{session.error().message};
+
+  json targets = json::array();
+  for (std::size_t i = 0; i < session->targets.size(); ++i) {
+    const auto& t = session->targets[i];
+    const auto& j = t.solution.joints;
+    targets.push_back({{"id", t.id},
+                       {"order", i + 1},
+                       {"status", t.status()},
+                       {"lps_mm", {t.lps_mm.x(), t.lps_mm.y(), t.lps_mm.z()}},
+                       {"robot_mm", {t.robot_mm.x(), t.robot_mm.y(), t.robot_mm.z()}},
+                       {"joints",
+                        {{"theta_c_deg", j.theta_c_rad * 180.0 / M_PI},
+                         {"z_c_mm", j.z_c_mm},
+                         {"z_s_mm", j.z_s_mm}}},
+                       {"steps", t.steps.motor},
+                       {"tre_mm", t.tre_mm},
+                       {"message", t.message}});
+  }
+  json out = {{"verified", true},
+              {"records", contents->lines.size()},
+              {"torn_tail_dropped", contents->torn_tail},
+              {"revision", session->revision},
+              {"phase", workflow::toString(session->phase)},
+              {"volume", session->volume_status.source},
+              {"targets", targets}};
+  if (session->registration) {
+    out["registration"] = {{"fre_mm", session->registration->fre_mm},
+                           {"scale", session->registration->scale},
+                           {"auto_detected", session->registration_status.auto_detected}};
+  }
+  return out;
+}
+
+}  // namespace ignav::plan

@@ -1,0 +1,18 @@
+// ignav-plan replay: a recorded session re-derived offline from its journal, every record
+// checked against what the server recorded (the determinism check).
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "cli_common.hpp"
+
+namespace ignav::plan {
+
+struct ReplayArgs {
+  std::string session_dir;
+  std::string robot_path;  // the robot config the server ran with
+};
+nlohmann::json replaySession(const ReplayArgs& args);
+
+}  // namespace ignav::plan
