@@ -8,6 +8,7 @@
 #include <ctime>
 #include <deque>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <mutex>
 #include <optional>
@@ -275,6 +276,7 @@ class Server {
       publishTarget(t.id);
     publishWorkflow();
     writeExports();
+    writeReport();
   }
 
   // One input through the reducer, then its effects in the order DESIGN.md requires.
@@ -313,6 +315,7 @@ class Server {
         (e.registration_changed || !e.targets_changed.empty() || !e.targets_removed.empty())) {
       writeExports();
     }
+    if (!e.journal.empty()) writeReport();
     if (e.load_volume) loader_.start(*e.load_volume, *session_.robot, session_dir_);
     return true;
   }
@@ -500,6 +503,11 @@ class Server {
     }
     (void)registration::writeMarkupsJson("ignav targets", targets,
                                          (session_dir_ / "targets.mrk.json").string());
+  }
+
+  void writeReport() {
+    std::ofstream(session_dir_ / "report.md", std::ios::trunc)
+        << workflow::procedureReport(session_);
   }
 
   void answerSlice(const ignav_msg_SliceRequest& req) {

@@ -135,6 +135,9 @@ TEST(WorkflowE2E, FullPlanningWorkflow) {
   EXPECT_GE(records, 8u);
   EXPECT_TRUE(std::filesystem::exists(server.sessionDir() / "image_to_robot.tfm"));
   EXPECT_TRUE(std::filesystem::exists(server.sessionDir() / "targets.mrk.json"));
+  std::ifstream report(server.sessionDir() / "report.md");
+  const std::string text((std::istreambuf_iterator<char>(report)), {});
+  EXPECT_NE(text.find("| T" + id + " | planned |"), std::string::npos) << text;
 }
 
 TEST(WorkflowE2E, LateJoinerSeesTheCurrentState) {

@@ -2,6 +2,8 @@
 // rejection that changes nothing; steps are deterministic; targets survive re-registration.
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
+
 #include <fstream>
 #include <sstream>
 
@@ -184,6 +186,21 @@ TEST(Workflow, JournalRecordsReplayToTheSameSession) {
   EXPECT_EQ(replayed.targets[0].solution.joints.z_s_mm, live.targets[0].solution.joints.z_s_mm);
   EXPECT_FALSE(parseJournalRecord("{\"v\":2}").ok());
   EXPECT_FALSE(parseJournalRecord("not json").ok());
+}
+
+TEST(Workflow, ReportTabulatesTheTargets) {
+  Session s = planningSession();
+  const Eigen::Vector3d click = s.registration->toImage({8.0, 12.0, -175.0});
+  s = reduce(s, command(InputKind::kAddTarget, 50, {click})).session;
+  s = reduce(s, command(InputKind::kAddTarget, 51, {s.registration->toImage({40, 0, -180})}))
+          .session;
+  const std::string report = procedureReport(s);
+  const auto& j = s.targets[0].solution.joints;
+  EXPECT_NE(report.find(fmt::format("| 1 | T1 | planned |")), std::string::npos) << report;
+  EXPECT_NE(report.find(fmt::format("{:.3f}", j.z_s_mm)), std::string::npos) << report;
+  EXPECT_NE(report.find("| 2 | T2 | unreachable |"), std::string::npos) << report;
+  EXPECT_NE(report.find("beyond the maximum radius 26.535 mm"), std::string::npos) << report;
+  EXPECT_NE(report.find("registration: similarity from 3 points"), std::string::npos) << report;
 }
 
 TEST(Workflow, DiagramInDocsIsCurrent) {

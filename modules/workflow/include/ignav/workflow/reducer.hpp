@@ -49,6 +49,10 @@ struct JournalEntry {
 // Errors (kFormat) say what is wrong with the record.
 Expected<JournalEntry> parseJournalRecord(const std::string& line);
 
+// The session for a person (the server writes it as report.md): phase, CT, registration and a
+// table of the targets with joints, motor steps and expected TRE.
+std::string procedureReport(const Session& session);
+
 // Loads the CT a volume_loaded record names (I/O stays with the caller).
 using CtLoader = std::function<Expected<LoadedCt>(const std::string& source)>;
 
