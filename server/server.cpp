@@ -73,12 +73,6 @@ class Loader {
     });
   }
 
-  // Loads now, on the calling thread (crash recovery); the same code the thread runs.
-  Input loadNow(const std::string& source, const config::Robot& robot,
-                const fs::path& session_dir) {
-    return load(source, robot, session_dir);
-  }
-
   // Files read so far and in all (0 when unknown), updated from the loader thread.
   std::pair<std::size_t, std::size_t> progress() const { return {done_files_, total_files_}; }
 
@@ -89,7 +83,7 @@ class Loader {
     return out;
   }
 
- private:
+  // The load itself: run on the loader thread by start(), or directly for crash recovery.
   Input load(const std::string& source, const config::Robot& robot, const fs::path& session_dir) {
     Input in;
     std::string path = source;
@@ -130,6 +124,7 @@ class Loader {
     return in;
   }
 
+ private:
   static Input failed(const std::string& why) {
     Input in;
     in.kind = InputKind::kVolumeLoadFailed;
@@ -250,7 +245,7 @@ class Server {
   // at the crash is lost (it is started again).
   Status recover(const std::vector<std::string>& lines) {
     auto load_ct = [this](const std::string& source) -> Expected<workflow::LoadedCt> {
-      Input reloaded = loader_.loadNow(source, *session_.robot, session_dir_);
+      Input reloaded = loader_.load(source, *session_.robot, session_dir_);
       if (reloaded.kind != InputKind::kVolumeLoaded) {
         return makeError(ErrorCode::kIo, reloaded.error);
       }
@@ -361,9 +356,7 @@ class Server {
   void publishRobot() {
     const auto& robot = *session_.robot;
     const auto ws = robot.kinematics.workspace();
-    std::vector<ignav_msg_Point3> features;
-    for (const auto& p : robot.feature_points_mm)
-      features.push_back(toMsg(p));
+    auto features = toMsgs(robot.feature_points_mm);
     ignav_msg_RobotState r{};
     r.name = cstr(robot.config.name);
     r.config_path = cstr(session_.robot_path);
@@ -388,9 +381,7 @@ class Server {
         v.dims[a] = static_cast<std::uint32_t>(g.dims[a]);
         v.spacing_mm[a] = g.spacing_mm[a];
       }
-      const Eigen::Matrix4d m = g.ijkToLps();
-      for (int i = 0; i < 16; ++i)
-        v.ijk_to_lps[i] = m(i / 4, i % 4);
+      toRowMajor(g.ijkToLps(), v.ijk_to_lps);
       if (hu_range_for_ != vol.get()) {
         hu_range_ = vol->valueRange();
         hu_range_for_ = vol.get();
@@ -416,14 +407,10 @@ class Server {
     std::string kind;
     if (const auto& reg = session_.registration) {
       kind = registration::toString(reg->kind);
-      for (const auto& p : reg->image_mm)
-        image.push_back(toMsg(p));
-      for (const auto& p : reg->robot_mm)
-        robot.push_back(toMsg(p));
+      image = toMsgs(reg->image_mm);
+      robot = toMsgs(reg->robot_mm);
       residuals = reg->residuals_mm;
-      const Eigen::Matrix4d m = reg->imageToRobot();
-      for (int i = 0; i < 16; ++i)
-        r.image_to_robot[i] = m(i / 4, i % 4);
+      toRowMajor(reg->imageToRobot(), r.image_to_robot);
       r.scale = reg->scale;
       r.fre_mm = reg->fre_mm;
     }
@@ -597,8 +584,7 @@ class Server {
     r.message = cstr(s.message);
     r.width = s.width;
     r.height = s.height;
-    for (int i = 0; i < 16; ++i)
-      r.pixel_to_lps[i] = s.pixel_to_lps(i / 4, i % 4);
+    toRowMajor(s.pixel_to_lps, r.pixel_to_lps);
     viewSequence(r.png, s.png);
     slice_replies_.write(r);
   }

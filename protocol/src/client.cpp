@@ -141,8 +141,7 @@ SliceResult Client::slice(const SliceArgs& args, std::chrono::milliseconds timeo
       s.message = str(r.message);
       s.width = r.width;
       s.height = r.height;
-      for (int i = 0; i < 16; ++i)
-        s.pixel_to_lps(i / 4, i % 4) = r.pixel_to_lps[i];
+      s.pixel_to_lps = fromRowMajor(r.pixel_to_lps);
       s.png.assign(r.png._buffer, r.png._buffer + r.png._length);
       mine = std::move(s);
     });
@@ -245,6 +244,13 @@ void Client::waitFor(const std::function<bool(const nlohmann::json&)>& done,
     if (Clock::now() >= end) throw Timeout("the expected state did not arrive");
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
+}
+
+Eigen::Matrix4d matrixFromState(const nlohmann::json& row_major) {
+  Eigen::Matrix4d m;
+  for (int i = 0; i < 16; ++i)
+    m(i / 4, i % 4) = row_major.at(static_cast<std::size_t>(i));
+  return m;
 }
 
 }  // namespace ignav::protocol

@@ -14,13 +14,6 @@ using nlohmann::json;
 using protocol::CommandArgs;
 using namespace std::chrono_literals;
 
-Eigen::Vector3d lpsOf(const json& state, const Eigen::Vector3d& robot_mm) {
-  Eigen::Matrix4d m;
-  for (int i = 0; i < 16; ++i)
-    m(i / 4, i % 4) = state["registration"]["image_to_robot"][i];
-  return (m.inverse() * robot_mm.homogeneous()).head<3>();
-}
-
 TEST(RecoveryE2E, KilledServerComesBackWithEveryAcknowledgedChange) {
   ServerProcess server(51);
   json before;

@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Geometry>
+
 #include "ignav/protocol/client.hpp"
 #include "ignav/protocol/dds.hpp"
 
@@ -26,6 +28,16 @@ namespace ignav::e2e {
 
 inline std::string loopbackXml() {
   return protocol::readConfigFile(IGNAV_SOURCE_DIR "/configs/dds/loopback.xml");
+}
+
+// The registration a client sees, as a 4x4 image -> robot matrix.
+inline Eigen::Matrix4d imageToRobot(const nlohmann::json& state) {
+  return protocol::matrixFromState(state["registration"]["image_to_robot"]);
+}
+
+// Where a robot-frame point lies in the image: the click a user would make for it.
+inline Eigen::Vector3d lpsOf(const nlohmann::json& state, const Eigen::Vector3d& robot_mm) {
+  return (imageToRobot(state).inverse() * robot_mm.homogeneous()).head<3>();
 }
 
 class ServerProcess {

@@ -26,17 +26,6 @@ config::Robot paperRobot() {
   return config::loadRobot(IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml").value();
 }
 
-Eigen::Matrix4d imageToRobot(const json& state) {
-  Eigen::Matrix4d m;
-  for (int i = 0; i < 16; ++i)
-    m(i / 4, i % 4) = state["registration"]["image_to_robot"][i];
-  return m;
-}
-
-Eigen::Vector3d lpsOf(const json& state, const Eigen::Vector3d& robot_mm) {
-  return (imageToRobot(state).inverse() * robot_mm.homogeneous()).head<3>();
-}
-
 void loadPhantomAndRegister(Client& c) {
   ASSERT_TRUE(c.send("load_volume", {"phantom:", {}, {}}).accepted);
   c.waitFor([](const json& s) { return s["volume"]["status"] == "loaded"; }, 60s);

@@ -105,9 +105,8 @@ Eigen::Vector3d robotToLps(const json& state, const Eigen::Vector3d& robot) {
   if (!state.contains("registration") || state["registration"]["status"] != "registered") {
     throw UsageError("robot_mm needs a registration");
   }
-  Eigen::Matrix4d m;
-  for (int i = 0; i < 16; ++i)
-    m(i / 4, i % 4) = state["registration"]["image_to_robot"][i];
+  const Eigen::Matrix4d m =
+      ignav::protocol::matrixFromState(state["registration"]["image_to_robot"]);
   const Eigen::Vector4d lps = m.inverse() * robot.homogeneous();
   return lps.head<3>();
 }

@@ -75,4 +75,7 @@ class Client {
   nlohmann::json state_ = nlohmann::json::object();
 };
 
+// A 4x4 matrix mirrored in state() as 16 row-major numbers (e.g. image_to_robot).
+Eigen::Matrix4d matrixFromState(const nlohmann::json& row_major);
+
 }  // namespace ignav::protocol

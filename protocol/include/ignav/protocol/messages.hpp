@@ -29,6 +29,26 @@ inline Eigen::Vector3d fromMsg(const ignav_msg_Point3& p) {
   return {p.x, p.y, p.z};
 }
 
+template <typename Points>
+std::vector<ignav_msg_Point3> toMsgs(const Points& points) {
+  std::vector<ignav_msg_Point3> out;
+  for (const auto& p : points)
+    out.push_back(toMsg(p));
+  return out;
+}
+
+// 4x4 matrices travel row-major as double[16].
+inline void toRowMajor(const Eigen::Matrix4d& m, double (&out)[16]) {
+  for (int i = 0; i < 16; ++i)
+    out[i] = m(i / 4, i % 4);
+}
+inline Eigen::Matrix4d fromRowMajor(const double (&in)[16]) {
+  Eigen::Matrix4d m;
+  for (int i = 0; i < 16; ++i)
+    m(i / 4, i % 4) = in[i];
+  return m;
+}
+
 // The command kinds by name ("load_volume", ...), for clients.
 std::optional<ignav_msg_CommandKind> commandKindFromName(const std::string& name);
 const char* commandKindName(ignav_msg_CommandKind kind);
