@@ -21,7 +21,9 @@ TEST(RecoveryE2E, KilledServerComesBackWithEveryAcknowledgedChange) {
   {
     auto c = server.client("e2e-recover");
     ASSERT_TRUE(c->send("load_volume", {"phantom:", {}, {}}).accepted);
-    c->waitFor([](const json& s) { return s["volume"]["status"] == "loaded"; }, 60s);
+    c->waitFor(
+        [](const json& s) { return s.contains("volume") && s["volume"]["status"] == "loaded"; },
+        60s);
     ASSERT_TRUE(c->send("auto_fiducials").accepted);
     c->waitFor([](const json& s) { return s.contains("registration"); }, 5s);
     ASSERT_TRUE(c->send("add_target", {"", {lpsOf(c->state(), {8, 12, -175})}, {}}).accepted);

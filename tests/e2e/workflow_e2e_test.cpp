@@ -28,10 +28,17 @@ config::Robot paperRobot() {
 
 void loadPhantomAndRegister(Client& c) {
   ASSERT_TRUE(c.send("load_volume", {"phantom:", {}, {}}).accepted);
-  c.waitFor([](const json& s) { return s["volume"]["status"] == "loaded"; }, 60s);
+  c.waitFor([](const json& s) { return s.contains("volume") && s["volume"]["status"] == "loaded"; },
+            60s);
   const auto r = c.send("auto_fiducials");
   ASSERT_TRUE(r.accepted) << r.message;
-  c.waitFor([](const json& s) { return s["workflow"]["phase"] == "planning"; }, 10s);
+  // State topics are independent: wait for the registration sample itself, not only the phase.
+  c.waitFor(
+      [](const json& s) {
+        return s["workflow"]["phase"] == "planning" && s.contains("registration") &&
+               s["registration"]["status"] == "registered";
+      },
+      10s);
 }
 
 TEST(WorkflowE2E, FullPlanningWorkflow) {
