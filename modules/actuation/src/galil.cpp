@@ -151,12 +151,14 @@ Expected<ControllerStatus> GalilController::poll() {
     }
     return v;
   };
-  auto tp = numbers("TP");
-  if (!tp) return tp.error();
+  // Motion flags first, position last: an axis that finishes between the two queries then
+  // reports its final position, never "idle" at a position read while it was still moving.
   auto bg = numbers("MG _BGA,_BGB,_BGC");
   if (!bg) return bg.error();
   auto sc = numbers("MG _SCA,_SCB,_SCC");
   if (!sc) return sc.error();
+  auto tp = numbers("TP");
+  if (!tp) return tp.error();
   for (int a = 0; a < 3; ++a) {
     const auto i = static_cast<std::size_t>(a);
     s.position.motor[i] = static_cast<std::int64_t>((*tp)[i]);
