@@ -94,7 +94,17 @@ TEST(Workflow, EmergencyStopFromEveryPhaseAndOnlyResetLeavesIt) {
     if (phase == Phase::kEmergency) continue;  // already there
     EXPECT_EQ(step.session.phase, Phase::kEmergency) << toString(phase);
     EXPECT_FALSE(reduce(step.session, command(InputKind::kResume, 8)).effects.replies[0].accepted);
-    step = reduce(step.session, command(InputKind::kResetEmergency, 9));
+    // The robot is halted before anything else.
+    ASSERT_FALSE(step.effects.controller.empty());
+    EXPECT_EQ(step.effects.controller.front().action, ControllerAction::kAbort);
+    // Leaving needs a controller reading that passes the position check.
+    auto reset = command(InputKind::kResetEmergency, 9);
+    EXPECT_EQ(reduce(step.session, reset).effects.replies[0].error_code, "controller_unavailable");
+    reset.controller = actuation::ControllerStatus{actuation::ControllerState::kIdle, {}, {}, ""};
+    reset.controller->position.motor[0] = 5;
+    EXPECT_EQ(reduce(step.session, reset).effects.replies[0].error_code, "position_mismatch");
+    reset.controller->position.motor[0] = 0;
+    step = reduce(step.session, reset);
     EXPECT_EQ(step.session.phase, Phase::kStopped);
   }
 }

@@ -119,6 +119,7 @@ Status GalilController::move(const Steps& increments) {
   const auto& m = increments.motor;
   if (auto r = command(fmt::format("PR {},{},{}", m[0], m[1], m[2])); !r) return r.error();
   if (auto r = command("BG ABC"); !r) return r.error();
+  limit_cleared_ = false;  // a new move: its own stop codes count again
   return Ok{};
 }
 
@@ -165,7 +166,7 @@ Expected<ControllerStatus> GalilController::poll() {
     s.moving[i] = (*bg)[i] != 0.0;
     // DMC stop codes 2 and 3: stopped by the forward or reverse limit switch.
     const int code = static_cast<int>((*sc)[i]);
-    if (!s.moving[i] && (code == 2 || code == 3) && fault_.empty()) {
+    if (!s.moving[i] && (code == 2 || code == 3) && fault_.empty() && !limit_cleared_) {
       fault_ = fmt::format("motor {} ({}) stopped by its {} limit switch at {} steps", a + 1,
                            kAxes[a], code == 2 ? "forward" : "reverse", s.position.motor[i]);
     }
@@ -180,6 +181,8 @@ Expected<ControllerStatus> GalilController::poll() {
 
 Status GalilController::clearFault() {
   fault_.clear();
+  // The stop code stays 2 or 3 until the next move; the operator has seen it.
+  limit_cleared_ = true;
   return Ok{};
 }
 

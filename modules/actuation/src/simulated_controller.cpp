@@ -42,6 +42,12 @@ struct Trapezoid {
 
 }  // namespace
 
+double trapezoidDuration_s(double distance_steps, double speed_steps_s,
+                           double acceleration_steps_s2) {
+  if (distance_steps == 0.0) return 0.0;
+  return Trapezoid(std::abs(distance_steps), speed_steps_s, acceleration_steps_s2).t_total;
+}
+
 const char* toString(ControllerState state) {
   switch (state) {
     case ControllerState::kDisconnected:

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "ignav/registration/fiducial_detection.hpp"
+#include "motion.hpp"
 
 namespace ignav::workflow {
 namespace {
@@ -18,16 +19,20 @@ using nlohmann::json;
 // Enough for any client's retries in flight; the session is copied per step, so not more.
 constexpr std::size_t kRepliesKeptPerClient = 32;
 
-struct Rejection {
-  std::string code;
-  std::string message;
-};
+using detail::Rejection;
 
 const Transition* findTransition(Phase phase, InputKind kind) {
   for (const auto& t : transitionTable()) {
     if (t.from == phase && t.input == kind) return &t;
   }
   return nullptr;
+}
+
+bool declared(Phase from, InputKind kind, Phase to) {
+  for (const auto& t : transitionTable()) {
+    if (t.from == from && t.input == kind && t.to == to) return true;
+  }
+  return false;
 }
 
 std::optional<Rejection> checkClient(const Input& in) {
@@ -72,6 +77,12 @@ std::optional<Rejection> checkShape(const Input& in) {
       return want(0, 1);
     case InputKind::kReorderTargets:
       return std::nullopt;  // checked against the targets
+    case InputKind::kApprove:
+      if (in.digest.size() > kMaxIdLength) {
+        return Rejection{"too_long", fmt::format("digest has {} characters; at most {}",
+                                                 in.digest.size(), kMaxIdLength)};
+      }
+      return want(0, 0);
     default:
       return want(0, 0);
   }
@@ -88,6 +99,7 @@ void evaluate(const Session& s, Target& t) {
   Target fresh;
   fresh.id = t.id;
   fresh.lps_mm = t.lps_mm;
+  fresh.reached = t.reached;  // where the needle has been stays true whatever the registration
   t = fresh;
   if (!s.registration) {
     t.message = "not registered yet: register the CT to the robot first";
@@ -137,9 +149,58 @@ std::optional<Rejection> adoptRegistration(Session& s, const std::vector<Eigen::
   return std::nullopt;
 }
 
+// Puts the request for the next motion into `s.pending`; with nothing left to do, `to` becomes
+// done instead.
+std::optional<Rejection> issueRequest(Session& s, const Input& in, Effects& e, Phase& to) {
+  auto next = detail::nextRequest(s, in.time_s);
+  if (!next) return Rejection{"plan_failed", next.error().message};
+  e.approval_changed = true;
+  if (!next->has_value()) {
+    to = Phase::kDone;
+    return std::nullopt;
+  }
+  s.pending = std::move(**next);
+  ++s.next_plan_id;
+  return std::nullopt;
+}
+
+// The phases whose robot can be used: a controller fault there becomes the fault phase.
+bool robotInUse(Phase p) {
+  return p == Phase::kPlanLocked || p == Phase::kMoving || p == Phase::kAtTarget ||
+         p == Phase::kDone;
+}
+
+// Where resume leads after an interruption now: a move in flight is never resumed as such, it is
+// planned again from where the robot stands and approved again.
+Phase resumeTo(Phase p) {
+  return p == Phase::kMoving ? Phase::kPlanLocked : p;
+}
+
+void interruptMotion(Session& s, Effects& e) {
+  if (!s.motion) return;
+  s.motion->interrupted = true;
+  e.motion_changed = true;
+}
+
+std::string readingFault(const Input& in) {
+  if (!in.controller) return in.error.empty() ? "no controller reading" : in.error;
+  if (!in.controller->fault.empty()) return in.controller->fault;
+  return in.controller->state == actuation::ControllerState::kDisconnected
+             ? "the controller does not answer"
+             : std::string();
+}
+
 // Applies an allowed input. Returns a rejection without having touched `s` in any way that
-// matters (callers discard `s` on rejection anyway).
-std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uint32_t& new_id) {
+// matters (callers discard `s` on rejection anyway). `to` starts as the table's phase; inputs
+// with several declared outcomes pick one. `note` becomes the reply's message.
+std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uint32_t& new_id,
+                               Phase& to, std::string& note) {
+  // Whatever else happens, a pending approval request dies with any change (DESIGN.md safety
+  // invariant 1); only an approve consumes it, and new ones are issued below.
+  if (in.kind != InputKind::kQuery && in.kind != InputKind::kApprove && s.pending) {
+    s.pending.reset();
+    e.approval_changed = true;
+  }
   switch (in.kind) {
     case InputKind::kConfigLoaded:
       e.robot_changed = true;
@@ -172,7 +233,9 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       }
       return std::nullopt;
     case InputKind::kSetFiducials:
-      return adoptRegistration(s, in.points, false, e);
+      if (auto bad = adoptRegistration(s, in.points, false, e)) return bad;
+      note = s.registration_status.message;
+      return std::nullopt;
     case InputKind::kAutoFiducials: {
       if (!s.ct.volume) return Rejection{"no_volume", "no CT is loaded"};
       const std::vector<Eigen::Vector3d> model(s.robot->feature_points_mm.begin(),
@@ -185,7 +248,9 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       for (std::size_t k : found->match->candidate) {
         image.push_back(found->candidates[k].centroid_lps_mm);
       }
-      return adoptRegistration(s, image, true, e);
+      if (auto bad = adoptRegistration(s, image, true, e)) return bad;
+      note = s.registration_status.message;
+      return std::nullopt;
     }
     case InputKind::kAddTarget: {
       if (s.targets.size() >= kMaxTargets) {
@@ -199,6 +264,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       t.lps_mm = in.points[0];
       evaluate(s, t);
       new_id = t.id;
+      note = t.message;
       e.targets_changed.push_back(t.id);
       s.targets.push_back(std::move(t));
       return std::nullopt;
@@ -207,6 +273,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       Target* t = findTarget(s, in.ids[0]);
       if (!t) return Rejection{"unknown_target", fmt::format("no target {}", in.ids[0])};
       t->lps_mm = in.points[0];
+      t->reached = false;  // a new place
       evaluate(s, *t);
       e.targets_changed.push_back(t->id);
       return std::nullopt;
@@ -227,6 +294,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       for (const auto& t : s.targets)
         e.targets_removed.push_back(t.id);
       s.targets.clear();
+      s.order_fixed = false;
       return std::nullopt;
     case InputKind::kReorderTargets: {
       std::set<std::uint32_t> given(in.ids.begin(), in.ids.end());
@@ -242,6 +310,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       for (auto id : in.ids)
         ordered.push_back(*findTarget(s, id));
       s.targets = std::move(ordered);
+      s.order_fixed = true;
       for (const auto& t : s.targets)
         e.targets_changed.push_back(t.id);
       return std::nullopt;
@@ -257,20 +326,188 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       if (!bad.empty()) {
         return Rejection{"unreachable_targets", "remove or move these first: " + bad};
       }
+      std::string order;
+      if (auto rejected = detail::orderPlan(s, order)) return rejected;
+      for (const auto& t : s.targets)
+        e.targets_changed.push_back(t.id);
+      if (auto rejected = issueRequest(s, in, e, to)) return rejected;
+      if (!s.pending) {
+        return Rejection{"nothing_to_do", "every target was reached and the stylet is home"};
+      }
+      note = order + "; waiting for approval of " + s.pending->summary;
+      return std::nullopt;
+    }
+    case InputKind::kRequestApproval:
+      if (auto rejected = issueRequest(s, in, e, to)) return rejected;
+      if (!s.pending) return Rejection{"nothing_to_do", "nothing is left to move"};
+      note = s.pending->summary;
+      return std::nullopt;
+    case InputKind::kApprove: {
+      if (auto rejected = detail::checkApproval(s, in)) return rejected;
+      ActiveMotion m{*s.pending, 0, s.pending->from, false};
+      s.pending.reset();
+      e.approval_changed = e.motion_changed = true;
+      e.controller.push_back({ControllerAction::kMove, m.request.moves.front().steps});
+      note = fmt::format("plan {} approved: {} move(s), about {:.1f} s", m.request.plan_id,
+                         m.request.moves.size(), m.request.duration_s);
+      s.motion = std::move(m);
+      return std::nullopt;
+    }
+    case InputKind::kSegmentDone: {
+      if (!s.motion) return Rejection{"internal", "no motion is under way"};
+      ActiveMotion& m = *s.motion;
+      const auto& move = m.request.moves[m.segment];
+      const std::string fault = readingFault(in);
+      if (!fault.empty()) {
+        interruptMotion(s, e);
+        s.fault = fmt::format("controller fault during {} of plan {}: {}",
+                              planning::toString(move.kind), m.request.plan_id, fault);
+        s.resume_phase = Phase::kPlanLocked;
+        e.controller.push_back({ControllerAction::kAbort, {}});
+        to = Phase::kFault;
+        return std::nullopt;
+      }
+      if (in.controller->state == actuation::ControllerState::kMoving) {
+        return Rejection{"internal", "segment_done while the controller still moves"};
+      }
+      actuation::Steps expected = m.segment_from;
+      for (std::size_t a = 0; a < 3; ++a)
+        expected.motor[a] += move.steps.motor[a];
+      e.motion_changed = true;
+      if (in.controller->position != expected) {
+        interruptMotion(s, e);
+        s.fault = fmt::format("arrival check failed after {} of plan {}: {}",
+                              planning::toString(move.kind), m.request.plan_id,
+                              detail::describeMismatch(in.controller->position, expected));
+        s.resume_phase = Phase::kPlanLocked;
+        to = Phase::kFault;
+        return std::nullopt;
+      }
+      s.position = expected;
+      if (++m.segment < m.request.moves.size()) {
+        m.segment_from = expected;
+        e.controller.push_back({ControllerAction::kMove, m.request.moves[m.segment].steps});
+        to = Phase::kMoving;
+        return std::nullopt;
+      }
+      const std::uint32_t target = m.request.target_id;
+      s.motion.reset();
+      if (target == 0) {
+        to = Phase::kDone;
+        return std::nullopt;
+      }
+      if (Target* t = findTarget(s, target)) {
+        t->reached = true;
+        e.targets_changed.push_back(target);
+      }
+      to = Phase::kAtTarget;
+      return issueRequest(s, in, e, to);
+    }
+    case InputKind::kControllerFault:
+      s.fault = readingFault(in);
+      e.controller.push_back({ControllerAction::kAbort, {}});
+      interruptMotion(s, e);
+      if (robotInUse(s.phase)) {
+        s.resume_phase = resumeTo(s.phase);
+        to = Phase::kFault;
+      } else {
+        to = s.phase;  // recorded; approvals and resets check the controller themselves
+      }
+      return std::nullopt;
+    case InputKind::kServerRestarted: {
+      to = s.phase;
+      if (s.phase == Phase::kMoving) {
+        interruptMotion(s, e);
+        s.fault = fmt::format("the server restarted during plan {}: check the position and reset",
+                              s.motion ? s.motion->request.plan_id : 0);
+        s.resume_phase = Phase::kPlanLocked;
+        e.controller.push_back({ControllerAction::kAbort, {}});
+        to = Phase::kFault;
+        return std::nullopt;
+      }
+      if (!robotInUse(s.phase)) return std::nullopt;  // resume and reset check the robot
+      std::string doubt = readingFault(in);
+      if (doubt.empty() && in.controller->position != s.position) {
+        doubt =
+            "after the restart " + detail::describeMismatch(in.controller->position, s.position);
+      }
+      if (!doubt.empty()) {
+        s.fault = doubt;
+        s.resume_phase = s.phase;
+        to = Phase::kFault;
+        return std::nullopt;
+      }
+      if (s.phase == Phase::kPlanLocked || s.phase == Phase::kAtTarget) {
+        if (auto rejected = issueRequest(s, in, e, to)) return rejected;
+        to = s.phase;
+      }
       return std::nullopt;
     }
     case InputKind::kStop:
-      s.resume_phase = s.phase;
+      s.resume_phase = resumeTo(s.phase);
+      if (s.motion) {
+        e.controller.push_back({ControllerAction::kStop, {}});
+        interruptMotion(s, e);
+      }
       return std::nullopt;
     case InputKind::kEmergencyStop:
-      if (s.phase != Phase::kStopped) s.resume_phase = s.phase;
+      e.controller.push_back({ControllerAction::kAbort, {}});  // whatever moves, halt it
+      interruptMotion(s, e);
+      if (s.phase != Phase::kStopped && s.phase != Phase::kFault) {
+        s.resume_phase = resumeTo(s.phase);
+      }
       return std::nullopt;
-    case InputKind::kResume:
+    case InputKind::kResume: {
+      to = s.resume_phase;
+      if (to != Phase::kPlanLocked && to != Phase::kAtTarget) return std::nullopt;
+      if (auto busy = detail::checkAtRest(in)) return busy;
+      if (in.controller->state == actuation::ControllerState::kFault) {
+        return Rejection{"controller_fault",
+                         "the controller reports a fault: " + in.controller->fault +
+                             "; emergency stop, then "
+                             "reset"};
+      }
+      if (auto off = detail::checkPosition(s, in.controller->position)) return off;
+      s.position = in.controller->position;
+      if (s.motion) {
+        s.motion.reset();
+        e.motion_changed = true;
+      }
+      if (auto rejected = issueRequest(s, in, e, to)) return rejected;
+      note = s.pending ? "waiting for approval of " + s.pending->summary : "nothing left to do";
+      return std::nullopt;
+    }
+    case InputKind::kResetEmergency: {
+      if (auto busy = detail::checkAtRest(in)) return busy;
+      if (auto off = detail::checkPosition(s, in.controller->position)) return off;
+      s.position = in.controller->position;
+      if (s.motion) {
+        s.motion.reset();
+        e.motion_changed = true;
+      }
+      if (in.controller->state == actuation::ControllerState::kFault) {
+        e.controller.push_back({ControllerAction::kClearFault, {}});
+      }
+      s.fault.clear();
+      note = fmt::format("position checked: motors at {} / {} / {} steps", s.position.motor[0],
+                         s.position.motor[1], s.position.motor[2]);
+      return std::nullopt;
+    }
+    case InputKind::kHome:
+      if (auto busy = detail::checkAtRest(in)) return busy;
+      e.controller.push_back({ControllerAction::kHome, {}});
+      s.position = {};
+      if (s.motion) {
+        s.motion.reset();
+        e.motion_changed = true;
+      }
+      note = "the present position is home now (zero steps on every motor)";
+      return std::nullopt;
     case InputKind::kUnlockPlan:
-    case InputKind::kResetEmergency:
       return std::nullopt;
     case InputKind::kQuery:
       e.robot_changed = e.volume_changed = e.registration_changed = true;
+      e.approval_changed = e.motion_changed = true;
       for (const auto& t : s.targets)
         e.targets_changed.push_back(t.id);
       return std::nullopt;
@@ -301,7 +538,36 @@ json journalRecord(const Input& in, const Session& after) {
     record["dims"] = {g.dims[0], g.dims[1], g.dims[2]};
   }
   if (!in.error.empty()) record["error"] = in.error;
+  if (in.plan_id != 0) record["plan_id"] = in.plan_id;
+  if (!in.digest.empty()) record["digest"] = in.digest;
+  if (in.controller) {
+    const auto& c = *in.controller;
+    record["controller"] = {
+        {"state", actuation::toString(c.state)},
+        {"position", c.position.motor},
+        {"moving", c.moving},
+        {"fault", c.fault},
+    };
+  }
   return record;
+}
+
+std::optional<actuation::ControllerStatus> readingFromJson(const json& j) {
+  actuation::ControllerStatus c;
+  const std::string state = j.at("state").get<std::string>();
+  bool known = false;
+  for (auto st : {actuation::ControllerState::kDisconnected, actuation::ControllerState::kIdle,
+                  actuation::ControllerState::kMoving, actuation::ControllerState::kFault}) {
+    if (state == actuation::toString(st)) {
+      c.state = st;
+      known = true;
+    }
+  }
+  if (!known) throw std::invalid_argument("unknown controller state '" + state + "'");
+  c.position.motor = j.at("position").get<std::array<std::int64_t, 3>>();
+  c.moving = j.at("moving").get<std::array<bool, 3>>();
+  c.fault = j.at("fault").get<std::string>();
+  return c;
 }
 
 InputKind inputKindFromName(const std::string& name, bool& found) {
@@ -353,8 +619,13 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
     e.input.error = r.value("error", "");
     e.input.loaded.source = r.value("source", "");
     e.input.loaded.description = r.value("description", "");
+    e.input.plan_id = r.value("plan_id", std::uint64_t{0});
+    e.input.digest = r.value("digest", "");
+    if (r.contains("controller")) e.input.controller = readingFromJson(r.at("controller"));
     return e;
   } catch (const json::exception& ex) {
+    return bad(ex.what());
+  } catch (const std::invalid_argument& ex) {
     return bad(ex.what());
   }
 }
@@ -389,15 +660,29 @@ Expected<Session> replayJournal(Session session, const std::vector<std::string>&
 
 std::string Target::status() const {
   if (!registered) return "unregistered";
+  if (reached) return "reached";
   return solution.reachable() ? "planned" : "unreachable";
 }
 
 Session newSession(std::string session_id, std::shared_ptr<const config::Robot> robot,
-                   std::string robot_path) {
+                   std::string robot_path, ApprovalPolicy policy) {
   Session s;
   s.session_id = std::move(session_id);
   s.robot = std::move(robot);
   s.robot_path = std::move(robot_path);
+  s.policy = std::move(policy);
+  if (s.robot) {
+    // The planner's joint speeds are what the controller's step profile gives the joint whose
+    // motors turn fastest, so the order's time estimate and the requests' agree.
+    const Eigen::Matrix3d& c = s.robot->transmission.coupling();
+    planning::AxisProfile* axes[3] = {&s.policy.limits.theta_c, &s.policy.limits.z_c,
+                                      &s.policy.limits.z_s};
+    for (int j = 0; j < 3; ++j) {
+      const double steps_per_unit = c.col(j).cwiseAbs().maxCoeff();
+      axes[j]->speed = s.policy.speed_steps_s / steps_per_unit;
+      axes[j]->acceleration = s.policy.acceleration_steps_s2 / steps_per_unit;
+    }
+  }
   return s;
 }
 
@@ -447,10 +732,18 @@ Step reduce(const Session& session, const Input& in) {
     if (auto bad = checkShape(in)) return reject(*bad);
   }
   std::uint32_t new_id = 0;
-  if (auto bad = apply(s, in, e, new_id)) return reject(*bad);
+  Phase to = t->to;
+  std::string note;
+  if (auto bad = apply(s, in, e, new_id, to, note)) return reject(*bad);
+  if (in.kind != InputKind::kResume && !declared(session.phase, in.kind, to)) {
+    return reject(
+        {"internal", fmt::format("{} would lead from {} to {}, which the table does not "
+                                 "declare",
+                                 toString(in.kind), toString(session.phase), toString(to))});
+  }
 
   const Phase before = s.phase;
-  s.phase = in.kind == InputKind::kResume ? s.resume_phase : t->to;
+  s.phase = to;
   if (in.kind != InputKind::kQuery) ++s.revision;
   s.last_event = toString(in.kind);
   if (command) ++s.accepted;
@@ -462,12 +755,7 @@ Step reduce(const Session& session, const Input& in) {
     reply.accepted = true;
     reply.target_id = new_id;
     reply.revision = s.revision;
-    reply.message =
-        in.kind == InputKind::kAddTarget ? s.targets.back().message
-        : s.registration_status.status == "registered" &&
-                (in.kind == InputKind::kSetFiducials || in.kind == InputKind::kAutoFiducials)
-            ? s.registration_status.message
-            : std::string("ok");
+    reply.message = note.empty() ? std::string("ok") : note;
     remember(s, reply);
     e.replies.push_back(reply);
   }

@@ -17,10 +17,18 @@ const char* toString(Phase phase) {
       return "planning";
     case Phase::kPlanLocked:
       return "plan_locked";
+    case Phase::kMoving:
+      return "moving";
+    case Phase::kAtTarget:
+      return "at_target";
+    case Phase::kDone:
+      return "done";
     case Phase::kStopped:
       return "stopped";
     case Phase::kEmergency:
       return "emergency";
+    case Phase::kFault:
+      return "fault";
   }
   return "unknown";
 }
@@ -57,19 +65,55 @@ const char* toString(InputKind kind) {
       return "reset_emergency";
     case InputKind::kQuery:
       return "query";
+    case InputKind::kApprove:
+      return "approve";
+    case InputKind::kRequestApproval:
+      return "request_approval";
+    case InputKind::kHome:
+      return "home";
     case InputKind::kConfigLoaded:
       return "config_loaded";
     case InputKind::kVolumeLoaded:
       return "volume_loaded";
     case InputKind::kVolumeLoadFailed:
       return "volume_load_failed";
+    case InputKind::kSegmentDone:
+      return "segment_done";
+    case InputKind::kControllerFault:
+      return "controller_fault";
+    case InputKind::kServerRestarted:
+      return "server_restarted";
   }
   return "unknown";
 }
 
 bool isCommand(InputKind kind) {
-  return kind != InputKind::kConfigLoaded && kind != InputKind::kVolumeLoaded &&
-         kind != InputKind::kVolumeLoadFailed;
+  switch (kind) {
+    case InputKind::kConfigLoaded:
+    case InputKind::kVolumeLoaded:
+    case InputKind::kVolumeLoadFailed:
+    case InputKind::kSegmentDone:
+    case InputKind::kControllerFault:
+    case InputKind::kServerRestarted:
+      return false;
+    default:
+      return true;
+  }
+}
+
+bool needsControllerReading(InputKind kind) {
+  switch (kind) {
+    case InputKind::kApprove:
+    case InputKind::kResume:
+    case InputKind::kResetEmergency:
+    case InputKind::kHome:
+    case InputKind::kSegmentDone:
+    case InputKind::kControllerFault:
+    case InputKind::kServerRestarted:
+      return true;
+    default:
+      return false;
+  }
 }
 
 namespace {
@@ -77,7 +121,8 @@ namespace {
 using P = Phase;
 using I = InputKind;
 
-// Stop, emergency stop and query are allowed everywhere; they are added below per phase.
+// Stop, emergency stop and query are allowed (almost) everywhere; they are added below per phase.
+// A (phase, input) pair may lead to several phases; the reducer picks one of the declared ones.
 std::vector<Transition> buildTable() {
   std::vector<Transition> t = {
       // from              input                 to                why
@@ -98,18 +143,45 @@ std::vector<Transition> buildTable() {
       {P::kPlanning, I::kReorderTargets, P::kPlanning, "reorder"},
       {P::kPlanning, I::kLockPlan, P::kPlanLocked, "all targets reachable"},
       {P::kPlanLocked, I::kUnlockPlan, P::kPlanning, "edit again"},
+      {P::kPlanLocked, I::kApprove, P::kMoving, "approved: plan id, digest, approver, fresh"},
+      {P::kPlanLocked, I::kRequestApproval, P::kPlanLocked, "fresh request"},
+      {P::kMoving, I::kSegmentDone, P::kMoving, "next move"},
+      {P::kMoving, I::kSegmentDone, P::kAtTarget, "arrived, steps verified"},
+      {P::kMoving, I::kSegmentDone, P::kDone, "stylet home after the last target"},
+      {P::kMoving, I::kSegmentDone, P::kFault, "arrival check failed"},
+      {P::kAtTarget, I::kApprove, P::kMoving, "next motion approved"},
+      {P::kAtTarget, I::kRequestApproval, P::kAtTarget, "fresh request"},
+      {P::kAtTarget, I::kUnlockPlan, P::kPlanning, "edit the remaining targets"},
+      {P::kDone, I::kUnlockPlan, P::kPlanning, "plan more targets"},
       // A load finishing while stopped is kept; the workflow stays stopped.
       {P::kStopped, I::kVolumeLoaded, P::kStopped, "CT loaded"},
       {P::kStopped, I::kVolumeLoadFailed, P::kStopped, "load failed"},
       {P::kStopped, I::kResume, P::kStopped, "back to the interrupted phase"},
+      {P::kStopped, I::kResume, P::kDone, "nothing left to do"},
       {P::kEmergency, I::kVolumeLoaded, P::kEmergency, "CT loaded"},
       {P::kEmergency, I::kVolumeLoadFailed, P::kEmergency, "load failed"},
-      {P::kEmergency, I::kResetEmergency, P::kStopped, "operator reset"},
+      {P::kEmergency, I::kResetEmergency, P::kStopped, "operator reset, position checked"},
+      {P::kEmergency, I::kHome, P::kEmergency, "robot homed by hand"},
+      {P::kStopped, I::kHome, P::kStopped, "robot homed by hand"},
+      {P::kFault, I::kResetEmergency, P::kStopped, "operator reset, position checked"},
+      {P::kFault, I::kHome, P::kFault, "robot homed by hand"},
+      {P::kFault, I::kVolumeLoaded, P::kFault, "CT loaded"},
+      {P::kFault, I::kVolumeLoadFailed, P::kFault, "load failed"},
   };
   for (Phase p : kAllPhases) {
-    if (p != P::kStopped && p != P::kEmergency) t.push_back({p, I::kStop, P::kStopped, "stop"});
+    // A fault is left only by a reset with a position check (or an emergency stop).
+    if (p != P::kStopped && p != P::kEmergency && p != P::kFault) {
+      t.push_back({p, I::kStop, P::kStopped, "stop"});
+    }
     if (p != P::kEmergency) t.push_back({p, I::kEmergencyStop, P::kEmergency, "EMERGENCY"});
     t.push_back({p, I::kQuery, p, "query"});
+    if (p == P::kStartup) continue;
+    // Only where the robot is in use does a controller fault become the fault phase.
+    const bool keeps = p != P::kPlanLocked && p != P::kMoving && p != P::kAtTarget && p != P::kDone;
+    t.push_back({p, I::kControllerFault, keeps ? p : P::kFault, "controller fault"});
+    // After a crash: approvals are gone; a move in flight or a position that moved is a fault.
+    if (p != P::kMoving) t.push_back({p, I::kServerRestarted, p, "recovered"});
+    if (!keeps) t.push_back({p, I::kServerRestarted, P::kFault, "recovered, position in doubt"});
   }
   return t;
 }
@@ -137,13 +209,22 @@ std::string mermaidDiagram() {
   std::set<std::string> seen;
   for (const auto& t : transitionTable()) {
     if (t.input == InputKind::kQuery) continue;  // a self-loop on every phase
+    // The server's own inputs that leave a phase as it is: noted once, not drawn per phase.
+    const bool server_self_loop =
+        (t.input == InputKind::kControllerFault || t.input == InputKind::kServerRestarted) &&
+        t.from == t.to;
+    if (server_self_loop) continue;
+    const bool resume_back = t.input == InputKind::kResume && t.to == Phase::kStopped;
     std::string line = std::string("  ") + toString(t.from) + " --> " +
-                       (t.input == InputKind::kResume ? "resume_target" : toString(t.to)) + ": " +
-                       toString(t.input) + " (" + t.why + ")\n";
+                       (resume_back ? "resume_target" : toString(t.to)) + ": " + toString(t.input) +
+                       " (" + t.why + ")\n";
     if (seen.insert(line).second) out += line;
   }
   out += "  resume_target: the phase stop interrupted\n";
   out += "  note right of stopped: query is accepted in every phase\n";
+  out +=
+      "  note right of fault: controller_fault and server_restarted leave the other phases "
+      "as they are\n";
   return out;
 }
 

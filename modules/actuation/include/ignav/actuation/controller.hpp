@@ -39,6 +39,11 @@ class MotorController {
   virtual Status clearFault() = 0;
 };
 
+// Rest-to-rest time of a trapezoidal move over `distance_steps` (sign ignored) at this speed and
+// acceleration: what the simulated axes take, and the estimate approval requests show.
+double trapezoidDuration_s(double distance_steps, double speed_steps_s,
+                           double acceleration_steps_s2);
+
 struct SimulatedAxis {
   double speed_steps_s = 2000.0;
   double acceleration_steps_s2 = 8000.0;

@@ -40,6 +40,7 @@ class GalilController final : public MotorController {
   GalilOptions options_;
   int fd_ = -1;
   std::string fault_;
+  bool limit_cleared_ = false;
 };
 
 }  // namespace ignav::actuation

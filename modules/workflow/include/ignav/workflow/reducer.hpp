@@ -30,7 +30,13 @@ std::string workflowMarkdown();
 
 // A fresh session for this robot (phase startup, no volume).
 Session newSession(std::string session_id, std::shared_ptr<const config::Robot> robot,
-                   std::string robot_path);
+                   std::string robot_path, ApprovalPolicy policy = {});
+
+// The digest an approve must echo: SHA-256 (lower-case hex) over a canonical text of the session
+// id, plan id, target, starting motor position and every step increment the controller would
+// receive, so a client approves exactly what it was shown.
+std::string requestDigest(const std::string& session_id, const MotionRequest& request);
+std::string sha256Hex(const std::string& text);
 
 // Deterministic: the same inputs in the same order give the same sessions and effects.
 Step reduce(const Session& session, const Input& input);

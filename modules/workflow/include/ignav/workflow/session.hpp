@@ -11,9 +11,11 @@
 
 #include <Eigen/Core>
 
+#include "ignav/actuation/controller.hpp"
 #include "ignav/actuation/transmission.hpp"
 #include "ignav/config/robot_config.hpp"
 #include "ignav/kinematics/solver.hpp"
+#include "ignav/planning/insertion_plan.hpp"
 #include "ignav/registration/point_registration.hpp"
 #include "ignav/volume/volume.hpp"
 
@@ -24,13 +26,18 @@ enum class Phase {
   kImaging,
   kRegistration,
   kPlanning,
-  kPlanLocked,
+  kPlanLocked,  // an approval request for the next motion is pending
+  kMoving,      // an approved motion is under way
+  kAtTarget,    // the stylet is at a target; the next motion awaits approval
+  kDone,        // every target visited, the stylet retracted
   kStopped,
-  kEmergency
+  kEmergency,
+  kFault  // the controller failed or its position is in doubt
 };
-constexpr Phase kAllPhases[] = {Phase::kStartup,  Phase::kImaging,    Phase::kRegistration,
-                                Phase::kPlanning, Phase::kPlanLocked, Phase::kStopped,
-                                Phase::kEmergency};
+constexpr Phase kAllPhases[] = {Phase::kStartup,   Phase::kImaging,    Phase::kRegistration,
+                                Phase::kPlanning,  Phase::kPlanLocked, Phase::kMoving,
+                                Phase::kAtTarget,  Phase::kDone,       Phase::kStopped,
+                                Phase::kEmergency, Phase::kFault};
 const char* toString(Phase phase);  // "startup", "imaging", ...
 
 // Client commands first, then what the server itself feeds in.
@@ -50,19 +57,44 @@ enum class InputKind {
   kEmergencyStop,
   kResetEmergency,
   kQuery,
+  kApprove,           // plan id + digest of a pending approval request
+  kRequestApproval,   // a fresh request (new plan id and expiry) for the same next motion
+  kHome,              // the operator brought the robot to its home: the present position is zero
   kConfigLoaded,      // the server started with a valid robot config
   kVolumeLoaded,      // a load the server ran finished
   kVolumeLoadFailed,  // ... or failed
+  kSegmentDone,       // the controller came to rest after a move the server sent
+  kControllerFault,   // the controller reported a fault or stopped answering
+  kServerRestarted,   // recovery finished: approvals die, the position is checked
 };
-constexpr InputKind kAllInputs[] = {
-    InputKind::kLoadVolume,    InputKind::kSetFiducials,   InputKind::kAutoFiducials,
-    InputKind::kAddTarget,     InputKind::kMoveTarget,     InputKind::kRemoveTarget,
-    InputKind::kClearTargets,  InputKind::kReorderTargets, InputKind::kLockPlan,
-    InputKind::kUnlockPlan,    InputKind::kStop,           InputKind::kResume,
-    InputKind::kEmergencyStop, InputKind::kResetEmergency, InputKind::kQuery,
-    InputKind::kConfigLoaded,  InputKind::kVolumeLoaded,   InputKind::kVolumeLoadFailed};
+constexpr InputKind kAllInputs[] = {InputKind::kLoadVolume,
+                                    InputKind::kSetFiducials,
+                                    InputKind::kAutoFiducials,
+                                    InputKind::kAddTarget,
+                                    InputKind::kMoveTarget,
+                                    InputKind::kRemoveTarget,
+                                    InputKind::kClearTargets,
+                                    InputKind::kReorderTargets,
+                                    InputKind::kLockPlan,
+                                    InputKind::kUnlockPlan,
+                                    InputKind::kStop,
+                                    InputKind::kResume,
+                                    InputKind::kEmergencyStop,
+                                    InputKind::kResetEmergency,
+                                    InputKind::kQuery,
+                                    InputKind::kApprove,
+                                    InputKind::kRequestApproval,
+                                    InputKind::kHome,
+                                    InputKind::kConfigLoaded,
+                                    InputKind::kVolumeLoaded,
+                                    InputKind::kVolumeLoadFailed,
+                                    InputKind::kSegmentDone,
+                                    InputKind::kControllerFault,
+                                    InputKind::kServerRestarted};
 const char* toString(InputKind kind);  // "load_volume", ...
 bool isCommand(InputKind kind);        // issued by clients (the rest come from the server)
+// Inputs the reducer judges against the controller: the server stamps them with a fresh reading.
+bool needsControllerReading(InputKind kind);
 
 // Limits on what one command may carry (oversized sequences are rejected, not truncated).
 constexpr std::size_t kMaxTargets = 100;  // per insertion (paper §V)
@@ -83,8 +115,13 @@ struct Input {
   std::string path;
   std::vector<Eigen::Vector3d> points;
   std::vector<std::uint32_t> ids;
-  LoadedCt loaded;    // kVolumeLoaded
-  std::string error;  // kVolumeLoadFailed
+  LoadedCt loaded;            // kVolumeLoaded
+  std::string error;          // kVolumeLoadFailed
+  std::uint64_t plan_id = 0;  // kApprove
+  std::string digest;         // kApprove
+  // What the controller said just before this input (approve, resume, reset_emergency, home and
+  // the controller's own inputs): the reducer judges the robot by it, and replay sees the same.
+  std::optional<actuation::ControllerStatus> controller;
 };
 
 struct Reply {
@@ -108,8 +145,41 @@ struct Target {
   actuation::Steps steps;
   double tre_mm = 0.0;
   bool tre_warning = false;
+  bool reached = false;        // the stylet tip was brought here (verified steps)
   std::string message;         // person-readable reachability
-  std::string status() const;  // "planned" | "unreachable" | "unregistered"
+  std::string status() const;  // "planned" | "reached" | "unreachable" | "unregistered"
+};
+
+// Who may release motion and for how long a request stays valid (server.yaml `approval:`).
+struct ApprovalPolicy {
+  std::vector<std::string> approvers;  // client ids; empty: nobody can approve
+  double expiry_s = 120.0;
+  planning::PlanningLimits limits;  // ordering and rotation limit
+  double speed_steps_s = 2000.0;    // the controller's profile, for the duration estimates
+  double acceleration_steps_s2 = 8000.0;
+};
+
+// What one approval releases: the moves to one target (or the final retraction), as the exact
+// step increments the controller will receive, from an exact starting position.
+struct MotionRequest {
+  std::uint64_t plan_id = 0;
+  std::string digest;           // SHA-256 (hex) of canonicalText(): what would be sent
+  std::uint32_t target_id = 0;  // 0: the final retraction of the stylet
+  actuation::Steps from;        // absolute motor position the moves start from
+  std::vector<planning::JointMove> moves;
+  double duration_s = 0.0;  // with the controller's profile
+  double tre_mm = 0.0;      // expected registration error at the target
+  double issued_s = 0.0;
+  double expires_s = 0.0;
+  std::string summary;  // for a person: target, joints, steps per motor, duration, TRE
+};
+
+// An approved motion under way (or interrupted by a stop, an emergency or a fault).
+struct ActiveMotion {
+  MotionRequest request;
+  std::size_t segment = 0;        // the move under way
+  actuation::Steps segment_from;  // where that move started
+  bool interrupted = false;
 };
 
 struct VolumeStatus {
@@ -138,10 +208,26 @@ struct Session {
   RegistrationStatus registration_status;
   std::vector<Target> targets;  // in planned order
   std::uint32_t next_target_id = 1;
+  bool order_fixed = false;  // reorder_targets was used: lock_plan keeps the user's order
+  ApprovalPolicy policy;
+  actuation::Steps position;  // last verified absolute motor position (zero = home)
+  std::optional<MotionRequest> pending;
+  std::optional<ActiveMotion> motion;
+  std::uint64_t next_plan_id = 1;
+  std::string fault;  // why the phase is fault (or the last controller fault)
   std::uint64_t accepted = 0;
   std::uint64_t rejected = 0;
   // The last replies per client, so a repeated request_id is answered again, not re-executed.
   std::map<std::string, std::map<std::uint64_t, Reply>> replies;
+};
+
+enum class ControllerAction { kMove, kStop, kAbort, kHome, kClearFault };
+struct ControllerCommand {
+  ControllerAction action = ControllerAction::kStop;
+  actuation::Steps increments;  // kMove
+  bool isHalt() const {
+    return action == ControllerAction::kStop || action == ControllerAction::kAbort;
+  }
 };
 
 // What the server must do after a step, in this order: append the journal records (durably),
@@ -156,6 +242,11 @@ struct Effects {
   std::vector<std::uint32_t> targets_removed;
   std::vector<Reply> replies;
   std::optional<std::string> load_volume;  // path to load, then feed kVolumeLoaded/Failed
+  bool approval_changed = false;
+  bool motion_changed = false;
+  // Halts (stop, abort) go to the controller before anything else, even the journal (DESIGN.md
+  // safety invariant 3); the rest after the journal holds the input that caused them.
+  std::vector<ControllerCommand> controller;
 };
 
 struct Step {

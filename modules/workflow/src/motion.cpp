@@ -1,0 +1,248 @@
+#include "motion.hpp"
+
+#include "ignav/workflow/reducer.hpp"
+
+#include <openssl/evp.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include <fmt/format.h>
+
+namespace ignav::workflow::detail {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+std::string stepsText(const actuation::Steps& s) {
+  return fmt::format("{} {} {}", s.motor[0], s.motor[1], s.motor[2]);
+}
+
+// What the controller's profile makes of one move: the slowest motor's trapezoid.
+double controllerDuration_s(const actuation::Steps& increments, const ApprovalPolicy& policy) {
+  double longest = 0.0;
+  for (auto d : increments.motor) {
+    longest = std::max(longest,
+                       actuation::trapezoidDuration_s(static_cast<double>(d), policy.speed_steps_s,
+                                                      policy.acceleration_steps_s2));
+  }
+  return longest;
+}
+
+std::vector<planning::PlannedTarget> unreached(const Session& s) {
+  std::vector<planning::PlannedTarget> out;
+  for (const auto& t : s.targets) {
+    if (!t.reached) out.push_back({t.id, t.solution.joints});
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string canonicalText(const std::string& session_id, const MotionRequest& r) {
+  std::string text =
+      fmt::format("ignav motion request v1\nsession {}\nplan {}\ntarget {}\nfrom {}\n", session_id,
+                  r.plan_id, r.target_id, stepsText(r.from));
+  for (const auto& m : r.moves) {
+    text += fmt::format("move {} {}\n", planning::toString(m.kind), stepsText(m.steps));
+  }
+  return text;
+}
+
+}  // namespace ignav::workflow::detail
+
+namespace ignav::workflow {
+
+std::string requestDigest(const std::string& session_id, const MotionRequest& request) {
+  return sha256Hex(detail::canonicalText(session_id, request));
+}
+
+std::string sha256Hex(const std::string& text) {
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int length = 0;
+  EVP_Digest(text.data(), text.size(), digest, &length, EVP_sha256(), nullptr);
+  std::string hex;
+  for (unsigned int i = 0; i < length; ++i)
+    hex += fmt::format("{:02x}", digest[i]);
+  return hex;
+}
+
+}  // namespace ignav::workflow
+
+namespace ignav::workflow::detail {
+
+Expected<std::optional<MotionRequest>> nextRequest(const Session& s, double time_s) {
+  const auto& robot = *s.robot;
+  const kinematics::Joints start = robot.transmission.toJoints(s.position);
+  MotionRequest r;
+  r.plan_id = s.next_plan_id;
+  r.from = s.position;
+  const auto todo = unreached(s);
+  std::string where;
+  if (!todo.empty()) {
+    auto plan = planning::planInsertion(robot.kinematics, robot.transmission, {todo.front()}, start,
+                                        s.policy.limits);
+    if (!plan) return plan.error();
+    const Target& t = *std::find_if(s.targets.begin(), s.targets.end(),
+                                    [&](const Target& x) { return x.id == todo.front().id; });
+    r.target_id = t.id;
+    r.moves = plan->motions.front().moves;
+    r.tre_mm = t.tre_mm;
+    const auto& j = t.solution.joints;
+    where = fmt::format("T{} (θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm, expected TRE {:.2f} mm)",
+                        t.id, j.theta_c_rad * kRadToDeg, j.z_c_mm, j.z_s_mm, t.tre_mm);
+  } else {
+    kinematics::Joints home = start;
+    home.z_s_mm = 0.0;
+    const auto conversion = robot.transmission.move(start, home);
+    if (conversion.steps == actuation::Steps{}) return std::optional<MotionRequest>{};
+    r.moves.push_back({planning::MoveKind::kRetractStylet, start, home, conversion.steps, 0.0});
+    where = "retract the stylet after the last target";
+  }
+  std::string moves;
+  for (auto& m : r.moves) {
+    m.duration_s = controllerDuration_s(m.steps, s.policy);
+    r.duration_s += m.duration_s;
+    moves += fmt::format("{}{} [{}]", moves.empty() ? "" : ", ", planning::toString(m.kind),
+                         stepsText(m.steps));
+  }
+  r.issued_s = time_s;
+  r.expires_s = time_s + s.policy.expiry_s;
+  r.digest = requestDigest(s.session_id, r);
+  r.summary = fmt::format("plan {}: {}; steps per motor {}; about {:.1f} s", r.plan_id, where,
+                          moves, r.duration_s);
+  return std::optional<MotionRequest>{std::move(r)};
+}
+
+std::optional<Rejection> orderPlan(Session& s, std::string& summary) {
+  const auto& robot = *s.robot;
+  const kinematics::Joints start = robot.transmission.toJoints(s.position);
+  const auto todo = unreached(s);
+  planning::Ordering ordering;
+  if (s.order_fixed) {
+    std::vector<std::size_t> as_given(todo.size());
+    for (std::size_t i = 0; i < todo.size(); ++i)
+      as_given[i] = i;
+    ordering = planning::evaluateOrder(todo, as_given, start, s.policy.limits);
+  } else {
+    ordering = planning::orderTargets(todo, start, s.policy.limits);
+  }
+  const double limit = s.policy.limits.max_total_rotation_rad;
+  if (ordering.total_rotation_rad > limit + 1e-12) {
+    return Rejection{"rotation_limit",
+                     fmt::format("this order turns the cannula {:.1f}° in all, more than {:.1f}°{}",
+                                 ordering.total_rotation_rad * kRadToDeg, limit * kRadToDeg,
+                                 s.order_fixed ? "; reorder the targets or let the server order "
+                                                 "them (clear and add them again)"
+                                               : "")};
+  }
+  std::vector<Target> ordered;
+  for (const auto& t : s.targets) {
+    if (t.reached) ordered.push_back(t);
+  }
+  std::string ids;
+  for (std::size_t i : ordering.order) {
+    const auto id = todo[i].id;
+    ordered.push_back(*std::find_if(s.targets.begin(), s.targets.end(),
+                                    [&](const Target& t) { return t.id == id; }));
+    ids += (ids.empty() ? "T" : ", T") + std::to_string(id);
+  }
+  s.targets = std::move(ordered);
+  summary = todo.empty() ? std::string("every target reached")
+                         : fmt::format(
+                               "order {} ({}): cannula rotation {:.1f}° of {:.0f}°, about "
+                               "{:.0f} s of motion",
+                               ids, s.order_fixed ? "as given" : "chosen by the server",
+                               ordering.total_rotation_rad * kRadToDeg, limit * kRadToDeg,
+                               ordering.duration_s);
+  return std::nullopt;
+}
+
+std::optional<Rejection> checkAtRest(const Input& in) {
+  if (!in.controller || in.controller->state == actuation::ControllerState::kDisconnected) {
+    return Rejection{"controller_unavailable", "the controller does not answer" +
+                                                   (in.controller && !in.controller->fault.empty()
+                                                        ? ": " + in.controller->fault
+                                                        : std::string())};
+  }
+  if (in.controller->state == actuation::ControllerState::kMoving) {
+    return Rejection{"controller_busy", "the robot is still moving; wait until it is at rest"};
+  }
+  return std::nullopt;
+}
+
+std::string describeMismatch(const actuation::Steps& reading, const actuation::Steps& expected) {
+  for (std::size_t m = 0; m < 3; ++m) {
+    if (reading.motor[m] != expected.motor[m]) {
+      return fmt::format("motor {} reads {} steps, expected {} ({:+})", m + 1, reading.motor[m],
+                         expected.motor[m], reading.motor[m] - expected.motor[m]);
+    }
+  }
+  return "every motor where expected";
+}
+
+std::optional<Rejection> checkPosition(const Session& s, const actuation::Steps& reading) {
+  if (!s.motion || !s.motion->interrupted) {
+    if (reading == s.position) return std::nullopt;
+    return Rejection{"position_mismatch",
+                     "position check failed: " + describeMismatch(reading, s.position) +
+                         "; bring the robot home and send home, then reset"};
+  }
+  const auto& m = *s.motion;
+  const auto& from = m.segment_from.motor;
+  const auto& inc = m.request.moves[m.segment].steps.motor;
+  for (std::size_t a = 0; a < 3; ++a) {
+    const auto lo = std::min(from[a], from[a] + inc[a]);
+    const auto hi = std::max(from[a], from[a] + inc[a]);
+    if (reading.motor[a] < lo || reading.motor[a] > hi) {
+      return Rejection{
+          "position_mismatch",
+          fmt::format("position check failed: motor {} reads {} steps, off the interrupted {} "
+                      "from {} to {}; bring the robot home and send home, then reset",
+                      a + 1, reading.motor[a], planning::toString(m.request.moves[m.segment].kind),
+                      from[a], from[a] + inc[a])};
+    }
+  }
+  return std::nullopt;
+}
+
+std::optional<Rejection> checkApproval(const Session& s, const Input& in) {
+  if (!s.pending) return Rejection{"no_pending_approval", "no motion is waiting for approval"};
+  const auto& p = *s.pending;
+  const auto& approvers = s.policy.approvers;
+  if (std::find(approvers.begin(), approvers.end(), in.client_id) == approvers.end()) {
+    std::string list;
+    for (const auto& a : approvers)
+      list += (list.empty() ? "" : ", ") + a;
+    return Rejection{"not_approver",
+                     fmt::format("client '{}' may not approve motion (approvers: {})", in.client_id,
+                                 list.empty() ? "none configured" : list)};
+  }
+  if (in.plan_id != p.plan_id) {
+    return Rejection{"stale_plan", fmt::format("plan {} is not the pending request; plan {} is",
+                                               in.plan_id, p.plan_id)};
+  }
+  if (in.digest != p.digest) {
+    return Rejection{"wrong_digest",
+                     fmt::format("the digest does not match plan {}: approve exactly what the "
+                                 "request shows",
+                                 p.plan_id)};
+  }
+  if (in.time_s > p.expires_s) {
+    return Rejection{"expired", fmt::format("plan {} expired {:.1f} s ago; request_approval for a "
+                                            "fresh one",
+                                            p.plan_id, in.time_s - p.expires_s)};
+  }
+  if (auto busy = checkAtRest(in)) return busy;
+  if (in.controller->state == actuation::ControllerState::kFault) {
+    return Rejection{"controller_fault", "the controller reports a fault: " + in.controller->fault};
+  }
+  if (in.controller->position != p.from) {
+    return Rejection{"controller_changed",
+                     fmt::format("the robot is not where plan {} starts: {}", p.plan_id,
+                                 describeMismatch(in.controller->position, p.from))};
+  }
+  return std::nullopt;
+}
+
+}  // namespace ignav::workflow::detail

@@ -1,0 +1,648 @@
+// Approval-gated motion without DDS: the reducer's controller commands run on a
+// SimulatedController exactly as the server runs them (halts first, moves after the journal), and
+// the safety invariants are checked where they matter: at the controller boundary
+// (SimulatedController::movesStarted).
+#include <gtest/gtest.h>
+
+#include <fmt/format.h>
+
+#include <iostream>
+#include <random>
+#include <set>
+
+#include "ignav/config/robot_config.hpp"
+#include "ignav/registration/robot_phantom.hpp"
+#include "ignav/workflow/reducer.hpp"
+
+namespace ignav::workflow {
+namespace {
+
+using actuation::ControllerState;
+using actuation::ControllerStatus;
+using actuation::Steps;
+
+constexpr double kSpeed = 20000.0;  // steps/s: ten times the default, so moves take ~0.5 s
+constexpr double kAcceleration = 200000.0;
+
+std::shared_ptr<const config::Robot> paperRobot() {
+  static const auto robot = std::make_shared<const config::Robot>(
+      config::loadRobot(IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml").value());
+  return robot;
+}
+
+ApprovalPolicy policy() {
+  ApprovalPolicy p;
+  p.approvers = {"surgeon"};
+  p.expiry_s = 60.0;
+  p.speed_steps_s = kSpeed;
+  p.acceleration_steps_s2 = kAcceleration;
+  return p;
+}
+
+// Plays the server's part: stamps inputs with the time and a controller reading, sends halts to
+// the controller before anything else and moves after the step, and reports a finished move as
+// segment_done.
+class Bench {
+ public:
+  explicit Bench(std::uint64_t first_request = 0) : sim_(axes()), request_(first_request) {
+    (void)sim_.connect();
+    (void)sim_.home();
+    s = newSession("bench", paperRobot(), "robot.yaml", policy());
+    feed(internal(InputKind::kConfigLoaded));
+    auto load = command(InputKind::kLoadVolume);
+    load.path = "phantom:";
+    feed(load);
+    Input loaded = internal(InputKind::kVolumeLoaded);
+    loaded.loaded.volume = std::make_shared<volume::Volume>();
+    feed(loaded);
+    auto rp = registration::makeRobotPhantom(paperRobot()->kinematics,
+                                             paperRobot()->config.registration.scan);
+    feed(command(InputKind::kSetFiducials, rp.value().spec.fiducials_lps_mm));
+    EXPECT_EQ(s.phase, Phase::kPlanning);
+  }
+
+  static std::array<actuation::SimulatedAxis, 3> axes() {
+    std::array<actuation::SimulatedAxis, 3> a{};
+    for (auto& x : a) {
+      x.speed_steps_s = kSpeed;
+      x.acceleration_steps_s2 = kAcceleration;
+    }
+    return a;
+  }
+
+  Input command(InputKind kind, std::vector<Eigen::Vector3d> points = {},
+                std::vector<std::uint32_t> ids = {}, std::string client = "surgeon") {
+    Input in;
+    in.kind = kind;
+    in.client_id = std::move(client);
+    in.request_id = ++request_;
+    in.points = std::move(points);
+    in.ids = std::move(ids);
+    return in;
+  }
+  static Input internal(InputKind kind) {
+    Input in;
+    in.kind = kind;
+    return in;
+  }
+  Input approve(std::uint64_t plan_id, std::string digest, std::string client = "surgeon") {
+    Input in = command(InputKind::kApprove, {}, {}, std::move(client));
+    in.plan_id = plan_id;
+    in.digest = std::move(digest);
+    return in;
+  }
+  Input approvePending() { return approve(s.pending.value().plan_id, s.pending->digest); }
+
+  ControllerStatus reading() {
+    sim_.advanceTo(t);
+    auto r = sim_.poll();
+    if (r) return *r;
+    ControllerStatus c;
+    c.state = ControllerState::kDisconnected;
+    c.fault = r.error().message;
+    return c;
+  }
+
+  Step feed(Input in) {
+    in.time_s = t;
+    if (needsControllerReading(in.kind) && !in.controller) in.controller = reading();
+    Step step = reduce(s, in);
+    for (const auto& c : step.effects.controller)
+      if (c.isHalt()) execute(c);
+    journal.insert(journal.end(), step.effects.journal.begin(), step.effects.journal.end());
+    s = step.session;
+    for (const auto& c : step.effects.controller)
+      if (!c.isHalt()) execute(c);
+    return step;
+  }
+  Reply send(Input in) {
+    auto step = feed(std::move(in));
+    EXPECT_EQ(step.effects.replies.size(), 1u);
+    return step.effects.replies.empty() ? Reply{} : step.effects.replies.front();
+  }
+
+  // Advances time in control periods while a motion runs, feeding segment_done at each rest.
+  void runMotion(double max_s = 120.0) {
+    const double end = t + max_s;
+    while (s.phase == Phase::kMoving && t < end) {
+      advance(0.01);
+    }
+  }
+  void advance(double dt_s) {
+    t += dt_s;
+    if (s.phase != Phase::kMoving) return;
+    const auto r = reading();
+    if (r.state != ControllerState::kMoving) feed(internal(InputKind::kSegmentDone));
+  }
+
+  std::uint32_t addRobotTarget(const kinematics::Joints& j) {
+    const Eigen::Vector3d tip = paperRobot()->kinematics.forward(j).tip_mm;
+    const auto r = send(command(InputKind::kAddTarget, {s.registration->toImage(tip)}));
+    EXPECT_TRUE(r.accepted) << r.message;
+    return r.target_id;
+  }
+
+  const Target& target(std::uint32_t id) const {
+    for (const auto& x : s.targets)
+      if (x.id == id) return x;
+    throw std::out_of_range("no target");
+  }
+
+  actuation::SimulatedController& sim() { return sim_; }
+
+  Session s;
+  double t = 0.0;
+  std::vector<std::string> journal;
+
+ private:
+  void execute(const ControllerCommand& c) {
+    sim_.advanceTo(t);
+    switch (c.action) {
+      case ControllerAction::kMove:
+        (void)sim_.move(c.increments);
+        break;
+      case ControllerAction::kStop:
+        (void)sim_.stop();
+        break;
+      case ControllerAction::kAbort:
+        (void)sim_.abort();
+        break;
+      case ControllerAction::kHome:
+        (void)sim_.home();
+        break;
+      case ControllerAction::kClearFault:
+        (void)sim_.clearFault();
+        break;
+    }
+  }
+
+  actuation::SimulatedController sim_;
+  std::uint64_t request_ = 0;
+};
+
+const kinematics::Joints kJointsA{30.0 * M_PI / 180.0, 10.0, 25.0};
+const kinematics::Joints kJointsB{-60.0 * M_PI / 180.0, 20.0, 30.0};
+const kinematics::Joints kJointsC{150.0 * M_PI / 180.0, 5.0, 35.0};
+
+TEST(Sha256, KnownAnswerVectors) {
+  // FIPS 180-2, appendix B.1 and the empty message.
+  EXPECT_EQ(sha256Hex("abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  EXPECT_EQ(sha256Hex(""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+}
+
+TEST(Approval, LockOrdersTheTargetsAndRequestsApprovalOfTheFirstMotion) {
+  Bench b;
+  const auto a = b.addRobotTarget(kJointsA);
+  const auto c = b.addRobotTarget(kJointsC);
+  const auto bb = b.addRobotTarget(kJointsB);
+  const auto reply = b.send(b.command(InputKind::kLockPlan));
+  ASSERT_TRUE(reply.accepted) << reply.message;
+  EXPECT_EQ(b.s.phase, Phase::kPlanLocked);
+  // IK gives θc in [0°, 360°): 30°, 150° and 300° (-60°). From θc = 0 only the rising sweep
+  // stays within 360° of rotation (300° in all); every other order turns 450° or more.
+  std::vector<std::uint32_t> order;
+  for (const auto& t : b.s.targets)
+    order.push_back(t.id);
+  EXPECT_EQ(order, (std::vector<std::uint32_t>{a, c, bb})) << reply.message;
+  EXPECT_NE(reply.message.find("cannula rotation 300.0°"), std::string::npos) << reply.message;
+  ASSERT_TRUE(b.s.pending.has_value());
+  const auto& p = *b.s.pending;
+  EXPECT_EQ(p.target_id, order.front());
+  EXPECT_EQ(p.from, Steps{});
+  EXPECT_EQ(p.digest, requestDigest(b.s.session_id, p));
+  EXPECT_EQ(p.digest.size(), 64u);
+  EXPECT_NE(p.summary.find("T" + std::to_string(p.target_id)), std::string::npos) << p.summary;
+  EXPECT_NE(reply.message.find("cannula rotation"), std::string::npos) << reply.message;
+  // The moves add up to the target's steps through the transmission, an independent route.
+  Steps sum;
+  for (const auto& m : p.moves)
+    for (std::size_t k = 0; k < 3; ++k)
+      sum.motor[k] += m.steps.motor[k];
+  EXPECT_EQ(sum, paperRobot()->transmission.toSteps(b.target(p.target_id).solution.joints).steps);
+  // Any change to one increment changes the digest.
+  MotionRequest changed = p;
+  changed.moves.back().steps.motor[2] += 1;
+  EXPECT_NE(requestDigest(b.s.session_id, changed), p.digest);
+  EXPECT_EQ(b.sim().movesStarted(), 0u);
+}
+
+TEST(Approval, ApprovedMotionArrivesAtEveryTargetThenRetracts) {
+  Bench b;
+  b.addRobotTarget(kJointsA);
+  b.addRobotTarget(kJointsB);
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  std::size_t moves = 0;
+  for (int visit = 0; visit < 2; ++visit) {
+    const auto target_id = b.s.pending.value().target_id;
+    moves += b.s.pending->moves.size();
+    const auto r = b.send(b.approvePending());
+    ASSERT_TRUE(r.accepted) << r.message;
+    EXPECT_EQ(b.s.phase, Phase::kMoving);
+    b.runMotion();
+    ASSERT_EQ(b.s.phase, Phase::kAtTarget) << b.s.fault;
+    const auto& t = b.target(target_id);
+    EXPECT_TRUE(t.reached);
+    EXPECT_EQ(t.status(), "reached");
+    // Where the motors are is what the transmission makes of the IK joints.
+    const auto expected = paperRobot()->transmission.toSteps(t.solution.joints).steps;
+    EXPECT_EQ(b.reading().position, expected);
+    EXPECT_EQ(b.s.position, expected);
+    // ... and the tip they give is the clicked target, to the steps' resolution (θc's half
+    // step of 0.28° is 0.1 mm at 20 mm from the axis).
+    const auto at =
+        paperRobot()->kinematics.forward(paperRobot()->transmission.toJoints(b.reading().position));
+    EXPECT_LT((at.tip_mm - t.robot_mm).norm(), 0.15);
+  }
+  ASSERT_TRUE(b.s.pending.has_value());
+  EXPECT_EQ(b.s.pending->target_id, 0u);  // the final retraction
+  moves += b.s.pending->moves.size();
+  ASSERT_TRUE(b.send(b.approvePending()).accepted);
+  b.runMotion();
+  EXPECT_EQ(b.s.phase, Phase::kDone);
+  // Home to the stylet's half step (the absolute end point is what is quantised).
+  EXPECT_LE(std::abs(paperRobot()->transmission.toJoints(b.reading().position).z_s_mm),
+            0.5 / paperRobot()->transmission.styletStepsPerMm() + 1e-12);
+  EXPECT_EQ(b.sim().movesStarted(), moves);
+}
+
+TEST(Approval, EveryBadApprovalIsRefusedAndNothingMoves) {
+  Bench b;
+  b.addRobotTarget(kJointsA);
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  const auto p = b.s.pending.value();
+  const auto revision = b.s.revision;
+  struct Case {
+    Input in;
+    std::string code;
+  };
+  std::vector<Case> cases = {
+      {b.approve(p.plan_id, p.digest, "intern"), "not_approver"},
+      {b.approve(p.plan_id + 1, p.digest), "stale_plan"},
+      {b.approve(p.plan_id - 1, p.digest), "stale_plan"},
+      {b.approve(p.plan_id, p.digest.substr(0, 63) + "0"), "wrong_digest"},
+      {b.approve(p.plan_id, ""), "wrong_digest"},
+      {b.approve(p.plan_id, std::string(200, 'a')), "too_long"},
+  };
+  Input late = b.approve(p.plan_id, p.digest);
+  Input moved = b.approve(p.plan_id, p.digest);
+  moved.controller = b.reading();
+  moved.controller->position.motor[1] += 3;  // someone jogged a motor
+  Input busy = b.approve(p.plan_id, p.digest);
+  busy.controller = b.reading();
+  busy.controller->state = ControllerState::kMoving;
+  Input lost = b.approve(p.plan_id, p.digest);
+  lost.controller = ControllerStatus{};  // disconnected
+  cases.push_back({moved, "controller_changed"});
+  cases.push_back({busy, "controller_busy"});
+  cases.push_back({lost, "controller_unavailable"});
+  for (auto& c : cases) {
+    const auto r = b.send(c.in);
+    EXPECT_FALSE(r.accepted);
+    EXPECT_EQ(r.error_code, c.code) << r.message;
+    EXPECT_FALSE(r.message.empty());
+    EXPECT_EQ(b.s.revision, revision);
+    EXPECT_EQ(b.s.phase, Phase::kPlanLocked);
+  }
+  b.t = p.expires_s + 0.5;
+  const auto r = b.send(late);
+  EXPECT_EQ(r.error_code, "expired") << r.message;
+  EXPECT_EQ(b.sim().movesStarted(), 0u);
+  // A fresh request works; the old plan id is stale from then on.
+  ASSERT_TRUE(b.send(b.command(InputKind::kRequestApproval)).accepted);
+  EXPECT_GT(b.s.pending.value().plan_id, p.plan_id);
+  EXPECT_EQ(b.send(b.approve(p.plan_id, p.digest)).error_code, "stale_plan");
+  EXPECT_TRUE(b.send(b.approvePending()).accepted);
+  EXPECT_EQ(b.sim().movesStarted(), 1u);
+}
+
+TEST(Approval, AnApprovalIsUsedOnceAndDiesWithAnyChange) {
+  Bench b;
+  const auto id = b.addRobotTarget(kJointsA);
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  const auto first = b.s.pending.value();
+  // Unlock, move the target, lock again: the old approval names a dead plan.
+  ASSERT_TRUE(b.send(b.command(InputKind::kUnlockPlan)).accepted);
+  EXPECT_FALSE(b.s.pending.has_value());
+  const Eigen::Vector3d tip = paperRobot()->kinematics.forward(kJointsB).tip_mm;
+  ASSERT_TRUE(
+      b.send(b.command(InputKind::kMoveTarget, {b.s.registration->toImage(tip)}, {id})).accepted);
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  EXPECT_EQ(b.send(b.approve(first.plan_id, first.digest)).error_code, "stale_plan");
+  EXPECT_NE(b.s.pending.value().digest, first.digest);
+  // Used once: the same request id is answered from memory, a new one finds no pending plan.
+  Input ok = b.approvePending();
+  ASSERT_TRUE(b.send(ok).accepted);
+  const auto again = b.send(ok);
+  EXPECT_TRUE(again.accepted);  // the same answer, not a second execution
+  Input replay = b.approve(ok.plan_id, ok.digest);
+  EXPECT_EQ(b.send(replay).error_code, "wrong_phase");
+  EXPECT_EQ(b.sim().movesStarted(), 1u);
+  b.runMotion();
+  EXPECT_EQ(b.s.phase, Phase::kAtTarget);
+  EXPECT_EQ(b.send(b.approve(ok.plan_id, ok.digest)).error_code, "stale_plan");
+}
+
+TEST(Approval, ARestartNeverReArmsAnApproval) {
+  Bench b;
+  b.addRobotTarget(kJointsA);
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  const auto before = b.s.pending.value();
+  // The crash: a new session from the journal, then the server's restart input. (Request ids
+  // that the journal's client has not used, so nothing is answered from memory.)
+  Bench restarted(1000);
+  auto recovered = replayJournal(
+      newSession("bench", paperRobot(), "robot.yaml", policy()), b.journal,
+      [](const std::string&) -> Expected<LoadedCt> {
+        LoadedCt ct;
+        ct.volume = std::make_shared<volume::Volume>();
+        return ct;
+      },
+      "journal.jsonl");
+  ASSERT_TRUE(recovered.ok()) << recovered.error().message;
+  restarted.s = *recovered;
+  restarted.feed(Bench::internal(InputKind::kServerRestarted));
+  EXPECT_EQ(restarted.s.phase, Phase::kPlanLocked);
+  ASSERT_TRUE(restarted.s.pending.has_value());
+  EXPECT_NE(restarted.s.pending->plan_id, before.plan_id);
+  const auto r = restarted.send(restarted.approve(before.plan_id, before.digest));
+  EXPECT_EQ(r.error_code, "stale_plan") << r.message;
+  EXPECT_EQ(restarted.sim().movesStarted(), 0u);
+}
+
+TEST(Approval, EmergencyStopMidMoveHaltsFirstThenResetChecksThePosition) {
+  Bench b;
+  const auto id = b.addRobotTarget(kJointsB);
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  ASSERT_TRUE(b.send(b.approvePending()).accepted);
+  for (int i = 0; i < 15; ++i)
+    b.advance(0.01);
+  ASSERT_EQ(b.reading().state, ControllerState::kMoving);
+  const auto step = b.feed(b.command(InputKind::kEmergencyStop));
+  ASSERT_FALSE(step.effects.controller.empty());
+  EXPECT_EQ(step.effects.controller.front().action, ControllerAction::kAbort);
+  EXPECT_EQ(b.s.phase, Phase::kEmergency);
+  // Halted at once: the same position a control period later.
+  const auto halted = b.reading();
+  EXPECT_EQ(halted.state, ControllerState::kIdle);
+  b.advance(0.01);
+  EXPECT_EQ(b.reading().position, halted.position);
+  EXPECT_EQ(b.send(b.command(InputKind::kResume)).error_code, "wrong_phase");
+  // The position lies on the interrupted move: reset accepts it and resume plans from there.
+  ASSERT_TRUE(b.send(b.command(InputKind::kResetEmergency)).accepted);
+  EXPECT_EQ(b.s.position, halted.position);
+  const auto resumed = b.send(b.command(InputKind::kResume));
+  ASSERT_TRUE(resumed.accepted) << resumed.message;
+  EXPECT_EQ(b.s.phase, Phase::kPlanLocked);
+  EXPECT_EQ(b.s.pending.value().from, halted.position);
+  ASSERT_TRUE(b.send(b.approvePending()).accepted);
+  b.runMotion();
+  ASSERT_EQ(b.s.phase, Phase::kAtTarget) << b.s.fault;
+  EXPECT_EQ(b.reading().position,
+            paperRobot()->transmission.toSteps(b.target(id).solution.joints).steps);
+}
+
+TEST(Approval, StopMidMoveDeceleratesAndResumeNeedsANewApproval) {
+  Bench b;
+  b.addRobotTarget(kJointsB);
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  ASSERT_TRUE(b.send(b.approvePending()).accepted);
+  b.advance(0.05);
+  const auto step = b.feed(b.command(InputKind::kStop));
+  EXPECT_EQ(step.effects.controller.front().action, ControllerAction::kStop);
+  EXPECT_EQ(b.s.phase, Phase::kStopped);
+  // Still decelerating: resume waits for rest.
+  if (b.reading().state == ControllerState::kMoving) {
+    EXPECT_EQ(b.send(b.command(InputKind::kResume)).error_code, "controller_busy");
+  }
+  b.t += 1.0;
+  const auto moves = b.sim().movesStarted();
+  ASSERT_TRUE(b.send(b.command(InputKind::kResume)).accepted);
+  EXPECT_EQ(b.s.phase, Phase::kPlanLocked);
+  EXPECT_EQ(b.sim().movesStarted(), moves);  // nothing moves before the new approval
+}
+
+TEST(Approval, ControllerFaultMidMoveBecomesTheFaultPhaseWithItsReason) {
+  Bench b;
+  b.addRobotTarget(kJointsB);
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  b.sim().inject(actuation::InjectedFault::kStall, 0);  // the cannula screw motor
+  ASSERT_TRUE(b.send(b.approvePending()).accepted);
+  b.runMotion();
+  ASSERT_EQ(b.s.phase, Phase::kFault);
+  EXPECT_NE(b.s.fault.find("motor 1 stalled"), std::string::npos) << b.s.fault;
+  EXPECT_EQ(b.send(b.approve(1, "x")).error_code, "wrong_phase");
+  EXPECT_EQ(b.send(b.command(InputKind::kStop)).error_code, "wrong_phase");
+  // Stalled halfway along its move: the position check accepts it, then resume re-plans from
+  // there and the new plan reaches the target.
+  const auto r = b.send(b.command(InputKind::kResetEmergency));
+  ASSERT_TRUE(r.accepted) << r.message;
+  const auto resumed = b.send(b.command(InputKind::kResume));
+  ASSERT_TRUE(resumed.accepted) << resumed.message;
+  EXPECT_EQ(b.s.phase, Phase::kPlanLocked);
+  ASSERT_TRUE(b.send(b.approvePending()).accepted);
+  b.runMotion();
+  EXPECT_EQ(b.s.phase, Phase::kAtTarget) << b.s.fault;
+}
+
+TEST(Approval, APoseOutsideTheJointRangesIsNotPlannedFromUntilHomed) {
+  Bench b;
+  b.addRobotTarget(kJointsB);
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  // The stylet motor stalls while it follows the cannula's translation: the stylet ends up
+  // behind its home (z_s < 0), a pose no plan may start from.
+  b.sim().inject(actuation::InjectedFault::kStall, 2);
+  ASSERT_TRUE(b.send(b.approvePending()).accepted);
+  b.runMotion();
+  ASSERT_EQ(b.s.phase, Phase::kFault);
+  EXPECT_NE(b.s.fault.find("motor 3 stalled"), std::string::npos) << b.s.fault;
+  ASSERT_TRUE(b.send(b.command(InputKind::kResetEmergency)).accepted);
+  const auto refused = b.send(b.command(InputKind::kResume));
+  EXPECT_EQ(refused.error_code, "plan_failed");
+  EXPECT_NE(refused.message.find("outside the stylet travel"), std::string::npos)
+      << refused.message;
+  EXPECT_EQ(b.s.phase, Phase::kStopped);
+  ASSERT_TRUE(b.send(b.command(InputKind::kHome)).accepted);
+  ASSERT_TRUE(b.send(b.command(InputKind::kResume)).accepted);
+  EXPECT_EQ(b.s.pending.value().from, Steps{});
+}
+
+TEST(Approval, ArrivalCheckCatchesAPositionMismatchAndOnlyHomingClearsIt) {
+  Bench b;
+  b.addRobotTarget(kJointsA);
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  b.sim().inject(actuation::InjectedFault::kPositionMismatch, 0);
+  ASSERT_TRUE(b.send(b.approvePending()).accepted);
+  b.runMotion();
+  ASSERT_EQ(b.s.phase, Phase::kFault);
+  EXPECT_NE(b.s.fault.find("arrival check failed"), std::string::npos) << b.s.fault;
+  EXPECT_NE(b.s.fault.find("motor 1 reads"), std::string::npos) << b.s.fault;
+  const auto refused = b.send(b.command(InputKind::kResetEmergency));
+  EXPECT_EQ(refused.error_code, "position_mismatch") << refused.message;
+  // The operator brings the robot home by hand and says so; then the check passes.
+  ASSERT_TRUE(b.send(b.command(InputKind::kHome)).accepted);
+  ASSERT_TRUE(b.send(b.command(InputKind::kResetEmergency)).accepted);
+  EXPECT_EQ(b.s.position, Steps{});
+}
+
+TEST(Approval, UserOrderBeyondTheRotationLimitIsRefusedServerOrderIsNot) {
+  Bench b;
+  // θc 350°, 10°, 345° in that order turns 350° + 340° + 335° from θc = 0.
+  const kinematics::Joints j350{-10.0 * M_PI / 180.0, 10.0, 25.0};
+  const kinematics::Joints j10{10.0 * M_PI / 180.0, 12.0, 30.0};
+  const kinematics::Joints j345{-15.0 * M_PI / 180.0, 5.0, 20.0};
+  const auto a = b.addRobotTarget(j350);
+  const auto c = b.addRobotTarget(j10);
+  const auto d = b.addRobotTarget(j345);
+  ASSERT_TRUE(b.send(b.command(InputKind::kReorderTargets, {}, {a, c, d})).accepted);
+  const auto refused = b.send(b.command(InputKind::kLockPlan));
+  EXPECT_EQ(refused.error_code, "rotation_limit") << refused.message;
+  EXPECT_NE(refused.message.find("1025.0°"), std::string::npos) << refused.message;
+  EXPECT_EQ(b.s.phase, Phase::kPlanning);
+  // Without a user order the server sweeps 10°, 345°, 350°: 350° in all.
+  ASSERT_TRUE(b.send(b.command(InputKind::kClearTargets)).accepted);
+  const auto a2 = b.addRobotTarget(j350);
+  const auto c2 = b.addRobotTarget(j10);
+  const auto d2 = b.addRobotTarget(j345);
+  const auto ok = b.send(b.command(InputKind::kLockPlan));
+  ASSERT_TRUE(ok.accepted) << ok.message;
+  // Whatever order it chose (it also weighs time), count its rotation from the joints.
+  double rotation_deg = 0.0, at = 0.0;
+  std::set<std::uint32_t> ids;
+  for (const auto& t : b.s.targets) {
+    rotation_deg += std::abs(t.solution.joints.theta_c_rad - at) * 180.0 / M_PI;
+    at = t.solution.joints.theta_c_rad;
+    ids.insert(t.id);
+  }
+  EXPECT_EQ(ids, (std::set<std::uint32_t>{a2, c2, d2}));
+  EXPECT_LE(rotation_deg, 360.0 + 1e-9);
+  EXPECT_NE(ok.message.find(fmt::format("cannula rotation {:.1f}°", rotation_deg)),
+            std::string::npos)
+      << ok.message;
+}
+
+// Random command sequences, adversarial approvals included, against an independent account of
+// what may move: every motor command must follow an approve that named the pending plan's id and
+// digest, from an approver, before expiry, with nothing accepted in between; and the number of
+// moves the controller ever started never exceeds what such approvals released.
+TEST(Approval, RandomSequencesNeverMoveWithoutAValidApproval) {
+  std::size_t approvals_accepted = 0, approvals_refused = 0, moves_started = 0;
+  for (unsigned seed = 1; seed <= 40; ++seed) {
+    std::mt19937 rng(seed);
+    Bench b;
+    auto pick = [&](int n) { return std::uniform_int_distribution<int>(0, n - 1)(rng); };
+    std::size_t released = 0;
+    std::optional<MotionRequest> shown;  // the request as a client last saw it
+    std::uint64_t shown_at_revision = 0;
+    for (int i = 0; i < 120; ++i) {
+      const auto phase_before = b.s.phase;
+      const auto revision_before = b.s.revision;
+      const auto moves_before = b.sim().movesStarted();
+      Input in;
+      bool valid_approval = false;
+      // Mostly what an operator would do next, with everything else mixed in.
+      int choice = pick(14);
+      if (shown && pick(2) == 0) choice = 5;  // a request is showing: approve it, or twist it
+      if (b.s.phase == Phase::kMoving && pick(2) == 0) choice = 12;  // let it move
+      if (b.s.phase == Phase::kStopped && pick(2) == 0) choice = 9;  // resume
+      if ((b.s.phase == Phase::kEmergency || b.s.phase == Phase::kFault) && pick(2) == 0) {
+        choice = 11;  // reset (or home)
+      }
+      if (b.s.phase == Phase::kPlanning && pick(3) == 0) choice = pick(2) == 0 ? 0 : 3;
+      if ((choice == 8 || choice == 10) && pick(2) == 0) choice = 13;  // fewer stops
+      switch (choice) {
+        case 0:
+        case 1: {
+          const kinematics::Joints j{(pick(360) - 180) * M_PI / 180.0, 1.0 * pick(40),
+                                     1.0 * pick(40)};
+          const Eigen::Vector3d tip = paperRobot()->kinematics.forward(j).tip_mm;
+          in = b.command(InputKind::kAddTarget, {b.s.registration->toImage(tip)});
+          break;
+        }
+        case 2:
+          in = b.command(InputKind::kRemoveTarget, {}, {static_cast<std::uint32_t>(pick(6))});
+          break;
+        case 3:
+          in = b.command(InputKind::kLockPlan);
+          break;
+        case 4:
+          in = b.command(InputKind::kUnlockPlan);
+          break;
+        case 5:
+        case 6: {
+          // An approval: sometimes right, mostly subtly wrong.
+          if (!shown) {
+            in = b.approve(static_cast<std::uint64_t>(pick(5)), "00");
+            break;
+          }
+          in = b.approve(shown->plan_id, shown->digest);
+          const int twist = pick(5);
+          if (twist == 1) in.plan_id += 1;
+          if (twist == 2) in.digest[static_cast<std::size_t>(pick(64))] ^= 1;
+          if (twist == 3) in.client_id = "visitor";
+          valid_approval = twist == 0 || twist == 4;
+          break;
+        }
+        case 7:
+          in = b.command(InputKind::kRequestApproval);
+          break;
+        case 8:
+          in = b.command(InputKind::kStop);
+          break;
+        case 9:
+          in = b.command(InputKind::kResume);
+          break;
+        case 10:
+          in = b.command(InputKind::kEmergencyStop);
+          break;
+        case 11:
+          in = b.command(pick(3) == 0 ? InputKind::kHome : InputKind::kResetEmergency);
+          break;
+        case 12:
+          for (int k = pick(80); k > 0; --k)
+            b.advance(0.01);
+          b.t += pick(3) == 0 ? 70.0 : 0.0;  // sometimes past an approval's expiry
+          continue;
+        default:
+          if (pick(4) == 0) b.sim().inject(actuation::InjectedFault::kStall, pick(3));
+          b.advance(0.01);
+          continue;
+      }
+      const auto step = b.feed(in);
+      const bool accepted = !step.effects.replies.empty() && step.effects.replies[0].accepted;
+      const bool started = b.sim().movesStarted() > moves_before;
+      if (in.kind == InputKind::kApprove && accepted) {
+        // The independent account: the request shown, unchanged since, approved as shown.
+        ASSERT_TRUE(valid_approval) << "seed " << seed << " step " << i;
+        ASSERT_TRUE(shown.has_value());
+        EXPECT_EQ(revision_before, shown_at_revision) << "seed " << seed << " step " << i;
+        EXPECT_EQ(in.digest, requestDigest(b.s.session_id, *shown));
+        EXPECT_LE(in.time_s, shown->expires_s);
+        EXPECT_EQ(in.client_id, "surgeon");
+        EXPECT_TRUE(phase_before == Phase::kPlanLocked || phase_before == Phase::kAtTarget);
+        released += shown->moves.size();
+        ++approvals_accepted;
+        shown.reset();
+      } else {
+        if (in.kind == InputKind::kApprove) ++approvals_refused;
+        EXPECT_FALSE(started) << toString(in.kind) << " started a move; seed " << seed;
+      }
+      EXPECT_LE(b.sim().movesStarted(), released) << "seed " << seed << " step " << i;
+      if (b.s.pending && (!shown || shown->plan_id != b.s.pending->plan_id)) {
+        shown = b.s.pending;
+        shown_at_revision = b.s.revision;
+      } else if (!b.s.pending) {
+        shown.reset();
+      }
+    }
+    moves_started += b.sim().movesStarted();
+  }
+  // The sequences did exercise motion, not only refusals.
+  EXPECT_GT(approvals_accepted, 100u);
+  EXPECT_GT(approvals_refused, 300u);
+  EXPECT_GT(moves_started, 250u);
+  std::cout << approvals_accepted << " approvals accepted, " << approvals_refused << " refused, "
+            << moves_started << " moves started\n";
+}
+
+}  // namespace
+}  // namespace ignav::workflow
