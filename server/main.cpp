@@ -1,4 +1,4 @@
-// ignav-server --config configs/server.yaml [--domain N] [--session-dir DIR]
+// ignav-server --config configs/server.yaml [--domain N] [--session-dir DIR] [--controller C]
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
@@ -27,6 +27,16 @@ int main(int argc, char** argv) {
   app.add_option("--session-dir", session_dir, "the session folder (default: a new one)");
   app.add_option("--robot", robot, "robot YAML (overrides the config)");
   app.add_option("--dds-config", dds_config, "Cyclone XML (overrides the config)");
+  std::string controller;
+  std::optional<double> speed;
+  std::vector<std::string> approvers;
+  app.add_option("--controller", controller,
+                 "simulated, or galil:HOST:PORT (overrides the config)");
+  app.add_option("--controller-speed", speed,
+                 "steps/s of every motor; acceleration 10x per second (overrides the config)");
+  app.add_option("--approver", approvers,
+                 "a client id allowed to approve motion (repeatable; "
+                 "replaces the config's list)");
   CLI11_PARSE(app, argc, argv);
 
   // Logs go to stderr: stdout carries the readiness line only.
@@ -39,6 +49,26 @@ int main(int argc, char** argv) {
     if (!session_dir.empty()) options.session_dir = session_dir;
     if (!robot.empty()) options.robot_config = robot;
     if (!dds_config.empty()) options.dds_config = dds_config;
+    if (controller == "simulated") {
+      options.controller.kind = controller;
+    } else if (controller.rfind("galil:", 0) == 0) {
+      const auto colon = controller.rfind(':');
+      options.controller.kind = "galil";
+      options.controller.host = controller.substr(6, colon - 6);
+      options.controller.port = std::stoi(controller.substr(colon + 1));
+    } else if (!controller.empty()) {
+      spdlog::error("--controller: '{}' is not simulated or galil:HOST:PORT", controller);
+      return 2;
+    }
+    if (speed) {
+      options.controller.speed_steps_s = *speed;
+      options.controller.acceleration_steps_s2 = 10.0 * *speed;
+    }
+    if (!approvers.empty()) options.approvers = approvers;
+    if (auto bad = ignav::server::checkControllerOptions(options)) {
+      spdlog::error("{}", *bad);
+      return 2;
+    }
     return ignav::server::runServer(options, g_stop);
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());

@@ -14,6 +14,8 @@
 #include <optional>
 #include <thread>
 
+#include "ignav/actuation/controller.hpp"
+#include "ignav/actuation/galil.hpp"
 #include "ignav/config/robot_config.hpp"
 #include "ignav/journal/journal.hpp"
 #include "ignav/protocol/messages.hpp"
@@ -41,6 +43,46 @@ constexpr auto kBusyPoll = std::chrono::milliseconds(2);
 struct ConfigError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+// The controller the options name. The simulation runs on the server's clock (advanceTo).
+struct ControllerHandle {
+  std::unique_ptr<actuation::MotorController> controller;
+  actuation::SimulatedController* sim = nullptr;
+  std::string name;
+};
+
+ControllerHandle makeController(const ControllerOptions& c) {
+  ControllerHandle h;
+  if (c.kind == "galil") {
+    actuation::GalilOptions g;
+    g.host = c.host;
+    g.port = c.port;
+    g.speed_steps_s = c.speed_steps_s;
+    g.acceleration_steps_s2 = c.acceleration_steps_s2;
+    h.controller = std::make_unique<actuation::GalilController>(g);
+    h.name = fmt::format("galil {}:{}", c.host, c.port);
+    return h;
+  }
+  std::array<actuation::SimulatedAxis, 3> axes{};
+  for (auto& a : axes) {
+    a.speed_steps_s = c.speed_steps_s;
+    a.acceleration_steps_s2 = c.acceleration_steps_s2;
+  }
+  auto sim = std::make_unique<actuation::SimulatedController>(axes);
+  h.sim = sim.get();
+  h.controller = std::move(sim);
+  h.name = "simulated";
+  return h;
+}
+
+workflow::ApprovalPolicy approvalPolicy(const ServerOptions& o) {
+  workflow::ApprovalPolicy p;
+  p.approvers = o.approvers;
+  p.expiry_s = o.approval_expiry_s;
+  p.speed_steps_s = o.controller.speed_steps_s;
+  p.acceleration_steps_s2 = o.controller.acceleration_steps_s2;
+  return p;
+}
 
 std::string sessionName() {
   const std::time_t now = std::time(nullptr);
@@ -157,6 +199,13 @@ class Server {
                       Qos::kState),
         target_(participant_, &ignav_msg_TargetState_desc, topic::kTarget, Qos::kState),
         health_(participant_, &ignav_msg_Health_desc, topic::kHealth, Qos::kState),
+        approvals_(participant_, &ignav_msg_Approval_desc, topic::kApproval, Qos::kRequest),
+        emergency_stops_(participant_, &ignav_msg_EmergencyStop_desc, topic::kEmergencyStop,
+                         Qos::kRequest),
+        approval_(participant_, &ignav_msg_ApprovalState_desc, topic::kApprovalState, Qos::kState),
+        motion_(participant_, &ignav_msg_MotionState_desc, topic::kMotion, Qos::kState),
+        controller_(makeController(o.controller)),
+        control_period_(std::chrono::milliseconds(o.controller.control_period_ms)),
         waitset_(participant_),
         loader_(waitset_),
         session_dir_(std::move(session_dir)),
@@ -164,22 +213,37 @@ class Server {
         started_(Clock::now()) {
     waitset_.attach(commands_.handle());
     waitset_.attach(slice_requests_.handle());
+    waitset_.attach(approvals_.handle());
+    waitset_.attach(emergency_stops_.handle());
     session_ =
         workflow::newSession(session_dir_.filename().string(), std::move(robot), o.robot_config);
   }
 
   int run(const std::atomic<bool>& stop, const std::vector<std::string>& journal_lines) {
+    const auto connected = controller_.controller->connect();
+    if (!connected) spdlog::error("controller {}: {}", controller_.name, connected.error().message);
     if (journal_lines.empty()) {
+      // A new session starts with the robot at its home: that position is zero.
+      if (connected) (void)controller_.controller->home();
       Input config_loaded;
       config_loaded.kind = InputKind::kConfigLoaded;
+      config_loaded.policy = approvalPolicy(options_);
       if (!step(config_loaded)) return 3;
     } else {
       if (auto ok = recover(journal_lines); !ok) {
         spdlog::error("{}", ok.error().message);
         return 2;
       }
+      // A real controller kept counting while we were down; the simulation is told where the
+      // journal last verified the motors (a move in flight at the crash stops where it began).
+      if (controller_.sim) (void)controller_.sim->placeAt(session_.position);
       publishEverything();
+      // Approvals die here, and the position is checked against the controller's.
+      Input restarted;
+      restarted.kind = InputKind::kServerRestarted;
+      if (!step(restarted)) return 3;
     }
+    superviseController(true);
     publishHealth();  // then once a second
     std::cout << "ignav-server ready domain=" << options_.domain_id
               << " session=" << session_dir_.string() << std::endl;
@@ -189,16 +253,24 @@ class Server {
       // While commands keep coming, poll instead of sleeping: waking a sleeping thread costs
       // ~150 µs on this kind of VM, more than the command itself (docs/PERFORMANCE.md).
       if (Clock::now() - last_event >= kBusyPoll) {
-        waitset_.wait(std::chrono::milliseconds(200));
+        waitset_.wait(robotActive() ? control_period_ : std::chrono::milliseconds(200));
       } else {
         std::this_thread::yield();
       }
       std::size_t handled = 0;
+      bool failed = false;
+      // Emergency stops first: the robot halts before anything else is looked at.
+      handled += emergency_stops_.take([&](const ignav_msg_EmergencyStop& e) {
+        if (!failed && !step(toInput(e))) failed = true;
+      });
+      handled += approvals_.take([&](const ignav_msg_Approval& a) {
+        if (!failed && !step(toInput(a))) failed = true;
+      });
+      if (failed) return 3;
       for (auto& in : loader_.finished()) {
         ++handled;
         if (!step(in)) return 3;
       }
-      bool failed = false;
       handled += commands_.take([&](const ignav_msg_Command& c) {
         if (failed) return;
         auto in = toInput(c);
@@ -222,6 +294,13 @@ class Server {
       });
       if (failed) return 3;
       handled += slice_requests_.take([&](const ignav_msg_SliceRequest& r) { answerSlice(r); });
+      while (!internal_.empty()) {
+        Input in = std::move(internal_.front());
+        internal_.pop_front();
+        ++handled;
+        if (!step(std::move(in))) return 3;
+      }
+      if (!superviseController(false)) return 3;
       if (handled > 0) last_event = Clock::now();
       if (session_.volume_status.status == "loading" && loader_.progress() != last_progress_) {
         last_progress_ = loader_.progress();
@@ -269,6 +348,7 @@ class Server {
     publishRegistration();
     for (const auto& t : session_.targets)
       publishTarget(t.id);
+    publishApproval();
     publishWorkflow();
     writeExports();
     writeReport();
@@ -277,7 +357,19 @@ class Server {
   // One input through the reducer, then its effects in the order DESIGN.md requires.
   bool step(Input in) {
     in.time_s = now_s();
+    if (workflow::needsControllerReading(in.kind) && !in.controller) {
+      // An operator resetting or homing may have just reconnected the cable: try again.
+      if ((in.kind == InputKind::kResetEmergency || in.kind == InputKind::kHome) &&
+          last_reading_.state == actuation::ControllerState::kDisconnected) {
+        (void)controller_.controller->connect();
+      }
+      in.controller = readController();
+    }
     workflow::Step s = workflow::reduce(session_, in);
+    // Halts before anything else, even the journal (DESIGN.md safety invariant 3).
+    for (const auto& c : s.effects.controller) {
+      if (c.isHalt()) runController(c);
+    }
     for (const auto& line : s.effects.journal) {
       if (auto ok = journal_.append(line); !ok) {
         // Nothing is published that the journal does not hold.
@@ -302,6 +394,12 @@ class Server {
       disposeTarget(id);
     for (auto id : e.targets_changed)
       publishTarget(id);
+    // Moves and the rest only once the journal holds the approval that released them.
+    for (const auto& c : e.controller) {
+      if (!c.isHalt()) runController(c);
+    }
+    if (e.approval_changed) publishApproval();
+    if (e.motion_changed || !e.controller.empty()) publishMotion();
     if (e.workflow_changed) publishWorkflow();
     for (const auto& r : e.replies)
       sendReply(r);
@@ -336,6 +434,170 @@ class Server {
     OwnedReply owned{r, {}};
     replies_.write(owned.build());
     if (!r.accepted) spdlog::warn("rejected: {}", r.message);
+  }
+
+  bool robotActive() const {
+    return session_.phase == workflow::Phase::kMoving ||
+           last_reading_.state == actuation::ControllerState::kMoving;
+  }
+
+  actuation::ControllerStatus readController() {
+    if (controller_.sim) controller_.sim->advanceTo(now_s());
+    auto r = controller_.controller->poll();
+    if (r) {
+      last_reading_ = *r;
+    } else {
+      last_reading_ = {};
+      last_reading_.state = actuation::ControllerState::kDisconnected;
+      last_reading_.fault = r.error().message;
+    }
+    return last_reading_;
+  }
+
+  // A controller command from the reducer. A failure becomes a controller_fault input (queued:
+  // the step that asked is finished first).
+  void runController(const workflow::ControllerCommand& c) {
+    if (controller_.sim) controller_.sim->advanceTo(now_s());
+    auto& ctl = *controller_.controller;
+    Status done = Ok{};
+    switch (c.action) {
+      case workflow::ControllerAction::kMove:
+        done = ctl.move(c.increments);
+        break;
+      case workflow::ControllerAction::kStop:
+        done = ctl.stop();
+        break;
+      case workflow::ControllerAction::kAbort:
+        done = ctl.abort();
+        break;
+      case workflow::ControllerAction::kHome:
+        done = ctl.home();
+        break;
+      case workflow::ControllerAction::kClearFault:
+        done = ctl.clearFault();
+        break;
+    }
+    if (!done) {
+      spdlog::error("controller {}: {}", controller_.name, done.error().message);
+      Input fault;
+      fault.kind = InputKind::kControllerFault;
+      fault.controller = readController();
+      if (fault.controller->fault.empty()) fault.controller->fault = done.error().message;
+      if (fault.controller->state == actuation::ControllerState::kIdle) {
+        fault.controller->state = actuation::ControllerState::kFault;
+      }
+      internal_.push_back(std::move(fault));
+    }
+  }
+
+  // Polls the controller every control period while the robot moves (every 200 ms otherwise),
+  // publishes what it reports, and turns a finished move or a fault into the reducer's input.
+  bool superviseController(bool now) {
+    const auto period = robotActive() ? control_period_ : std::chrono::milliseconds(200);
+    if (!now && Clock::now() - last_controller_poll_ < period) return true;
+    last_controller_poll_ = Clock::now();
+    const auto before = last_reading_;
+    const auto r = readController();
+    const bool changed =
+        r.state != before.state || r.position != before.position || r.fault != before.fault;
+    if (changed || now) publishMotion();
+    if (session_.phase == workflow::Phase::kMoving && session_.motion &&
+        r.state != actuation::ControllerState::kMoving) {
+      Input done;
+      done.kind = InputKind::kSegmentDone;
+      done.controller = r;
+      return step(std::move(done));
+    }
+    const bool bad = r.state == actuation::ControllerState::kDisconnected ||
+                     r.state == actuation::ControllerState::kFault;
+    if (!bad) {
+      last_fault_reported_.clear();
+      return true;
+    }
+    if (r.fault == last_fault_reported_) return true;
+    last_fault_reported_ = r.fault;
+    Input fault;
+    fault.kind = InputKind::kControllerFault;
+    fault.controller = r;
+    return step(std::move(fault));
+  }
+
+  void publishApproval() {
+    const std::string none = "none", pending = "pending", empty;
+    ignav_msg_ApprovalState a{};
+    std::vector<ignav_msg_PlannedMove> moves;
+    std::vector<std::string> kinds;
+    std::vector<char*> approvers;
+    for (const auto& id : session_.policy.approvers)
+      approvers.push_back(cstr(id));
+    viewSequence(a.approvers, approvers);
+    a.status = cstr(none);
+    a.digest = a.summary = cstr(empty);
+    if (const auto& p = session_.pending) {
+      a.status = cstr(pending);
+      a.plan_id = p->plan_id;
+      a.digest = cstr(p->digest);
+      a.target_id = p->target_id;
+      a.summary = cstr(p->summary);
+      for (int m = 0; m < 3; ++m)
+        a.from_steps[m] = p->from.motor[static_cast<std::size_t>(m)];
+      kinds.reserve(p->moves.size());
+      for (const auto& move : p->moves) {
+        kinds.emplace_back(planning::toString(move.kind));
+        ignav_msg_PlannedMove pm{};
+        pm.kind = cstr(kinds.back());
+        for (int m = 0; m < 3; ++m)
+          pm.steps[m] = move.steps.motor[static_cast<std::size_t>(m)];
+        pm.duration_s = move.duration_s;
+        moves.push_back(pm);
+      }
+      a.duration_s = p->duration_s;
+      a.tre_mm = p->tre_mm;
+      a.expires_uptime_s = p->expires_s;
+      a.expires_in_s = p->expires_s - now_s();
+    }
+    viewSequence(a.moves, moves);
+    approval_.write(a);
+  }
+
+  void publishMotion() {
+    const auto& r = last_reading_;
+    const std::string state = actuation::toString(r.state);
+    const std::string fault = !session_.fault.empty() ? session_.fault : r.fault;
+    std::string kind;
+    ignav_msg_MotionState m{};
+    m.controller = cstr(controller_.name);
+    m.state = cstr(state);
+    m.fault = cstr(fault);
+    for (std::size_t a = 0; a < 3; ++a) {
+      m.steps[a] = r.position.motor[a];
+      m.verified_steps[a] = session_.position.motor[a];
+      m.goal_steps[a] = session_.position.motor[a];
+    }
+    if (const auto& mo = session_.motion) {
+      const auto& move = mo->request.moves[std::min(mo->segment, mo->request.moves.size() - 1)];
+      m.plan_id = mo->request.plan_id;
+      m.target_id = mo->request.target_id;
+      m.move_index = static_cast<std::uint32_t>(mo->segment + 1);
+      m.move_count = static_cast<std::uint32_t>(mo->request.moves.size());
+      kind = planning::toString(move.kind);
+      for (std::size_t a = 0; a < 3; ++a)
+        m.goal_steps[a] = mo->segment_from.motor[a] + move.steps.motor[a];
+    }
+    m.move_kind = cstr(kind);
+    const auto& robot = *session_.robot;
+    const auto joints = robot.transmission.toJoints(r.position);
+    m.theta_c_rad = joints.theta_c_rad;
+    m.z_c_mm = joints.z_c_mm;
+    m.z_s_mm = joints.z_s_mm;
+    const Eigen::Vector3d tip = robot.kinematics.forward(joints).tip_mm;
+    m.tip_robot = toMsg(tip);
+    if (session_.registration) {
+      m.tip_lps = toMsg(session_.registration->toImage(tip));
+      m.tip_lps_valid = true;
+    }
+    m.uptime_s = now_s();
+    motion_.write(m);
   }
 
   void publishWorkflow() {
@@ -601,6 +863,16 @@ class Server {
   Writer<ignav_msg_RegistrationState> registration_;
   Writer<ignav_msg_TargetState> target_;
   Writer<ignav_msg_Health> health_;
+  Reader<ignav_msg_Approval> approvals_;
+  Reader<ignav_msg_EmergencyStop> emergency_stops_;
+  Writer<ignav_msg_ApprovalState> approval_;
+  Writer<ignav_msg_MotionState> motion_;
+  ControllerHandle controller_;
+  std::chrono::milliseconds control_period_;
+  actuation::ControllerStatus last_reading_;
+  std::string last_fault_reported_;
+  Clock::time_point last_controller_poll_;
+  std::deque<Input> internal_;  // inputs the server raised itself (a controller call failed)
   WaitSet waitset_;
   Loader loader_;
   fs::path session_dir_;
@@ -619,6 +891,31 @@ std::string resolve(const fs::path& base, const std::string& p) {
 
 }  // namespace
 
+std::optional<std::string> checkControllerOptions(const ServerOptions& o) {
+  const auto& c = o.controller;
+  if (c.kind != "simulated" && c.kind != "galil") {
+    return "controller.kind: '" + c.kind + "' is not simulated or galil";
+  }
+  if (c.port <= 0 || c.port > 65535) {
+    return fmt::format("controller.port: {} is not a TCP port", c.port);
+  }
+  if (!(c.speed_steps_s > 0) || !std::isfinite(c.speed_steps_s)) {
+    return fmt::format("controller.speed_steps_s: {} must be positive", c.speed_steps_s);
+  }
+  if (!(c.acceleration_steps_s2 > 0) || !std::isfinite(c.acceleration_steps_s2)) {
+    return fmt::format("controller.acceleration_steps_s2: {} must be positive",
+                       c.acceleration_steps_s2);
+  }
+  if (c.control_period_ms < 1 || c.control_period_ms > 1000) {
+    return fmt::format("controller.control_period_ms: {} is not within 1..1000",
+                       c.control_period_ms);
+  }
+  if (!(o.approval_expiry_s > 0) || !std::isfinite(o.approval_expiry_s)) {
+    return fmt::format("approval.expiry_s: {} must be positive", o.approval_expiry_s);
+  }
+  return std::nullopt;
+}
+
 ServerOptions loadServerOptions(const std::string& path) {
   YAML::Node root;
   try {
@@ -632,9 +929,11 @@ ServerOptions loadServerOptions(const std::string& path) {
   if (!s || !s.IsMap()) throw ConfigError(path + ": server: is missing");
   for (const auto& kv : s) {
     const std::string key = kv.first.Scalar();
-    if (key != "robot_config" && key != "dds" && key != "session_root") {
+    if (key != "robot_config" && key != "dds" && key != "session_root" && key != "controller" &&
+        key != "approval") {
       throw ConfigError(path + ": server." + key +
-                        ": unknown key; expected robot_config, dds, session_root");
+                        ": unknown key; expected robot_config, dds, session_root, controller, "
+                        "approval");
     }
   }
   try {
@@ -644,9 +943,46 @@ ServerOptions loadServerOptions(const std::string& path) {
       if (d["domain_id"]) o.domain_id = d["domain_id"].as<std::uint32_t>();
       if (d["config"]) o.dds_config = resolve(base, d["config"].as<std::string>());
     }
+    if (const YAML::Node c = s["controller"]) {
+      auto& co = o.controller;
+      for (const auto& kv : c) {
+        const std::string key = kv.first.Scalar();
+        if (key == "kind") {
+          co.kind = kv.second.as<std::string>();
+        } else if (key == "host") {
+          co.host = kv.second.as<std::string>();
+        } else if (key == "port") {
+          co.port = kv.second.as<int>();
+        } else if (key == "speed_steps_s") {
+          co.speed_steps_s = kv.second.as<double>();
+        } else if (key == "acceleration_steps_s2") {
+          co.acceleration_steps_s2 = kv.second.as<double>();
+        } else if (key == "control_period_ms") {
+          co.control_period_ms = kv.second.as<int>();
+        } else {
+          throw ConfigError(path + ": server.controller." + key +
+                            ": unknown key; expected kind, host, port, speed_steps_s, "
+                            "acceleration_steps_s2, control_period_ms");
+        }
+      }
+    }
+    if (const YAML::Node a = s["approval"]) {
+      for (const auto& kv : a) {
+        const std::string key = kv.first.Scalar();
+        if (key == "approvers") {
+          o.approvers = kv.second.as<std::vector<std::string>>();
+        } else if (key == "expiry_s") {
+          o.approval_expiry_s = kv.second.as<double>();
+        } else {
+          throw ConfigError(path + ": server.approval." + key +
+                            ": unknown key; expected approvers, expiry_s");
+        }
+      }
+    }
   } catch (const YAML::Exception& e) {
     throw ConfigError(path + ": server: " + e.what());
   }
+  if (auto bad = checkControllerOptions(o)) throw ConfigError(path + ": server." + *bad);
   return o;
 }
 

@@ -4,11 +4,26 @@
 
 #include <atomic>
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <vector>
 
 namespace ignav::server {
 
+// The motor controller the server drives (server.yaml `controller:`).
+struct ControllerOptions {
+  std::string kind = "simulated";  // simulated | galil
+  std::string host = "127.0.0.1";  // galil
+  int port = 23;                   // galil
+  double speed_steps_s = 2000.0;   // every motor (SP; the simulation's axes)
+  double acceleration_steps_s2 = 8000.0;
+  int control_period_ms = 10;  // how often a moving robot is polled and its state published
+};
+
 struct ServerOptions {
+  ControllerOptions controller;
+  std::vector<std::string> approvers;  // client ids allowed to approve motion
+  double approval_expiry_s = 120.0;
   std::string robot_config;
   std::uint32_t domain_id = 0;
   std::string dds_config;    // path of a Cyclone XML file ("" = Cyclone's defaults)
@@ -18,6 +33,8 @@ struct ServerOptions {
 
 // Loads `path` (server.yaml); errors name the file and key. CLI options override after.
 ServerOptions loadServerOptions(const std::string& path);
+// What is wrong with the controller or approval options ("controller.port: ..."), if anything.
+std::optional<std::string> checkControllerOptions(const ServerOptions& options);
 
 // Runs until `stop` becomes true; returns the exit code.
 int runServer(const ServerOptions& options, const std::atomic<bool>& stop);

@@ -42,6 +42,10 @@ struct Client::Impl {
   Reader<ignav_msg_RegistrationState> registration;
   Reader<ignav_msg_TargetState> target;
   Reader<ignav_msg_Health> health;
+  Writer<ignav_msg_Approval> approvals;
+  Writer<ignav_msg_EmergencyStop> emergency_stops;
+  Reader<ignav_msg_ApprovalState> approval;
+  Reader<ignav_msg_MotionState> motion;
   WaitSet waitset;
 
   Impl(std::uint32_t domain, const std::string& xml)
@@ -58,6 +62,11 @@ struct Client::Impl {
                      Qos::kState),
         target(participant, &ignav_msg_TargetState_desc, topic::kTarget, Qos::kState),
         health(participant, &ignav_msg_Health_desc, topic::kHealth, Qos::kState),
+        approvals(participant, &ignav_msg_Approval_desc, topic::kApproval, Qos::kRequest),
+        emergency_stops(participant, &ignav_msg_EmergencyStop_desc, topic::kEmergencyStop,
+                        Qos::kRequest),
+        approval(participant, &ignav_msg_ApprovalState_desc, topic::kApprovalState, Qos::kState),
+        motion(participant, &ignav_msg_MotionState_desc, topic::kMotion, Qos::kState),
         waitset(participant) {
     waitset.attach(replies.handle());
     waitset.attach(slice_replies.handle());
@@ -67,6 +76,13 @@ struct Client::Impl {
 Client::Client(std::uint32_t domain_id, const std::string& config_xml, std::string client_id)
     : impl_(std::make_unique<Impl>(domain_id, config_xml)), client_id_(std::move(client_id)) {
   state_["targets"] = json::object();
+  // The server answers a repeated (client_id, request_id) from memory. A client id is often
+  // reused by the next process (a console's name), so request ids start at the wall clock in
+  // microseconds: a later process never repeats an earlier one's ids.
+  next_request_ =
+      static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::microseconds>(
+                                     std::chrono::system_clock::now().time_since_epoch())
+                                     .count());
 }
 
 Client::~Client() = default;
@@ -75,7 +91,8 @@ bool Client::waitForServer(std::chrono::milliseconds timeout) {
   const auto end = Clock::now() + timeout;
   while (Clock::now() < end) {
     if (impl_->commands.matched() > 0 && impl_->replies.matched() > 0 &&
-        impl_->slice_requests.matched() > 0 && impl_->slice_replies.matched() > 0) {
+        impl_->slice_requests.matched() > 0 && impl_->slice_replies.matched() > 0 &&
+        impl_->approvals.matched() > 0 && impl_->emergency_stops.matched() > 0) {
       return true;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -95,6 +112,32 @@ workflow::Reply Client::send(const std::string& command, const CommandArgs& args
     owned.points.push_back(toMsg(p));
   owned.ids = args.ids;
   impl_->commands.write(owned.build(request_id, *kind));
+  return awaitReply(request_id, command, timeout);
+}
+
+workflow::Reply Client::approve(std::uint64_t plan_id, const std::string& digest,
+                                std::chrono::milliseconds timeout, std::uint64_t request_id) {
+  if (request_id == 0) request_id = next_request_++;
+  ignav_msg_Approval a{};
+  a.client_id = cstr(client_id_);
+  a.request_id = request_id;
+  a.plan_id = plan_id;
+  a.digest = cstr(digest);
+  impl_->approvals.write(a);
+  return awaitReply(request_id, "approve", timeout);
+}
+
+workflow::Reply Client::emergencyStop(std::chrono::milliseconds timeout) {
+  const std::uint64_t request_id = next_request_++;
+  ignav_msg_EmergencyStop e{};
+  e.client_id = cstr(client_id_);
+  e.request_id = request_id;
+  impl_->emergency_stops.write(e);
+  return awaitReply(request_id, "emergency_stop", timeout);
+}
+
+workflow::Reply Client::awaitReply(std::uint64_t request_id, const std::string& what,
+                                   std::chrono::milliseconds timeout) {
   const auto end = Clock::now() + timeout;
   // Poll for the first 2 ms before sleeping: a reply usually comes within that, and waking a
   // sleeping thread costs ~150 µs here (docs/PERFORMANCE.md).
@@ -111,7 +154,7 @@ workflow::Reply Client::send(const std::string& command, const CommandArgs& args
     }
     const auto now = Clock::now();
     if (now >= end) {
-      throw Timeout(command + " (request " + std::to_string(request_id) + "): no reply");
+      throw Timeout(what + " (request " + std::to_string(request_id) + "): no reply");
     }
     impl_->waitset.wait(std::chrono::duration_cast<std::chrono::milliseconds>(end - now));
   }
@@ -223,6 +266,48 @@ std::vector<std::string> Client::poll() {
                              {"tre_warning", t.tre_warning},
                              {"order", t.order},
                              {"status", str(t.status)}};
+  }));
+  note("approval", impl_->approval.take([&](const ignav_msg_ApprovalState& a) {
+    json moves = json::array();
+    for (std::uint32_t i = 0; i < a.moves._length; ++i) {
+      const auto& m = a.moves._buffer[i];
+      moves.push_back({{"kind", str(m.kind)},
+                       {"steps", {m.steps[0], m.steps[1], m.steps[2]}},
+                       {"duration_s", m.duration_s}});
+    }
+    json approvers = json::array();
+    for (std::uint32_t i = 0; i < a.approvers._length; ++i)
+      approvers.push_back(str(a.approvers._buffer[i]));
+    state_["approval"] = {{"status", str(a.status)},
+                          {"plan_id", a.plan_id},
+                          {"digest", str(a.digest)},
+                          {"target_id", a.target_id},
+                          {"summary", str(a.summary)},
+                          {"from_steps", {a.from_steps[0], a.from_steps[1], a.from_steps[2]}},
+                          {"moves", moves},
+                          {"duration_s", a.duration_s},
+                          {"tre_mm", a.tre_mm},
+                          {"expires_in_s", a.expires_in_s},
+                          {"expires_uptime_s", a.expires_uptime_s},
+                          {"approvers", approvers}};
+  }));
+  note("motion", impl_->motion.take([&](const ignav_msg_MotionState& m) {
+    state_["motion"] = {
+        {"controller", str(m.controller)},
+        {"state", str(m.state)},
+        {"fault", str(m.fault)},
+        {"plan_id", m.plan_id},
+        {"target_id", m.target_id},
+        {"move_index", m.move_index},
+        {"move_count", m.move_count},
+        {"move_kind", str(m.move_kind)},
+        {"steps", {m.steps[0], m.steps[1], m.steps[2]}},
+        {"goal_steps", {m.goal_steps[0], m.goal_steps[1], m.goal_steps[2]}},
+        {"verified_steps", {m.verified_steps[0], m.verified_steps[1], m.verified_steps[2]}},
+        {"joints", {m.theta_c_rad, m.z_c_mm, m.z_s_mm}},
+        {"tip_robot", point(m.tip_robot)},
+        {"tip_lps", m.tip_lps_valid ? point(m.tip_lps) : json()},
+        {"uptime_s", m.uptime_s}};
   }));
   note("health", impl_->health.take([&](const ignav_msg_Health& h) {
     state_["health"] = {{"version", str(h.version)},

@@ -176,5 +176,13 @@ template class Writer<ignav_msg_TargetState>;
 template class Reader<ignav_msg_TargetState>;
 template class Writer<ignav_msg_Health>;
 template class Reader<ignav_msg_Health>;
+template class Writer<ignav_msg_Approval>;
+template class Reader<ignav_msg_Approval>;
+template class Writer<ignav_msg_EmergencyStop>;
+template class Reader<ignav_msg_EmergencyStop>;
+template class Writer<ignav_msg_ApprovalState>;
+template class Reader<ignav_msg_ApprovalState>;
+template class Writer<ignav_msg_MotionState>;
+template class Reader<ignav_msg_MotionState>;
 
 }  // namespace ignav::protocol

@@ -24,6 +24,8 @@ constexpr KindName kKinds[] = {
     {ignav_msg_CMD_EMERGENCY_STOP, workflow::InputKind::kEmergencyStop},
     {ignav_msg_CMD_RESET_EMERGENCY, workflow::InputKind::kResetEmergency},
     {ignav_msg_CMD_QUERY, workflow::InputKind::kQuery},
+    {ignav_msg_CMD_REQUEST_APPROVAL, workflow::InputKind::kRequestApproval},
+    {ignav_msg_CMD_HOME, workflow::InputKind::kHome},
 };
 
 std::string copy(const char* s) {
@@ -64,6 +66,24 @@ std::optional<workflow::Input> toInput(const ignav_msg_Command& c) {
   }
   for (std::uint32_t i = 0; i < c.ids._length && i < cap; ++i)
     in.ids.push_back(c.ids._buffer[i]);
+  return in;
+}
+
+workflow::Input toInput(const ignav_msg_Approval& a) {
+  workflow::Input in;
+  in.kind = workflow::InputKind::kApprove;
+  in.client_id = copy(a.client_id);
+  in.request_id = a.request_id;
+  in.plan_id = a.plan_id;
+  in.digest = copy(a.digest);
+  return in;
+}
+
+workflow::Input toInput(const ignav_msg_EmergencyStop& e) {
+  workflow::Input in;
+  in.kind = workflow::InputKind::kEmergencyStop;
+  in.client_id = copy(e.client_id);
+  in.request_id = e.request_id;
   return in;
 }
 

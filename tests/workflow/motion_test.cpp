@@ -47,8 +47,10 @@ class Bench {
   explicit Bench(std::uint64_t first_request = 0) : sim_(axes()), request_(first_request) {
     (void)sim_.connect();
     (void)sim_.home();
-    s = newSession("bench", paperRobot(), "robot.yaml", policy());
-    feed(internal(InputKind::kConfigLoaded));
+    s = newSession("bench", paperRobot(), "robot.yaml");
+    Input config = internal(InputKind::kConfigLoaded);
+    config.policy = policy();
+    feed(config);
     auto load = command(InputKind::kLoadVolume);
     load.path = "phantom:";
     feed(load);
@@ -351,7 +353,7 @@ TEST(Approval, ARestartNeverReArmsAnApproval) {
   // that the journal's client has not used, so nothing is answered from memory.)
   Bench restarted(1000);
   auto recovered = replayJournal(
-      newSession("bench", paperRobot(), "robot.yaml", policy()), b.journal,
+      newSession("bench", paperRobot(), "robot.yaml"), b.journal,
       [](const std::string&) -> Expected<LoadedCt> {
         LoadedCt ct;
         ct.volume = std::make_shared<volume::Volume>();

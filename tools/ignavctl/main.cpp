@@ -2,6 +2,7 @@
 //   ignavctl status | load PATH|phantom | fiducials auto | fiducials set P1 P2 P3
 //   ignavctl targets add X,Y,Z | rm ID | ls | clear | lock | unlock
 //   ignavctl slice --view axial --lps X,Y,Z --out s.png | watch | run script.yaml
+//   ignavctl approval | approve [--yes] [--plan N --digest HEX] | motion | emergency-stop
 #include <yaml-cpp/yaml.h>
 #include <CLI/CLI.hpp>
 
@@ -77,6 +78,48 @@ void printTargets(const json& state) {
                 t["joints"][1].get<double>(), t["joints"][2].get<double>(),
                 t["tre_mm"].get<double>());
     if (t["status"] != "planned") std::printf("     %s\n", t["message"].get<std::string>().c_str());
+  }
+}
+
+void printApproval(const json& s) {
+  if (!s.contains("approval") || s["approval"]["status"] != "pending") {
+    std::cout << "no motion is waiting for approval\n";
+    return;
+  }
+  const json& a = s["approval"];
+  std::cout << a["summary"].get<std::string>() << "\n"
+            << "  plan " << a["plan_id"] << ", digest " << a["digest"].get<std::string>() << "\n"
+            << "  from steps " << a["from_steps"].dump() << ", expires in "
+            << static_cast<int>(a["expires_in_s"].get<double>()) << " s; approvers "
+            << a["approvers"].dump() << "\n";
+  for (const auto& m : a["moves"]) {
+    std::printf("  %-18s %s  %.2f s\n", m["kind"].get<std::string>().c_str(),
+                m["steps"].dump().c_str(), m["duration_s"].get<double>());
+  }
+}
+
+void printMotion(const json& s) {
+  if (!s.contains("motion")) {
+    std::cout << "no motion state yet\n";
+    return;
+  }
+  const json& m = s["motion"];
+  std::cout << "controller " << m["controller"].get<std::string>() << ": "
+            << m["state"].get<std::string>() << "\n"
+            << "  steps " << m["steps"].dump() << " (verified " << m["verified_steps"].dump()
+            << ")\n"
+            << "  joints θc " << m["joints"][0].get<double>() * 180.0 / M_PI << "°, zc "
+            << m["joints"][1] << " mm, zs " << m["joints"][2] << " mm\n"
+            << "  tip robot " << fmt3(m["tip_robot"])
+            << (m["tip_lps"].is_null() ? "" : ", LPS " + fmt3(m["tip_lps"])) << "\n";
+  if (m["plan_id"].get<std::uint64_t>() != 0) {
+    std::cout << "  plan " << m["plan_id"] << " to target " << m["target_id"] << ": move "
+              << m["move_index"] << " of " << m["move_count"] << " ("
+              << m["move_kind"].get<std::string>() << ") towards " << m["goal_steps"].dump()
+              << "\n";
+  }
+  if (!m["fault"].get<std::string>().empty()) {
+    std::cout << "  fault: " << m["fault"].get<std::string>() << "\n";
   }
 }
 
@@ -174,6 +217,17 @@ int runScript(Client& client, const std::string& path, const std::string& out_di
   if (!doc["steps"] || !doc["steps"].IsSequence()) throw UsageError(path + ": steps: is missing");
   std::map<std::string, std::uint32_t> names;
   int index = 0;
+  // Read your writes: the next step sees at least the state the last reply's revision names
+  // (state topics and replies travel separately).
+  auto catchUp = [&](const ignav::workflow::Reply& r) {
+    if (!r.accepted) return;
+    client.waitFor(
+        [&](const json& s) {
+          return s.contains("workflow") &&
+                 s["workflow"]["revision"].get<std::uint64_t>() >= r.revision;
+        },
+        std::chrono::seconds(10));
+  };
   for (const auto& step_node : doc["steps"]) {
     ++index;
     const json step = yamlToJson(step_node);
@@ -205,6 +259,42 @@ int runScript(Client& client, const std::string& path, const std::string& out_di
         return kExitRejected;
       }
       if (step.contains("name")) names[step["name"]] = reply.target_id;
+      catchUp(reply);
+    } else if (step.contains("approve") || step.contains("emergency_stop")) {
+      // approve: pending  approves what ApprovalState shows; {plan_id, digest} sends exactly
+      // those (scripts use it to show that wrong ones are refused).
+      ignav::workflow::Reply reply;
+      if (step.contains("emergency_stop")) {
+        reply = client.emergencyStop();
+        std::cout << where << " emergency_stop: ";
+      } else {
+        const json a = step["approve"];
+        const json shown = client.state().value("approval", json::object());
+        std::uint64_t plan = shown.value("plan_id", std::uint64_t{0});
+        std::string digest = shown.value("digest", "");
+        if (a.is_object()) {
+          // Script numbers arrive as doubles (yamlToJson).
+          if (a.contains("plan_id")) plan = static_cast<std::uint64_t>(a["plan_id"].get<double>());
+          if (a.contains("digest")) {
+            digest = a["digest"].is_string() ? a["digest"].get<std::string>() : a["digest"].dump();
+          }
+        } else if (a != "pending") {
+          throw UsageError(where + ": approve: 'pending' or {plan_id, digest}");
+        }
+        reply = client.approve(plan, digest);
+        std::cout << where << " approve plan " << plan << ": ";
+      }
+      printReply(reply, as_json);
+      const std::string expect = step.value("expect", "accepted");
+      if ((expect == "accepted") != reply.accepted) {
+        std::cerr << where << ": expected " << expect << "\n";
+        return kExitRejected;
+      }
+      if (step.contains("error_code") && step["error_code"] != reply.error_code) {
+        std::cerr << where << ": expected error_code " << step["error_code"] << "\n";
+        return kExitRejected;
+      }
+      catchUp(reply);
     } else if (step.contains("wait")) {
       const json want = step["wait"];
       const double seconds = step.value("timeout_s", 60.0);
@@ -243,7 +333,7 @@ int runScript(Client& client, const std::string& path, const std::string& out_di
       std::cout << where << " slice: " << file << " (" << result.width << "x" << result.height
                 << ")\n";
     } else {
-      throw UsageError(where + ": expected send, wait or slice");
+      throw UsageError(where + ": expected send, approve, emergency_stop, wait or slice");
     }
   }
   client.poll();
@@ -290,8 +380,20 @@ int main(int argc, char** argv) {
   auto* run = app.add_subcommand("run", "run a script of commands and expected replies");
   run->add_option("script", script)->required();
   run->add_option("--out-dir", script_out, "where slices go");
+  auto* approval = app.add_subcommand("approval", "the motion waiting for approval");
+  auto* motion = app.add_subcommand("motion", "where the robot is and what it is doing");
+  bool yes = false;
+  std::uint64_t approve_plan = 0;
+  std::string approve_digest;
+  auto* approve = app.add_subcommand(
+      "approve", "approve the motion ApprovalState shows (asks first unless --yes)");
+  approve->add_flag("--yes", yes, "do not ask");
+  approve->add_option("--plan", approve_plan, "approve exactly this plan id ...");
+  approve->add_option("--digest", approve_digest, "... and digest");
+  auto* emergency = app.add_subcommand("emergency-stop", "halt the robot now, from any phase");
   std::string simple;
-  for (const char* name : {"stop", "resume", "emergency-stop", "reset-emergency", "query"}) {
+  for (const char* name :
+       {"stop", "resume", "reset-emergency", "home", "request-approval", "query"}) {
     app.add_subcommand(name, std::string("send ") + name)->callback([&simple, name] {
       simple = name;
     });
@@ -391,6 +493,48 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (*run) return runScript(client, script, script_out, as_json);
+    if (*approval || *motion) {
+      client.poll();
+      const char* topic = *approval ? "approval" : "motion";
+      if (as_json) {
+        std::cout << client.state().value(topic, json()).dump(2) << "\n";
+      } else if (*approval) {
+        printApproval(client.state());
+      } else {
+        printMotion(client.state());
+      }
+      return 0;
+    }
+    if (*emergency) {
+      const auto r = client.emergencyStop();
+      printReply(r, as_json);
+      return r.accepted ? 0 : kExitRejected;
+    }
+    if (*approve) {
+      client.poll();
+      if (approve_plan == 0) {
+        const json shown = client.state().value("approval", json::object());
+        if (shown.value("status", "") != "pending") {
+          std::cerr << "ignavctl: no motion is waiting for approval\n";
+          return kExitRejected;
+        }
+        printApproval(client.state());
+        approve_plan = shown["plan_id"];
+        approve_digest = shown["digest"];
+        if (!yes) {
+          std::cout << "approve plan " << approve_plan << " as shown? [y/N] " << std::flush;
+          std::string answer;
+          std::getline(std::cin, answer);
+          if (answer != "y" && answer != "yes") {
+            std::cout << "not approved\n";
+            return kExitRejected;
+          }
+        }
+      }
+      const auto r = client.approve(approve_plan, approve_digest);
+      printReply(r, as_json);
+      return r.accepted ? 0 : kExitRejected;
+    }
     if (!simple.empty()) {
       std::string command = simple;
       std::replace(command.begin(), command.end(), '-', '_');

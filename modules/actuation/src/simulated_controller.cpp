@@ -216,6 +216,15 @@ Status SimulatedController::setProfile(int axis, double speed_steps_s,
   return Ok{};
 }
 
+Status SimulatedController::placeAt(const Steps& position) {
+  if (std::any_of(motion_.begin(), motion_.end(), [](const Motion& m) { return m.active; })) {
+    return makeError(ErrorCode::kInvalidArgument, "cannot place the axes while moving", "moving");
+  }
+  for (std::size_t a = 0; a < 3; ++a)
+    rest_[a] = static_cast<double>(position.motor[a]);
+  return Ok{};
+}
+
 void SimulatedController::advanceTo(double time_s) {
   now_s_ = std::max(now_s_, time_s);
 }

@@ -149,6 +149,22 @@ std::optional<Rejection> adoptRegistration(Session& s, const std::vector<Eigen::
   return std::nullopt;
 }
 
+void adoptPolicy(Session& s, ApprovalPolicy policy) {
+  s.policy = std::move(policy);
+  if (s.robot) {
+    // The planner's joint speeds are what the controller's step profile gives the joint whose
+    // motors turn fastest, so the order's time estimate and the requests' agree.
+    const Eigen::Matrix3d& c = s.robot->transmission.coupling();
+    planning::AxisProfile* axes[3] = {&s.policy.limits.theta_c, &s.policy.limits.z_c,
+                                      &s.policy.limits.z_s};
+    for (int j = 0; j < 3; ++j) {
+      const double steps_per_unit = c.col(j).cwiseAbs().maxCoeff();
+      axes[j]->speed = s.policy.speed_steps_s / steps_per_unit;
+      axes[j]->acceleration = s.policy.acceleration_steps_s2 / steps_per_unit;
+    }
+  }
+}
+
 // Puts the request for the next motion into `s.pending`; with nothing left to do, `to` becomes
 // done instead.
 std::optional<Rejection> issueRequest(Session& s, const Input& in, Effects& e, Phase& to) {
@@ -203,7 +219,8 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
   }
   switch (in.kind) {
     case InputKind::kConfigLoaded:
-      e.robot_changed = true;
+      if (in.policy) adoptPolicy(s, *in.policy);
+      e.robot_changed = e.approval_changed = true;
       return std::nullopt;
     case InputKind::kLoadVolume:
       if (s.volume_status.status == "loading") {
@@ -538,6 +555,12 @@ json journalRecord(const Input& in, const Session& after) {
     record["dims"] = {g.dims[0], g.dims[1], g.dims[2]};
   }
   if (!in.error.empty()) record["error"] = in.error;
+  if (in.policy) {
+    record["policy"] = {{"approvers", in.policy->approvers},
+                        {"expiry_s", in.policy->expiry_s},
+                        {"speed_steps_s", in.policy->speed_steps_s},
+                        {"acceleration_steps_s2", in.policy->acceleration_steps_s2}};
+  }
   if (in.plan_id != 0) record["plan_id"] = in.plan_id;
   if (!in.digest.empty()) record["digest"] = in.digest;
   if (in.controller) {
@@ -622,6 +645,15 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
     e.input.plan_id = r.value("plan_id", std::uint64_t{0});
     e.input.digest = r.value("digest", "");
     if (r.contains("controller")) e.input.controller = readingFromJson(r.at("controller"));
+    if (r.contains("policy")) {
+      const json& p = r.at("policy");
+      ApprovalPolicy policy;
+      policy.approvers = p.at("approvers").get<std::vector<std::string>>();
+      policy.expiry_s = p.at("expiry_s").get<double>();
+      policy.speed_steps_s = p.at("speed_steps_s").get<double>();
+      policy.acceleration_steps_s2 = p.at("acceleration_steps_s2").get<double>();
+      e.input.policy = std::move(policy);
+    }
     return e;
   } catch (const json::exception& ex) {
     return bad(ex.what());
@@ -665,24 +697,11 @@ std::string Target::status() const {
 }
 
 Session newSession(std::string session_id, std::shared_ptr<const config::Robot> robot,
-                   std::string robot_path, ApprovalPolicy policy) {
+                   std::string robot_path) {
   Session s;
   s.session_id = std::move(session_id);
   s.robot = std::move(robot);
   s.robot_path = std::move(robot_path);
-  s.policy = std::move(policy);
-  if (s.robot) {
-    // The planner's joint speeds are what the controller's step profile gives the joint whose
-    // motors turn fastest, so the order's time estimate and the requests' agree.
-    const Eigen::Matrix3d& c = s.robot->transmission.coupling();
-    planning::AxisProfile* axes[3] = {&s.policy.limits.theta_c, &s.policy.limits.z_c,
-                                      &s.policy.limits.z_s};
-    for (int j = 0; j < 3; ++j) {
-      const double steps_per_unit = c.col(j).cwiseAbs().maxCoeff();
-      axes[j]->speed = s.policy.speed_steps_s / steps_per_unit;
-      axes[j]->acceleration = s.policy.acceleration_steps_s2 / steps_per_unit;
-    }
-  }
   return s;
 }
 

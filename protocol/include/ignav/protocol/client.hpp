@@ -55,11 +55,17 @@ class Client {
   workflow::Reply send(const std::string& command, const CommandArgs& args = {},
                        std::chrono::milliseconds timeout = std::chrono::seconds(30),
                        std::uint64_t request_id = 0);
+  // Approves the pending motion (ApprovalState's plan id and digest) on the approval topic.
+  workflow::Reply approve(std::uint64_t plan_id, const std::string& digest,
+                          std::chrono::milliseconds timeout = std::chrono::seconds(30),
+                          std::uint64_t request_id = 0);
+  // On the emergency-stop topic.
+  workflow::Reply emergencyStop(std::chrono::milliseconds timeout = std::chrono::seconds(30));
   SliceResult slice(const SliceArgs& args,
                     std::chrono::milliseconds timeout = std::chrono::seconds(30));
 
   // Drains the state topics into state(); returns the names of the topics that changed
-  // ("workflow", "robot", "volume", "registration", "target", "health").
+  // ("workflow", "robot", "volume", "registration", "target", "approval", "motion", "health").
   std::vector<std::string> poll();
   // Polls until `done(state())` holds (throws Timeout).
   void waitFor(const std::function<bool(const nlohmann::json&)>& done,
@@ -68,10 +74,12 @@ class Client {
   const std::string& clientId() const { return client_id_; }
 
  private:
+  workflow::Reply awaitReply(std::uint64_t request_id, const std::string& what,
+                             std::chrono::milliseconds timeout);
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::string client_id_;
-  std::uint64_t next_request_ = 1;
+  std::uint64_t next_request_ = 0;  // set from the clock (see the constructor)
   nlohmann::json state_ = nlohmann::json::object();
 };
 

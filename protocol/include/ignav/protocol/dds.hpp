@@ -27,6 +27,10 @@ constexpr const char* kVolume = "ignav/state/volume";
 constexpr const char* kRegistration = "ignav/state/registration";
 constexpr const char* kTarget = "ignav/state/target";
 constexpr const char* kHealth = "ignav/state/health";
+constexpr const char* kApproval = "ignav/approval";
+constexpr const char* kEmergencyStop = "ignav/emergency_stop";
+constexpr const char* kApprovalState = "ignav/state/approval";
+constexpr const char* kMotion = "ignav/state/motion";
 }  // namespace topic
 
 // State topics: reliable, transient-local, keep-last 1 per instance (a late joiner sees the

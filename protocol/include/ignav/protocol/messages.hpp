@@ -55,6 +55,8 @@ const char* commandKindName(ignav_msg_CommandKind kind);
 
 // A command as the workflow sees it; nullopt when the kind is not one of ours.
 std::optional<workflow::Input> toInput(const ignav_msg_Command& command);
+workflow::Input toInput(const ignav_msg_Approval& approval);
+workflow::Input toInput(const ignav_msg_EmergencyStop& stop);
 
 struct OwnedCommand {
   std::string client_id, path;

@@ -72,6 +72,9 @@ class SimulatedController final : public MotorController {
 
   // Changes an axis' profile (SP/AC on a real controller); refused while it moves.
   Status setProfile(int axis, double speed_steps_s, double acceleration_steps_s2);
+  // Where the motors stand at power-on (a real controller keeps counting across a restart of
+  // its client; the simulation is told). Refused while moving.
+  Status placeAt(const Steps& position);
   // Advances simulated time (seconds, monotone).
   void advanceTo(double time_s);
   double time_s() const { return now_s_; }

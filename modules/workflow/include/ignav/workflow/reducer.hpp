@@ -28,9 +28,10 @@ std::string mermaidDiagram();
 // docs/WORKFLOW.md: the diagram and the table of (phase, allowed commands).
 std::string workflowMarkdown();
 
-// A fresh session for this robot (phase startup, no volume).
+// A fresh session for this robot (phase startup, no volume). The approval policy arrives with
+// the config_loaded input.
 Session newSession(std::string session_id, std::shared_ptr<const config::Robot> robot,
-                   std::string robot_path, ApprovalPolicy policy = {});
+                   std::string robot_path);
 
 // The digest an approve must echo: SHA-256 (lower-case hex) over a canonical text of the session
 // id, plan id, target, starting motor position and every step increment the controller would

@@ -101,6 +101,15 @@ constexpr std::size_t kMaxTargets = 100;  // per insertion (paper §V)
 constexpr std::size_t kMaxIdLength = 128;
 constexpr std::size_t kMaxPathLength = 4096;
 
+// Who may release motion and for how long a request stays valid (server.yaml `approval:`).
+struct ApprovalPolicy {
+  std::vector<std::string> approvers;  // client ids; empty: nobody can approve
+  double expiry_s = 120.0;
+  planning::PlanningLimits limits;  // ordering and rotation limit
+  double speed_steps_s = 2000.0;    // the controller's profile, for the duration estimates
+  double acceleration_steps_s2 = 8000.0;
+};
+
 struct LoadedCt {
   std::shared_ptr<const volume::Volume> volume;
   std::string source;  // what the client asked to load
@@ -119,6 +128,9 @@ struct Input {
   std::string error;          // kVolumeLoadFailed
   std::uint64_t plan_id = 0;  // kApprove
   std::string digest;         // kApprove
+  // kConfigLoaded: who may approve, for how long, the controller's profile. Journaled with the
+  // input, so recovery and offline replay judge approvals by the same rules.
+  std::optional<ApprovalPolicy> policy;
   // What the controller said just before this input (approve, resume, reset_emergency, home and
   // the controller's own inputs): the reducer judges the robot by it, and replay sees the same.
   std::optional<actuation::ControllerStatus> controller;
@@ -148,15 +160,6 @@ struct Target {
   bool reached = false;        // the stylet tip was brought here (verified steps)
   std::string message;         // person-readable reachability
   std::string status() const;  // "planned" | "reached" | "unreachable" | "unregistered"
-};
-
-// Who may release motion and for how long a request stays valid (server.yaml `approval:`).
-struct ApprovalPolicy {
-  std::vector<std::string> approvers;  // client ids; empty: nobody can approve
-  double expiry_s = 120.0;
-  planning::PlanningLimits limits;  // ordering and rotation limit
-  double speed_steps_s = 2000.0;    // the controller's profile, for the duration estimates
-  double acceleration_steps_s2 = 8000.0;
 };
 
 // What one approval releases: the moves to one target (or the final retraction), as the exact
