@@ -13,9 +13,12 @@
 
 #include "ignav/actuation/controller.hpp"
 #include "ignav/actuation/galil.hpp"
+#include "support/dmc_emulator.hpp"
 
 namespace ignav::actuation {
 namespace {
+
+using test::Emulator;
 
 using namespace std::chrono_literals;
 
@@ -97,47 +100,6 @@ TEST(SimulatedController, LimitSwitchStallAndMismatchFaults) {
 }
 
 // ---- the Galil driver against dmc-emulator --------------------------------------------------
-
-class Emulator {
- public:
-  explicit Emulator(const std::string& args = "") {
-    const std::string cmd = std::string(DMC_EMULATOR_EXE) + " --port 0 " + args;
-    int out[2];
-    EXPECT_EQ(::pipe(out), 0);
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      ::dup2(out[1], STDOUT_FILENO);
-      ::close(out[0]);
-      ::execl("/bin/sh", "sh", "-c", ("exec " + cmd).c_str(), static_cast<char*>(nullptr));
-      ::_exit(127);
-    }
-    ::close(out[1]);
-    std::string line;
-    pollfd p{out[0], POLLIN, 0};
-    char c = 0;
-    while (line.find('\n') == std::string::npos && ::poll(&p, 1, 5000) > 0 &&
-           ::read(out[0], &c, 1) == 1) {
-      line += c;
-    }
-    ::close(out[0]);
-    const auto colon = line.rfind(':');
-    port_ = colon == std::string::npos ? 0 : std::stoi(line.substr(colon + 1));
-    EXPECT_GT(port_, 0) << line;
-  }
-  ~Emulator() { kill(); }
-  void kill() {
-    if (pid_ > 0) {
-      ::kill(pid_, SIGKILL);
-      ::waitpid(pid_, nullptr, 0);
-      pid_ = -1;
-    }
-  }
-  int port() const { return port_; }
-
- private:
-  pid_t pid_ = -1;
-  int port_ = 0;
-};
 
 // Ten times the default speed, so the tests' moves take a fraction of a second.
 GalilOptions fastAxes(int port) {

@@ -43,7 +43,9 @@ inline Eigen::Vector3d lpsOf(const nlohmann::json& state, const Eigen::Vector3d&
 class ServerProcess {
  public:
   // Each test passes its own domain id so that tests running in parallel never meet.
-  explicit ServerProcess(std::uint32_t domain) : domain_(domain) {
+  // `extra_args` go on the server's command line (e.g. --controller galil:127.0.0.1:PORT).
+  explicit ServerProcess(std::uint32_t domain, std::vector<std::string> extra_args = {})
+      : domain_(domain), extra_args_(std::move(extra_args)) {
     session_dir_ = std::filesystem::temp_directory_path() /
                    ("ignav_e2e_" + std::to_string(::getpid()) + "_" + std::to_string(domain));
     std::filesystem::remove_all(session_dir_);
@@ -74,6 +76,7 @@ class ServerProcess {
                                   std::to_string(domain_),
                                   "--session-dir",
                                   session_dir_.string()};
+    args.insert(args.end(), extra_args_.begin(), extra_args_.end());
     std::vector<char*> argv;
     for (auto& a : args)
       argv.push_back(a.data());
@@ -136,6 +139,7 @@ class ServerProcess {
 
  private:
   std::uint32_t domain_;
+  std::vector<std::string> extra_args_;
   std::filesystem::path session_dir_;
   pid_t pid_ = -1;
 };

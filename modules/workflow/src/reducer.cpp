@@ -433,17 +433,22 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       return std::nullopt;
     case InputKind::kServerRestarted: {
       to = s.phase;
+      const bool robot_moving =
+          in.controller && in.controller->state == actuation::ControllerState::kMoving;
+      // Whatever moves when the server starts moves without a live approval: halt it.
+      if (robot_moving) e.controller.push_back({ControllerAction::kAbort, {}});
       if (s.phase == Phase::kMoving) {
         interruptMotion(s, e);
         s.fault = fmt::format("the server restarted during plan {}: check the position and reset",
                               s.motion ? s.motion->request.plan_id : 0);
         s.resume_phase = Phase::kPlanLocked;
-        e.controller.push_back({ControllerAction::kAbort, {}});
+        if (!robot_moving) e.controller.push_back({ControllerAction::kAbort, {}});
         to = Phase::kFault;
         return std::nullopt;
       }
       if (!robotInUse(s.phase)) return std::nullopt;  // resume and reset check the robot
       std::string doubt = readingFault(in);
+      if (doubt.empty() && robot_moving) doubt = "the robot was moving when the server started";
       if (doubt.empty() && in.controller->position != s.position) {
         doubt =
             "after the restart " + detail::describeMismatch(in.controller->position, s.position);
