@@ -318,6 +318,12 @@ class Server {
 
  private:
   double now_s() const { return std::chrono::duration<double>(Clock::now() - started_).count(); }
+  // Inputs carry wall-clock time (Unix seconds): journal times and approval expiries then mean
+  // the same across restarts. The simulation and uptime use the monotonic clock.
+  static double wall_s() {
+    return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
+        .count();
+  }
 
   // Rebuilds the session by feeding the journal through the same reducer, checking each
   // record's revision and phase; nothing is published or journaled again, and no load pending
@@ -356,7 +362,7 @@ class Server {
 
   // One input through the reducer, then its effects in the order DESIGN.md requires.
   bool step(Input in) {
-    in.time_s = now_s();
+    in.time_s = wall_s();
     if (workflow::needsControllerReading(in.kind) && !in.controller) {
       // An operator resetting or homing may have just reconnected the cable: try again.
       if ((in.kind == InputKind::kResetEmergency || in.kind == InputKind::kHome) &&
@@ -553,8 +559,8 @@ class Server {
       }
       a.duration_s = p->duration_s;
       a.tre_mm = p->tre_mm;
-      a.expires_uptime_s = p->expires_s;
-      a.expires_in_s = p->expires_s - now_s();
+      a.expires_at_unix_s = p->expires_s;
+      a.expires_in_s = p->expires_s - wall_s();
     }
     viewSequence(a.moves, moves);
     approval_.write(a);

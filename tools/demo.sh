@@ -19,12 +19,14 @@ server_pid=$!
 trap 'kill $server_pid 2>/dev/null || true' EXIT
 for _ in $(seq 100); do grep -q "ready" "$out/server.ready" 2>/dev/null && break; sleep 0.1; done
 cat "$out/server.ready"
-ctl="build/tools/ignavctl/ignavctl --dds-config configs/dds/loopback.xml"
+# The scripted client is the operator (configs/server.yaml approval.approvers).
+ctl="build/tools/ignavctl/ignavctl --dds-config configs/dds/loopback.xml --client-id operator"
 $ctl run configs/demo/plan.yaml --out-dir "$session"
 echo
 $ctl status
 echo
 $ctl targets ls | tee "$session/summary.txt"
+$ctl motion | tee -a "$session/summary.txt"
 kill -TERM $server_pid && wait $server_pid
 trap - EXIT
 echo "server stopped cleanly; its log: $server_log"

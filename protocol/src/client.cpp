@@ -288,7 +288,7 @@ std::vector<std::string> Client::poll() {
                           {"duration_s", a.duration_s},
                           {"tre_mm", a.tre_mm},
                           {"expires_in_s", a.expires_in_s},
-                          {"expires_uptime_s", a.expires_uptime_s},
+                          {"expires_at_unix_s", a.expires_at_unix_s},
                           {"approvers", approvers}};
   }));
   note("motion", impl_->motion.take([&](const ignav_msg_MotionState& m) {

@@ -261,6 +261,17 @@ TEST(Approval, ApprovedMotionArrivesAtEveryTargetThenRetracts) {
   ASSERT_TRUE(b.send(b.approvePending()).accepted);
   b.runMotion();
   EXPECT_EQ(b.s.phase, Phase::kDone);
+  // The report lists every approved motion with its approver and outcome.
+  const std::string report = procedureReport(b.s);
+  ASSERT_EQ(b.s.motions.size(), 3u);
+  EXPECT_NE(report.find(fmt::format("| 1 | T{} | surgeon |", b.s.motions[0].target_id)),
+            std::string::npos)
+      << report;
+  EXPECT_NE(report.find("| 3 | retract | surgeon |"), std::string::npos) << report;
+  for (const auto& m : b.s.motions) {
+    EXPECT_EQ(m.outcome, "arrived");
+    EXPECT_GT(m.ended_s, m.approved_s);
+  }
   // Home to the stylet's half step (the absolute end point is what is quantised).
   EXPECT_LE(std::abs(paperRobot()->transmission.toJoints(b.reading().position).z_s_mm),
             0.5 / paperRobot()->transmission.styletStepsPerMm() + 1e-12);

@@ -192,8 +192,16 @@ Phase resumeTo(Phase p) {
   return p == Phase::kMoving ? Phase::kPlanLocked : p;
 }
 
-void interruptMotion(Session& s, Effects& e) {
+// The record of the motion under way gets its end.
+void endMotionRecord(Session& s, double time_s, const std::string& outcome) {
+  if (s.motions.empty() || s.motions.back().ended_s >= 0.0) return;
+  s.motions.back().ended_s = time_s;
+  s.motions.back().outcome = outcome;
+}
+
+void interruptMotion(Session& s, Effects& e, double time_s, const std::string& why) {
   if (!s.motion) return;
+  if (!s.motion->interrupted) endMotionRecord(s, time_s, why);
   s.motion->interrupted = true;
   e.motion_changed = true;
 }
@@ -367,6 +375,8 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       e.controller.push_back({ControllerAction::kMove, m.request.moves.front().steps});
       note = fmt::format("plan {} approved: {} move(s), about {:.1f} s", m.request.plan_id,
                          m.request.moves.size(), m.request.duration_s);
+      s.motions.push_back(
+          {m.request.plan_id, m.request.target_id, in.client_id, in.time_s, -1.0, ""});
       s.motion = std::move(m);
       return std::nullopt;
     }
@@ -376,7 +386,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       const auto& move = m.request.moves[m.segment];
       const std::string fault = readingFault(in);
       if (!fault.empty()) {
-        interruptMotion(s, e);
+        interruptMotion(s, e, in.time_s, "fault: " + fault);
         s.fault = fmt::format("controller fault during {} of plan {}: {}",
                               planning::toString(move.kind), m.request.plan_id, fault);
         s.resume_phase = Phase::kPlanLocked;
@@ -392,7 +402,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
         expected.motor[a] += move.steps.motor[a];
       e.motion_changed = true;
       if (in.controller->position != expected) {
-        interruptMotion(s, e);
+        interruptMotion(s, e, in.time_s, "fault: arrival check failed");
         s.fault = fmt::format("arrival check failed after {} of plan {}: {}",
                               planning::toString(move.kind), m.request.plan_id,
                               detail::describeMismatch(in.controller->position, expected));
@@ -409,6 +419,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       }
       const std::uint32_t target = m.request.target_id;
       s.motion.reset();
+      endMotionRecord(s, in.time_s, "arrived");
       if (target == 0) {
         to = Phase::kDone;
         return std::nullopt;
@@ -423,7 +434,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
     case InputKind::kControllerFault:
       s.fault = readingFault(in);
       e.controller.push_back({ControllerAction::kAbort, {}});
-      interruptMotion(s, e);
+      interruptMotion(s, e, in.time_s, "fault: " + s.fault);
       if (robotInUse(s.phase)) {
         s.resume_phase = resumeTo(s.phase);
         to = Phase::kFault;
@@ -438,7 +449,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       // Whatever moves when the server starts moves without a live approval: halt it.
       if (robot_moving) e.controller.push_back({ControllerAction::kAbort, {}});
       if (s.phase == Phase::kMoving) {
-        interruptMotion(s, e);
+        interruptMotion(s, e, in.time_s, "server restarted");
         s.fault = fmt::format("the server restarted during plan {}: check the position and reset",
                               s.motion ? s.motion->request.plan_id : 0);
         s.resume_phase = Phase::kPlanLocked;
@@ -469,12 +480,12 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       s.resume_phase = resumeTo(s.phase);
       if (s.motion) {
         e.controller.push_back({ControllerAction::kStop, {}});
-        interruptMotion(s, e);
+        interruptMotion(s, e, in.time_s, "stopped");
       }
       return std::nullopt;
     case InputKind::kEmergencyStop:
       e.controller.push_back({ControllerAction::kAbort, {}});  // whatever moves, halt it
-      interruptMotion(s, e);
+      interruptMotion(s, e, in.time_s, "emergency stop");
       if (s.phase != Phase::kStopped && s.phase != Phase::kFault) {
         s.resume_phase = resumeTo(s.phase);
       }

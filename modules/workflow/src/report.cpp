@@ -1,10 +1,45 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <ctime>
 
 #include "ignav/workflow/reducer.hpp"
 
 namespace ignav::workflow {
+namespace {
+
+std::string utc(double unix_s) {
+  const auto t = static_cast<std::time_t>(unix_s);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%H:%M:%S", &tm);
+  return buf;
+}
+
+// The robot and every approved motion: who approved it, when, how long it took, how it ended.
+std::string motionSection(const Session& s) {
+  std::string out = "\n## Robot\n\n";
+  out += fmt::format("- motors at {} / {} / {} steps (last verified)\n", s.position.motor[0],
+                     s.position.motor[1], s.position.motor[2]);
+  if (s.pending) out += "- waiting for approval: " + s.pending->summary + "\n";
+  if (!s.fault.empty()) out += "- fault: " + s.fault + "\n";
+  if (s.motions.empty()) return out + "\nNo motion approved yet.\n";
+  out +=
+      "\n| plan | target | approved by | at (UTC) | took (s) | outcome |\n"
+      "|---|---|---|---|---|---|\n";
+  for (const auto& m : s.motions) {
+    out +=
+        fmt::format("| {} | {} | {} | {} | {} | {} |\n", m.plan_id,
+                    m.target_id == 0 ? std::string("retract") : "T" + std::to_string(m.target_id),
+                    m.approved_by, utc(m.approved_s),
+                    m.ended_s >= 0 ? fmt::format("{:.2f}", m.ended_s - m.approved_s) : "—",
+                    m.ended_s >= 0 ? m.outcome : "under way");
+  }
+  return out;
+}
+
+}  // namespace
 
 std::string procedureReport(const Session& s) {
   std::string out = fmt::format("# Session {}\n\n", s.session_id);
@@ -26,14 +61,14 @@ std::string procedureReport(const Session& s) {
     out += "- registration: none\n";
   }
   out += "\n## Targets (`targets.mrk.json`)\n\n";
-  if (s.targets.empty()) return out + "None.\n";
+  if (s.targets.empty()) return out + "None.\n" + motionSection(s);
   out +=
       "| # | id | status | LPS (mm) | robot (mm) | θc (°) | zc (mm) | zs (mm) | steps | TRE (mm) "
       "|\n|---|---|---|---|---|---|---|---|---|---|\n";
   for (std::size_t i = 0; i < s.targets.size(); ++i) {
     const auto& t = s.targets[i];
     const auto& j = t.solution.joints;
-    const bool planned = t.status() == "planned";
+    const bool planned = t.registered && t.solution.reachable();
     out += fmt::format(
         "| {} | T{} | {} | ({:.2f}, {:.2f}, {:.2f}) | {} | {} | {} | {} | {} | {} |\n", i + 1, t.id,
         t.status(), t.lps_mm.x(), t.lps_mm.y(), t.lps_mm.z(),
@@ -49,10 +84,11 @@ std::string procedureReport(const Session& s) {
   }
   std::string notes;
   for (const auto& t : s.targets) {
-    if (t.status() != "planned") notes += "- T" + std::to_string(t.id) + ": " + t.message + "\n";
+    if (!t.registered || !t.solution.reachable())
+      notes += "- T" + std::to_string(t.id) + ": " + t.message + "\n";
   }
   if (!notes.empty()) out += "\n" + notes;
-  return out;
+  return out + motionSection(s);
 }
 
 }  // namespace ignav::workflow

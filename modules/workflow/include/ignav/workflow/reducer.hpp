@@ -43,7 +43,7 @@ std::string sha256Hex(const std::string& text);
 Step reduce(const Session& session, const Input& input);
 
 // The session journal: one JSON object per line, per accepted input that changes the session:
-//   {"v": 1, "revision": N, "t": seconds since start, "input": "add_target", "phase": after,
+//   {"v": 1, "revision": N, "t": Unix seconds, "input": "add_target", "phase": after,
 //    "client_id", "request_id", "path", "points", "ids", "error", "source", "description"}
 // Revisions run 1, 2, 3 ... with no gaps, so they double as the record's sequence number.
 constexpr int kJournalFormat = 1;

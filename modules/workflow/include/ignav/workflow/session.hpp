@@ -118,7 +118,7 @@ struct LoadedCt {
 
 struct Input {
   InputKind kind = InputKind::kQuery;
-  double time_s = 0.0;  // stamped by the server; the reducer never reads a clock
+  double time_s = 0.0;  // Unix seconds, stamped by the server; the reducer never reads a clock
   std::string client_id;
   std::uint64_t request_id = 0;
   std::string path;
@@ -177,6 +177,16 @@ struct MotionRequest {
   std::string summary;  // for a person: target, joints, steps per motor, duration, TRE
 };
 
+// One approved motion as the report lists it.
+struct MotionRecord {
+  std::uint64_t plan_id = 0;
+  std::uint32_t target_id = 0;  // 0: the final retraction
+  std::string approved_by;
+  double approved_s = 0.0;
+  double ended_s = -1.0;  // < 0 while under way
+  std::string outcome;    // arrived | stopped | emergency | fault: ... | restarted
+};
+
 // An approved motion under way (or interrupted by a stop, an emergency or a fault).
 struct ActiveMotion {
   MotionRequest request;
@@ -218,6 +228,7 @@ struct Session {
   std::optional<ActiveMotion> motion;
   std::uint64_t next_plan_id = 1;
   std::string fault;  // why the phase is fault (or the last controller fault)
+  std::vector<MotionRecord> motions;  // every approved motion, in order
   std::uint64_t accepted = 0;
   std::uint64_t rejected = 0;
   // The last replies per client, so a repeated request_id is answered again, not re-executed.
