@@ -405,6 +405,7 @@ class Server {
       if (!c.isHalt()) runController(c);
     }
     if (e.approval_changed) publishApproval();
+    if (!e.controller.empty()) readController();  // what the command did, for MotionState
     if (e.motion_changed || !e.controller.empty()) publishMotion();
     if (e.workflow_changed) publishWorkflow();
     for (const auto& r : e.replies)

@@ -2,12 +2,17 @@
 //   query   : command -> reply
 //   move    : move_target (a click) -> reply, with the journal fsync
 //   click   : move_target -> the target's new state sample arrives
+//   approve : approval -> the MotionState sample showing the robot moving
+//   e-stop  : emergency stop mid-move -> reply (the controller is aborted before the reply) and
+//             -> the MotionState sample showing it at rest
 // Prints median and p99 in microseconds.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <string>
 #include <vector>
+
+#include <Eigen/LU>
 
 #include "ignav/protocol/client.hpp"
 
@@ -38,7 +43,8 @@ int main(int argc, char** argv) {
   }
   const auto domain = static_cast<std::uint32_t>(std::stoul(argv[1]));
   const int rounds = argc > 3 ? std::stoi(argv[3]) : 2000;
-  ignav::protocol::Client c(domain, ignav::protocol::readConfigFile(argv[2]), "bench");
+  // "operator": an approver in configs/server.yaml.
+  ignav::protocol::Client c(domain, ignav::protocol::readConfigFile(argv[2]), "operator");
   if (!c.waitForServer(std::chrono::seconds(10))) {
     std::fprintf(stderr, "no server on domain %u\n", domain);
     return 3;
@@ -73,12 +79,44 @@ int main(int argc, char** argv) {
         std::chrono::seconds(5));
     click.push_back(since_us(t));
   }
-  for (const auto& [name, v] : {std::pair{"query command -> reply", &query},
-                                {"move_target -> reply (journal fsync)", &move},
-                                {"move_target -> target state", &click}}) {
-    const auto s = stats(*v);
-    std::printf("%-40s median %8.1f us   p99 %8.1f us   (%d rounds)\n", name, s.median_us, s.p99_us,
-                rounds);
+
+  // Motion: approve, wait for the robot to move, emergency-stop it, reset and resume; again.
+  const auto& state = c.state();
+  const Eigen::Matrix4d to_robot =
+      ignav::protocol::matrixFromState(state["registration"]["image_to_robot"]);
+  const Eigen::Vector3d reachable =
+      (to_robot.inverse() * Eigen::Vector4d(8, 12, -175, 1)).head<3>();
+  c.send("move_target", {"", {reachable}, {added.target_id}});
+  if (!c.send("lock_plan").accepted) return 5;
+  std::vector<double> approve, estop, halted;
+  const int motions = std::max(10, rounds / 20);
+  for (int i = 0; i < motions; ++i) {
+    c.waitFor([](const json& s) { return s["approval"]["status"] == "pending"; },
+              std::chrono::seconds(5));
+    const json shown = c.state()["approval"];
+    auto t = Clock::now();
+    if (!c.approve(shown["plan_id"], shown["digest"]).accepted) return 6;
+    c.waitFor([](const json& s) { return s["motion"]["state"] == "moving"; },
+              std::chrono::seconds(5));
+    approve.push_back(since_us(t));
+    t = Clock::now();
+    if (!c.emergencyStop().accepted) return 7;
+    estop.push_back(since_us(t));
+    c.waitFor([](const json& s) { return s["motion"]["state"] == "idle"; },
+              std::chrono::seconds(5));
+    halted.push_back(since_us(t));
+    if (!c.send("reset_emergency").accepted || !c.send("resume").accepted) return 8;
   }
+  auto print = [](const char* name, const std::vector<double>& v) {
+    const auto s = stats(v);
+    std::printf("%-44s median %8.1f us   p99 %8.1f us   (%zu rounds)\n", name, s.median_us,
+                s.p99_us, v.size());
+  };
+  print("query command -> reply", query);
+  print("move_target -> reply (journal fsync)", move);
+  print("move_target -> target state", click);
+  print("approve -> motion state 'moving'", approve);
+  print("emergency stop mid-move -> reply (halted)", estop);
+  print("emergency stop mid-move -> motion 'idle'", halted);
   return 0;
 }
