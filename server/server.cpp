@@ -81,6 +81,8 @@ workflow::ApprovalPolicy approvalPolicy(const ServerOptions& o) {
   p.expiry_s = o.approval_expiry_s;
   p.speed_steps_s = o.controller.speed_steps_s;
   p.acceleration_steps_s2 = o.controller.acceleration_steps_s2;
+  p.limits.max_targets = o.max_targets;
+  p.limits.max_total_rotation_rad = o.max_total_rotation_deg * M_PI / 180.0;
   return p;
 }
 
@@ -917,6 +919,14 @@ std::optional<std::string> checkControllerOptions(const ServerOptions& o) {
     return fmt::format("controller.control_period_ms: {} is not within 1..1000",
                        c.control_period_ms);
   }
+  if (o.max_targets < 1 || o.max_targets > workflow::kMaxTargets) {
+    return fmt::format("planning.max_targets: {} is not within 1..{}", o.max_targets,
+                       workflow::kMaxTargets);
+  }
+  if (!(o.max_total_rotation_deg > 0) || o.max_total_rotation_deg > 360.0) {
+    return fmt::format("planning.max_total_rotation_deg: {} is not within (0, 360]",
+                       o.max_total_rotation_deg);
+  }
   if (!(o.approval_expiry_s > 0) || !std::isfinite(o.approval_expiry_s)) {
     return fmt::format("approval.expiry_s: {} must be positive", o.approval_expiry_s);
   }
@@ -937,10 +947,10 @@ ServerOptions loadServerOptions(const std::string& path) {
   for (const auto& kv : s) {
     const std::string key = kv.first.Scalar();
     if (key != "robot_config" && key != "dds" && key != "session_root" && key != "controller" &&
-        key != "approval") {
+        key != "approval" && key != "planning") {
       throw ConfigError(path + ": server." + key +
                         ": unknown key; expected robot_config, dds, session_root, controller, "
-                        "approval");
+                        "approval, planning");
     }
   }
   try {
@@ -970,6 +980,19 @@ ServerOptions loadServerOptions(const std::string& path) {
           throw ConfigError(path + ": server.controller." + key +
                             ": unknown key; expected kind, host, port, speed_steps_s, "
                             "acceleration_steps_s2, control_period_ms");
+        }
+      }
+    }
+    if (const YAML::Node pl = s["planning"]) {
+      for (const auto& kv : pl) {
+        const std::string key = kv.first.Scalar();
+        if (key == "max_targets") {
+          o.max_targets = kv.second.as<std::size_t>();
+        } else if (key == "max_total_rotation_deg") {
+          o.max_total_rotation_deg = kv.second.as<double>();
+        } else {
+          throw ConfigError(path + ": server.planning." + key +
+                            ": unknown key; expected max_targets, max_total_rotation_deg");
         }
       }
     }

@@ -24,6 +24,8 @@ struct ServerOptions {
   ControllerOptions controller;
   std::vector<std::string> approvers;  // client ids allowed to approve motion
   double approval_expiry_s = 120.0;
+  std::size_t max_targets = 100;          // per insertion, at most 100 (paper §V)
+  double max_total_rotation_deg = 360.0;  // the cannula's rotation over one insertion
   std::string robot_config;
   std::uint32_t domain_id = 0;
   std::string dds_config;    // path of a Cyclone XML file ("" = Cyclone's defaults)

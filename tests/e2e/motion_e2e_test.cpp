@@ -226,5 +226,50 @@ TEST(MotionE2E, ServerKilledMidMoveComesBackInFaultAndFinishesAfterThePositionCh
   EXPECT_EQ(steps(op->state()["motion"]["steps"]), stepsFor(robot_mm));
 }
 
+// Exit code and output of `ignav-server ARGS` (which must stop by itself: bad options).
+std::pair<int, std::string> runServer(const std::string& args) {
+  const std::string cmd = std::string(IGNAV_SERVER_EXE) + " " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string out;
+  char buf[512];
+  while (fgets(buf, sizeof buf, p))
+    out += buf;
+  const int status = pclose(p);
+  return {WEXITSTATUS(status), out};
+}
+
+TEST(MotionE2E, BadControllerAndApprovalOptionsNameTheKey) {
+  const auto dir = std::filesystem::temp_directory_path() / "ignav_bad_options";
+  std::filesystem::create_directories(dir);
+  const std::string robot = IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml";
+  struct Case {
+    std::string yaml, expected;
+  };
+  const std::vector<Case> cases = {
+      {"controller: {kind: stepper}",
+       "server.controller.kind: 'stepper' is not simulated or galil"},
+      {"controller: {speed_steps_s: -5}", "server.controller.speed_steps_s: -5 must be positive"},
+      {"controller: {sped: 5}", "server.controller.sped: unknown key"},
+      {"approval: {expiry_s: 0}", "server.approval.expiry_s: 0 must be positive"},
+      {"planning: {max_targets: 101}", "server.planning.max_targets: 101 is not within 1..100"},
+      {"planning: {max_total_rotation_deg: 400}",
+       "server.planning.max_total_rotation_deg: 400 is not within (0, 360]"},
+  };
+  for (const auto& c : cases) {
+    const auto file = dir / "server.yaml";
+    std::ofstream(file) << "server:\n  robot_config: " << robot << "\n  " << c.yaml << "\n";
+    const auto [code, out] = runServer("--config " + file.string() + " --domain 65");
+    EXPECT_EQ(code, 2) << c.yaml << ": " << out;
+    EXPECT_NE(out.find(c.expected), std::string::npos) << out;
+  }
+  const auto [code, out] = runServer("--config " IGNAV_SOURCE_DIR
+                                     "/configs/server.yaml --domain 65 --controller serial:/dev/x");
+  EXPECT_EQ(code, 2);
+  EXPECT_NE(out.find("--controller: 'serial:/dev/x' is not simulated or galil:HOST:PORT"),
+            std::string::npos)
+      << out;
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace ignav::e2e

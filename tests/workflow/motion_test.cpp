@@ -533,6 +533,27 @@ TEST(Approval, UserOrderBeyondTheRotationLimitIsRefusedServerOrderIsNot) {
       << ok.message;
 }
 
+TEST(Approval, ThePlansTargetLimitComesFromThePolicyAndIsJournaled) {
+  Bench b;
+  ApprovalPolicy p = policy();
+  p.limits.max_targets = 2;
+  Session s = newSession("limits", paperRobot(), "robot.yaml");
+  Input config = Bench::internal(InputKind::kConfigLoaded);
+  config.policy = p;
+  auto step = reduce(s, config);
+  const auto entry = parseJournalRecord(step.effects.journal.at(0));
+  ASSERT_TRUE(entry.ok());
+  EXPECT_EQ(entry->input.policy.value().limits.max_targets, 2u);
+  EXPECT_EQ(entry->input.policy->approvers, p.approvers);
+  b.s.policy.limits.max_targets = 2;
+  b.addRobotTarget(kJointsA);
+  b.addRobotTarget(kJointsB);
+  const Eigen::Vector3d tip = paperRobot()->kinematics.forward(kJointsC).tip_mm;
+  const auto r = b.send(b.command(InputKind::kAddTarget, {b.s.registration->toImage(tip)}));
+  EXPECT_EQ(r.error_code, "too_many_targets") << r.message;
+  EXPECT_NE(r.message.find("2 targets"), std::string::npos) << r.message;
+}
+
 // Random command sequences, adversarial approvals included, against an independent account of
 // what may move: every motor command must follow an approve that named the pending plan's id and
 // digest, from an approver, before expiry, with nothing accepted in between; and the number of

@@ -278,11 +278,11 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       return std::nullopt;
     }
     case InputKind::kAddTarget: {
-      if (s.targets.size() >= kMaxTargets) {
+      if (s.targets.size() >= s.policy.limits.max_targets) {
         return Rejection{"too_many_targets",
                          fmt::format("the plan already has {} targets, the most one insertion "
-                                     "takes",
-                                     kMaxTargets)};
+                                     "takes (planning.max_targets)",
+                                     s.policy.limits.max_targets)};
       }
       Target t;
       t.id = s.next_target_id++;
@@ -575,7 +575,9 @@ json journalRecord(const Input& in, const Session& after) {
     record["policy"] = {{"approvers", in.policy->approvers},
                         {"expiry_s", in.policy->expiry_s},
                         {"speed_steps_s", in.policy->speed_steps_s},
-                        {"acceleration_steps_s2", in.policy->acceleration_steps_s2}};
+                        {"acceleration_steps_s2", in.policy->acceleration_steps_s2},
+                        {"max_targets", in.policy->limits.max_targets},
+                        {"max_total_rotation_rad", in.policy->limits.max_total_rotation_rad}};
   }
   if (in.plan_id != 0) record["plan_id"] = in.plan_id;
   if (!in.digest.empty()) record["digest"] = in.digest;
@@ -668,6 +670,9 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
       policy.expiry_s = p.at("expiry_s").get<double>();
       policy.speed_steps_s = p.at("speed_steps_s").get<double>();
       policy.acceleration_steps_s2 = p.at("acceleration_steps_s2").get<double>();
+      policy.limits.max_targets = p.value("max_targets", policy.limits.max_targets);
+      policy.limits.max_total_rotation_rad =
+          p.value("max_total_rotation_rad", policy.limits.max_total_rotation_rad);
       e.input.policy = std::move(policy);
     }
     return e;

@@ -97,6 +97,7 @@ bool isCommand(InputKind kind);        // issued by clients (the rest come from 
 bool needsControllerReading(InputKind kind);
 
 // Limits on what one command may carry (oversized sequences are rejected, not truncated).
+// Points or ids in one command (a plan's own limit, planning.max_targets, may be lower).
 constexpr std::size_t kMaxTargets = 100;  // per insertion (paper §V)
 constexpr std::size_t kMaxIdLength = 128;
 constexpr std::size_t kMaxPathLength = 4096;
