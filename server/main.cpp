@@ -30,6 +30,12 @@ int main(int argc, char** argv) {
   std::string controller;
   std::optional<double> speed;
   std::vector<std::string> approvers;
+  std::string replay, speed_text = "1";
+  std::uint64_t until = 0;
+  app.add_option("--replay", replay,
+                 "publish this recorded session's states as they happened, then keep serving them");
+  app.add_option("--speed", speed_text, "replay speed: 1, 10, ... or max");
+  app.add_option("--until", until, "replay up to this revision (journal sequence number)");
   app.add_option("--controller", controller,
                  "simulated, or galil:HOST:PORT (overrides the config)");
   app.add_option("--controller-speed", speed,
@@ -65,6 +71,19 @@ int main(int argc, char** argv) {
       options.controller.acceleration_steps_s2 = 10.0 * *speed;
     }
     if (!approvers.empty()) options.approvers = approvers;
+    if (!replay.empty()) {
+      options.replay_session = replay;
+      options.replay_until = until;
+      char* end = nullptr;
+      const double replay_speed =
+          speed_text == "max" ? 0.0 : std::strtod(speed_text.c_str(), &end);
+      if (speed_text != "max" &&
+          (end == speed_text.c_str() || *end != '\0' || !(replay_speed > 0))) {
+        spdlog::error("--speed: '{}' is not a positive number or max", speed_text);
+        return 2;
+      }
+      options.replay_speed = replay_speed;
+    }
     if (auto bad = ignav::server::checkControllerOptions(options)) {
       spdlog::error("{}", *bad);
       return 2;

@@ -5,6 +5,8 @@
 #include <yaml-cpp/yaml.h>
 
 #include <chrono>
+#include <csignal>
+#include <cstdlib>
 #include <ctime>
 #include <deque>
 #include <filesystem>
@@ -185,8 +187,9 @@ class Loader {
 
 class Server {
  public:
+  // Without a journal the server only replays (nothing is written).
   Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robot, fs::path session_dir,
-         journal::Journal journal)
+         std::optional<journal::Journal> journal)
       : options_(o),
         participant_(o.domain_id, o.dds_config.empty() ? "" : readConfigFile(o.dds_config)),
         commands_(participant_, &ignav_msg_Command_desc, topic::kCommand, Qos::kRequest),
@@ -219,6 +222,50 @@ class Server {
     waitset_.attach(emergency_stops_.handle());
     session_ =
         workflow::newSession(session_dir_.filename().string(), std::move(robot), o.robot_config);
+  }
+
+  // Publishes a recorded session's states one record at a time, at the recorded pace divided by
+  // the speed (0: at once), then keeps serving them (and slices) until stopped. It drives no
+  // controller and takes no commands.
+  int replay(const std::atomic<bool>& stop, const std::vector<std::string>& lines) {
+    publishHealth();
+    std::cout << "ignav-server replaying " << session_dir_.string()
+              << " domain=" << options_.domain_id << std::endl;
+    const fs::path journal_path = session_dir_ / "journal.jsonl";
+    auto load_ct = [this](const std::string& source) -> Expected<workflow::LoadedCt> {
+      Input reloaded = loader_.load(source, *session_.robot, session_dir_);
+      if (reloaded.kind != InputKind::kVolumeLoaded) {
+        return makeError(ErrorCode::kIo, reloaded.error);
+      }
+      return reloaded.loaded;
+    };
+    std::optional<double> previous_t;
+    for (std::size_t i = 0; i < lines.size() && !stop.load(); ++i) {
+      auto replayed = workflow::replayRecord(
+          session_, lines[i], load_ct, fmt::format("{} line {}", journal_path.string(), i + 1));
+      if (!replayed) {
+        spdlog::error("{}", replayed.error().message);
+        return 2;
+      }
+      if (options_.replay_until != 0 && replayed->step.session.revision > options_.replay_until) {
+        break;
+      }
+      const double t = replayed->input.time_s;
+      if (options_.replay_speed > 0 && previous_t && t > *previous_t) {
+        const auto wait = std::chrono::duration<double>((t - *previous_t) / options_.replay_speed);
+        serveReadOnly(Clock::now() + std::chrono::duration_cast<Clock::duration>(wait), stop);
+      }
+      previous_t = t;
+      session_ = std::move(replayed->step.session);
+      if (replayed->input.controller) last_reading_ = *replayed->input.controller;
+      publishEffects(replayed->step.effects);
+    }
+    spdlog::info("replayed to revision {}, phase {}", session_.revision,
+                 workflow::toString(session_.phase));
+    std::cout << "ignav-server replayed revision=" << session_.revision
+              << " phase=" << workflow::toString(session_.phase) << std::endl;
+    serveReadOnly(Clock::time_point::max(), stop);
+    return 0;
   }
 
   int run(const std::atomic<bool>& stop, const std::vector<std::string>& journal_lines) {
@@ -378,13 +425,15 @@ class Server {
     for (const auto& c : s.effects.controller) {
       if (c.isHalt()) runController(c);
     }
+    if (!s.effects.journal.empty()) crashPoint("before_journal", s.session.revision);
     for (const auto& line : s.effects.journal) {
-      if (auto ok = journal_.append(line); !ok) {
+      if (auto ok = journal_->append(line); !ok) {
         // Nothing is published that the journal does not hold.
         spdlog::critical("{}", ok.error().message);
         return false;
       }
     }
+    if (!s.effects.journal.empty()) crashPoint("after_journal", s.session.revision);
     session_ = std::move(s.session);
     const auto& e = s.effects;
     if (!e.journal.empty() || !e.replies.empty()) {
@@ -395,21 +444,12 @@ class Server {
                        : "rejected (" + e.replies.front().error_code + ")",
                    workflow::toString(session_.phase));
     }
-    if (e.robot_changed) publishRobot();
-    if (e.volume_changed) publishVolume();
-    if (e.registration_changed) publishRegistration();
-    for (auto id : e.targets_removed)
-      disposeTarget(id);
-    for (auto id : e.targets_changed)
-      publishTarget(id);
     // Moves and the rest only once the journal holds the approval that released them.
     for (const auto& c : e.controller) {
       if (!c.isHalt()) runController(c);
     }
-    if (e.approval_changed) publishApproval();
     if (!e.controller.empty()) readController();  // what the command did, for MotionState
-    if (e.motion_changed || !e.controller.empty()) publishMotion();
-    if (e.workflow_changed) publishWorkflow();
+    publishEffects(e);
     for (const auto& r : e.replies)
       sendReply(r);
     // The Slicer files after the replies: they are for people, not on the command's path.
@@ -420,6 +460,56 @@ class Server {
     if (!e.journal.empty()) writeReport();
     if (e.load_volume) loader_.start(*e.load_volume, *session_.robot, session_dir_);
     return true;
+  }
+
+  // While replaying: slices are answered from the replayed CT; commands, approvals and emergency
+  // stops are refused (nothing here moves a robot).
+  void serveReadOnly(Clock::time_point until, const std::atomic<bool>& stop) {
+    auto last_health = Clock::now();
+    auto refuse = [this](const char* client, std::uint64_t request) {
+      sendReply({client ? client : "", request, false, "read_only",
+                 "this server replays a recorded session and takes no commands", 0,
+                 session_.revision});
+    };
+    while (!stop.load() && Clock::now() < until) {
+      const auto left = until - Clock::now();
+      waitset_.wait(std::chrono::duration_cast<std::chrono::milliseconds>(
+          std::min<Clock::duration>(left, std::chrono::milliseconds(50))));
+      commands_.take([&](const ignav_msg_Command& c) { refuse(c.client_id, c.request_id); });
+      approvals_.take([&](const ignav_msg_Approval& a) { refuse(a.client_id, a.request_id); });
+      emergency_stops_.take(
+          [&](const ignav_msg_EmergencyStop& e) { refuse(e.client_id, e.request_id); });
+      slice_requests_.take([&](const ignav_msg_SliceRequest& r) { answerSlice(r); });
+      if (Clock::now() - last_health > std::chrono::seconds(1)) {
+        publishHealth();
+        last_health = Clock::now();
+      }
+    }
+  }
+
+  // The state topics a step changed.
+  void publishEffects(const workflow::Effects& e) {
+    if (e.robot_changed) publishRobot();
+    if (e.volume_changed) publishVolume();
+    if (e.registration_changed) publishRegistration();
+    for (auto id : e.targets_removed)
+      disposeTarget(id);
+    for (auto id : e.targets_changed)
+      publishTarget(id);
+    if (e.approval_changed) publishApproval();
+    if (e.motion_changed || !e.controller.empty()) publishMotion();
+    if (e.workflow_changed) publishWorkflow();
+  }
+
+  // Fault injection for the crash tests: IGNAV_CRASH_AT=before_journal:REV or after_journal:REV
+  // kills the server (SIGKILL, as a power loss) at that point of the step that makes revision REV.
+  void crashPoint(const char* where, std::uint64_t revision) const {
+    if (crash_at_.empty()) return;
+    if (crash_at_ == std::string(where) + ":" + std::to_string(revision)) {
+      spdlog::critical("IGNAV_CRASH_AT={}: killing the server", crash_at_);
+      spdlog::default_logger()->flush();
+      ::raise(SIGKILL);
+    }
   }
 
   // A path the server cannot read is refused before acknowledging (the reducer does no I/O).
@@ -885,7 +975,8 @@ class Server {
   WaitSet waitset_;
   Loader loader_;
   fs::path session_dir_;
-  journal::Journal journal_;
+  std::optional<journal::Journal> journal_;
+  std::string crash_at_ = std::getenv("IGNAV_CRASH_AT") ? std::getenv("IGNAV_CRASH_AT") : "";
   Session session_;
   Clock::time_point started_;
   std::pair<std::size_t, std::size_t> last_progress_{0, 0};
@@ -1021,6 +1112,30 @@ int runServer(const ServerOptions& options, const std::atomic<bool>& stop) {
   if (!robot) {
     spdlog::error("{}", robot.error().message);
     return 2;
+  }
+  if (!options.replay_session.empty()) {
+    // Read only: a torn last record is left out, not cut off the file.
+    const fs::path dir(options.replay_session);
+    const std::string journal_path = (dir / "journal.jsonl").string();
+    if (!fs::exists(journal_path)) {
+      spdlog::error("{}: no journal in this folder", journal_path);
+      return 2;
+    }
+    auto contents = journal::readJournal(journal_path);
+    if (!contents) {
+      spdlog::error("{}", contents.error().message);
+      return 2;
+    }
+    if (contents->torn_tail)
+      spdlog::warn("{}: the last record was cut short; left out", journal_path);
+    try {
+      Server server(options, std::make_shared<const config::Robot>(std::move(robot).value()), dir,
+                    std::nullopt);
+      return server.replay(stop, contents->lines);
+    } catch (const DdsError& e) {
+      spdlog::error("DDS: {}", e.what());
+      return 1;
+    }
   }
   fs::path dir = options.session_dir.empty()
                      ? fs::path(options.session_root.empty() ? "sessions" : options.session_root) /

@@ -31,6 +31,10 @@ struct ServerOptions {
   std::string dds_config;    // path of a Cyclone XML file ("" = Cyclone's defaults)
   std::string session_root;  // a session folder is created inside
   std::string session_dir;   // or exactly this folder
+  // Replay instead of serving: publish a recorded session's states as they happened.
+  std::string replay_session;      // its folder (read only)
+  double replay_speed = 1.0;       // 1, 10, ... times real time; 0 = as fast as possible
+  std::uint64_t replay_until = 0;  // stop after this revision (0 = the whole journal)
 };
 
 // Loads `path` (server.yaml); errors name the file and key. CLI options override after.

@@ -44,13 +44,31 @@ class ServerProcess {
  public:
   // Each test passes its own domain id so that tests running in parallel never meet.
   // `extra_args` go on the server's command line (e.g. --controller galil:127.0.0.1:PORT).
-  explicit ServerProcess(std::uint32_t domain, std::vector<std::string> extra_args = {})
-      : domain_(domain), extra_args_(std::move(extra_args)) {
+  explicit ServerProcess(std::uint32_t domain, std::vector<std::string> extra_args = {},
+                         std::vector<std::string> env = {})
+      : domain_(domain), extra_args_(std::move(extra_args)), env_(std::move(env)) {
     session_dir_ = std::filesystem::temp_directory_path() /
                    ("ignav_e2e_" + std::to_string(::getpid()) + "_" + std::to_string(domain));
     std::filesystem::remove_all(session_dir_);
     start();
   }
+
+  // Another program that serves the domain (e.g. `ignavctl replay`): `argv` whole, ready when its
+  // stdout shows `ready`.
+  struct Program {
+    std::vector<std::string> argv;
+    std::string ready;
+  };
+  ServerProcess(std::uint32_t domain, Program program)
+      : domain_(domain), program_(std::move(program)) {
+    session_dir_ = std::filesystem::temp_directory_path() /
+                   ("ignav_e2e_" + std::to_string(::getpid()) + "_" + std::to_string(domain));
+    std::filesystem::remove_all(session_dir_);
+    start();
+  }
+
+  // The environment of the next start() (e.g. IGNAV_CRASH_AT=...); {} for the inherited one.
+  void setEnv(std::vector<std::string> env) { env_ = std::move(env); }
   ~ServerProcess() {
     stop();
     std::filesystem::remove_all(session_dir_);
@@ -77,18 +95,29 @@ class ServerProcess {
                                   "--session-dir",
                                   session_dir_.string()};
     args.insert(args.end(), extra_args_.begin(), extra_args_.end());
+    if (!program_.argv.empty()) args = program_.argv;
     std::vector<char*> argv;
     for (auto& a : args)
       argv.push_back(a.data());
     argv.push_back(nullptr);
-    ASSERT_EQ(posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ), 0);
+    std::vector<std::string> env_text;
+    for (char** e = environ; *e; ++e)
+      env_text.emplace_back(*e);
+    env_text.insert(env_text.end(), env_.begin(), env_.end());
+    std::vector<char*> envp;
+    for (auto& e : env_text)
+      envp.push_back(e.data());
+    envp.push_back(nullptr);
+    ASSERT_EQ(posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), envp.data()), 0);
     posix_spawn_file_actions_destroy(&actions);
     ::close(out[1]);
-    // The readiness line, within 20 s.
+    // The readiness line, within 20 s. (The program writes nothing to stdout after it: the pipe
+    // is closed then.)
     std::string line;
     pollfd p{out[0], POLLIN, 0};
     const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(20);
-    while (line.find('\n') == std::string::npos && std::chrono::steady_clock::now() < end) {
+    const std::string ready = program_.ready.empty() ? "ignav-server ready" : program_.ready;
+    while (line.find(ready) == std::string::npos && std::chrono::steady_clock::now() < end) {
       if (::poll(&p, 1, 100) > 0) {
         char buf[256];
         const ssize_t n = ::read(out[0], buf, sizeof buf);
@@ -97,7 +126,7 @@ class ServerProcess {
       }
     }
     ::close(out[0]);
-    ASSERT_NE(line.find("ignav-server ready"), std::string::npos) << line << serverLog();
+    ASSERT_NE(line.find(ready), std::string::npos) << line << serverLog();
   }
 
   // SIGTERM and the exit code (0 for a clean shutdown).
@@ -108,6 +137,17 @@ class ServerProcess {
     ::waitpid(pid_, &status, 0);
     pid_ = -1;
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+
+  // False once the process has exited (it is reaped then).
+  bool alive() {
+    if (pid_ <= 0) return false;
+    int status = 0;
+    if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+      pid_ = -1;
+      return false;
+    }
+    return true;
   }
 
   // SIGKILL: no shutdown code runs, as in a crash or power loss.
@@ -140,6 +180,8 @@ class ServerProcess {
  private:
   std::uint32_t domain_;
   std::vector<std::string> extra_args_;
+  std::vector<std::string> env_;
+  Program program_;
   std::filesystem::path session_dir_;
   pid_t pid_ = -1;
 };

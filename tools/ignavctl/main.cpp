@@ -3,12 +3,18 @@
 //   ignavctl targets add X,Y,Z | rm ID | ls | clear | lock | unlock
 //   ignavctl slice --view axial --lps X,Y,Z --out s.png | watch | run script.yaml
 //   ignavctl approval | approve [--yes] [--plan N --digest HEX] | motion | emergency-stop
+//   ignavctl replay SESSION [--speed 1|10|max] [--until SEQ]
 #include <yaml-cpp/yaml.h>
 #include <CLI/CLI.hpp>
 
+#include <unistd.h>
 #include <Eigen/Dense>
+
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -340,6 +346,17 @@ int runScript(Client& client, const std::string& path, const std::string& out_di
   return 0;
 }
 
+// ignav-server: $IGNAV_SERVER, else next to this program (installed) or in the build tree.
+std::string serverExecutable() {
+  if (const char* env = std::getenv("IGNAV_SERVER")) return env;
+  std::error_code ec;
+  const auto self = std::filesystem::read_symlink("/proc/self/exe", ec).parent_path();
+  for (const auto& candidate : {self / "ignav-server", self / "../../server/ignav-server"}) {
+    if (std::filesystem::exists(candidate, ec)) return candidate.lexically_normal().string();
+  }
+  return "ignav-server";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -398,7 +415,38 @@ int main(int argc, char** argv) {
       simple = name;
     });
   }
+  std::string replay_dir, replay_speed = "1", server_config = "configs/server.yaml";
+  std::uint64_t replay_until = 0;
+  auto* replay = app.add_subcommand(
+      "replay",
+      "publish a recorded session's states over DDS as they happened (a read-only "
+      "ignav-server)");
+  replay->add_option("session", replay_dir, "the session folder")->required();
+  replay->add_option("--speed", replay_speed, "1, 10, ... times real time, or max");
+  replay->add_option("--until", replay_until, "stop at this revision (journal sequence number)");
+  replay->add_option("--server-config", server_config, "server YAML (robot config)");
   CLI11_PARSE(app, argc, argv);
+
+  if (*replay) {
+    // The server's own code publishes the replay (one implementation of every state topic); it
+    // takes this client's domain and DDS config.
+    const std::string server = serverExecutable();
+    std::vector<std::string> args{
+        server,       "--config", server_config,          "--replay",     replay_dir, "--speed",
+        replay_speed, "--domain", std::to_string(domain), "--dds-config", dds_config};
+    if (replay_until != 0) {
+      args.push_back("--until");
+      args.push_back(std::to_string(replay_until));
+    }
+    std::vector<char*> argv_exec;
+    for (auto& a : args)
+      argv_exec.push_back(a.data());
+    argv_exec.push_back(nullptr);
+    ::execvp(server.c_str(), argv_exec.data());
+    std::cerr << "ignavctl: cannot run " << server << ": " << std::strerror(errno)
+              << " (set IGNAV_SERVER to its path)\n";
+    return kExitUsage;
+  }
 
   try {
     const std::string xml = dds_config.empty() ? "" : ignav::protocol::readConfigFile(dds_config);

@@ -683,30 +683,37 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
   }
 }
 
+Expected<ReplayedStep> replayRecord(const Session& session, const std::string& line,
+                                    const CtLoader& load_ct, const std::string& where) {
+  auto entry = parseJournalRecord(line);
+  if (!entry) return makeError(ErrorCode::kFormat, where + ": " + entry.error().message);
+  Input& in = entry->input;
+  if (in.kind == InputKind::kVolumeLoaded) {
+    auto ct = load_ct(in.loaded.source);
+    if (!ct) {
+      return makeError(ErrorCode::kIo,
+                       where + ": cannot load the CT again (" + ct.error().message + ")");
+    }
+    in.loaded = std::move(ct).value();
+  }
+  Step step = reduce(session, in);
+  if (step.session.revision != entry->revision || toString(step.session.phase) != entry->phase) {
+    return makeError(ErrorCode::kFormat,
+                     fmt::format("{}: replaying it gives revision {} in {}, the record says "
+                                 "revision {} in {}",
+                                 where, step.session.revision, toString(step.session.phase),
+                                 entry->revision, entry->phase));
+  }
+  return ReplayedStep{std::move(step), std::move(in)};
+}
+
 Expected<Session> replayJournal(Session session, const std::vector<std::string>& lines,
                                 const CtLoader& load_ct, const std::string& journal_name) {
   for (std::size_t i = 0; i < lines.size(); ++i) {
-    const std::string where = fmt::format("{} line {}", journal_name, i + 1);
-    auto entry = parseJournalRecord(lines[i]);
-    if (!entry) return makeError(ErrorCode::kFormat, where + ": " + entry.error().message);
-    Input& in = entry->input;
-    if (in.kind == InputKind::kVolumeLoaded) {
-      auto ct = load_ct(in.loaded.source);
-      if (!ct) {
-        return makeError(ErrorCode::kIo,
-                         where + ": cannot load the CT again (" + ct.error().message + ")");
-      }
-      in.loaded = std::move(ct).value();
-    }
-    Step step = reduce(session, in);
-    if (step.session.revision != entry->revision || toString(step.session.phase) != entry->phase) {
-      return makeError(ErrorCode::kFormat,
-                       fmt::format("{}: replaying it gives revision {} in {}, the record says "
-                                   "revision {} in {}",
-                                   where, step.session.revision, toString(step.session.phase),
-                                   entry->revision, entry->phase));
-    }
-    session = std::move(step.session);
+    auto replayed =
+        replayRecord(session, lines[i], load_ct, fmt::format("{} line {}", journal_name, i + 1));
+    if (!replayed) return replayed.error();
+    session = std::move(replayed->step.session);
   }
   return session;
 }

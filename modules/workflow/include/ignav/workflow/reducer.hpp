@@ -63,9 +63,17 @@ std::string procedureReport(const Session& session);
 // Loads the CT a volume_loaded record names (I/O stays with the caller).
 using CtLoader = std::function<Expected<LoadedCt>(const std::string& source)>;
 
-// Feeds journal lines through reduce() from `start`, checking that each record gives its
-// recorded revision and phase: crash recovery and the offline determinism check. Errors name
-// `journal_name` and the line.
+// One journal line through reduce(), checking that it gives its recorded revision and phase.
+// `where` names the line in errors ("journal.jsonl line 7"). The step's input is in `input`.
+struct ReplayedStep {
+  Step step;
+  Input input;
+};
+Expected<ReplayedStep> replayRecord(const Session& session, const std::string& line,
+                                    const CtLoader& load_ct, const std::string& where);
+
+// Feeds journal lines through replayRecord() from `start`: crash recovery and the offline
+// determinism check. Errors name `journal_name` and the line.
 Expected<Session> replayJournal(Session start, const std::vector<std::string>& lines,
                                 const CtLoader& load_ct, const std::string& journal_name);
 

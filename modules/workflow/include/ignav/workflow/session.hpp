@@ -228,7 +228,7 @@ struct Session {
   std::optional<MotionRequest> pending;
   std::optional<ActiveMotion> motion;
   std::uint64_t next_plan_id = 1;
-  std::string fault;  // why the phase is fault (or the last controller fault)
+  std::string fault;                  // why the phase is fault (or the last controller fault)
   std::vector<MotionRecord> motions;  // every approved motion, in order
   std::uint64_t accepted = 0;
   std::uint64_t rejected = 0;
