@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -434,6 +435,7 @@ class Server {
       }
     }
     if (!s.effects.journal.empty()) crashPoint("after_journal", s.session.revision);
+    const workflow::Phase phase_before = session_.phase;
     session_ = std::move(s.session);
     const auto& e = s.effects;
     if (!e.journal.empty() || !e.replies.empty()) {
@@ -456,6 +458,18 @@ class Server {
     if (in.kind != InputKind::kQuery &&
         (e.registration_changed || !e.targets_changed.empty() || !e.targets_removed.empty())) {
       writeExports();
+    }
+    if (session_.phase != phase_before) {
+      if (session_.phase == workflow::Phase::kPlanLocked && in.kind == InputKind::kLockPlan) {
+        report_images_.clear();
+        writeReportSlices(true, 0);
+      } else if (session_.phase == workflow::Phase::kAtTarget) {
+        const workflow::Target* last = nullptr;  // the target just reached
+        for (const auto& t : session_.targets) {
+          if (t.reached && (!last || t.reached_s > last->reached_s)) last = &t;
+        }
+        if (last) writeReportSlices(false, last->id);
+      }
     }
     if (!e.journal.empty()) writeReport();
     if (e.load_volume) loader_.start(*e.load_volume, *session_.robot, session_dir_);
@@ -854,8 +868,75 @@ class Server {
   }
 
   void writeReport() {
+    std::vector<std::string> images;
+    for (const auto& [id, files] : report_images_)
+      images.insert(images.end(), files.begin(), files.end());
     std::ofstream(session_dir_ / "report.md", std::ios::trunc)
-        << workflow::procedureReport(session_);
+        << workflow::procedureReport(session_, images);
+  }
+
+  // The needle's planned path to joints `j` in LPS: the tip retracted at home, the cannula's
+  // translation, then the stylet's arc sampled as it deploys (a pre-curved stylet follows its
+  // own tip).
+  std::vector<Eigen::Vector3d> needlePathLps(const kinematics::Joints& j) const {
+    const auto& kin = session_.robot->kinematics;
+    const auto& reg = *session_.registration;
+    std::vector<Eigen::Vector3d> out;
+    kinematics::Joints k{j.theta_c_rad, 0.0, 0.0};
+    out.push_back(reg.toImage(kin.forward(k).tip_mm));
+    k.z_c_mm = j.z_c_mm;
+    constexpr int kArcSamples = 24;
+    for (int i = 0; i <= kArcSamples; ++i) {
+      k.z_s_mm = j.z_s_mm * i / kArcSamples;
+      out.push_back(reg.toImage(kin.forward(k).tip_mm));
+    }
+    return out;
+  }
+
+  // Slices for the report through each target (at lock) or through the target just reached,
+  // with the tip where the verified steps put it. After the replies: for people, not on the
+  // command's path. At most kReportTargets targets get slices at lock.
+  void writeReportSlices(bool all_targets, std::uint32_t reached_id) {
+    constexpr std::size_t kReportTargets = 12;
+    if (!session_.ct.volume || !session_.registration) return;
+    const fs::path dir = session_dir_ / "report";
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    std::size_t drawn = 0;
+    for (const auto& t : session_.targets) {
+      if (!t.registered || !t.solution.reachable()) continue;
+      if (!all_targets && t.id != reached_id) continue;
+      if (all_targets && ++drawn > kReportTargets) break;
+      volume::Overlays overlays = overlaysFor();
+      overlays.paths.push_back({needlePathLps(t.solution.joints), {0, 255, 255}, 1});
+      if (t.reached) {
+        const auto& robot = *session_.robot;
+        const Eigen::Vector3d tip =
+            robot.kinematics.forward(robot.transmission.toJoints(session_.position)).tip_mm;
+        overlays.points.push_back({session_.registration->toImage(tip), "tip", {255, 0, 255}, 3});
+      }
+      std::vector<std::string> files;
+      for (const auto& [view, name] : {std::pair{volume::View::kCoronal, "coronal"},
+                                       std::pair{volume::View::kAxial, "axial"}}) {
+        volume::SliceSpec spec;
+        spec.view = view;
+        spec.centre_lps_mm = t.lps_mm;
+        spec.width_px = spec.height_px = 384;
+        spec.pixel_size_mm = 0.2;
+        spec.window = volume::kWindowBone;
+        auto slice = volume::reslice(*session_.ct.volume, spec);
+        if (!slice) continue;
+        auto png = volume::renderPng(*slice, overlays);
+        if (!png) continue;
+        const std::string file =
+            fmt::format("report/T{}_{}{}.png", t.id, name, t.reached ? "_reached" : "");
+        std::ofstream(session_dir_ / file, std::ios::binary)
+            .write(reinterpret_cast<const char*>(png->data()),
+                   static_cast<std::streamsize>(png->size()));
+        files.push_back(file);
+      }
+      report_images_[t.id] = files;
+    }
   }
 
   void answerSlice(const ignav_msg_SliceRequest& req) {
@@ -972,6 +1053,7 @@ class Server {
   std::string last_fault_reported_;
   Clock::time_point last_controller_poll_;
   std::deque<Input> internal_;  // inputs the server raised itself (a controller call failed)
+  std::map<std::uint32_t, std::vector<std::string>> report_images_;  // by target id
   WaitSet waitset_;
   Loader loader_;
   fs::path session_dir_;

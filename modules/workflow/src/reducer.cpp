@@ -100,6 +100,7 @@ void evaluate(const Session& s, Target& t) {
   fresh.id = t.id;
   fresh.lps_mm = t.lps_mm;
   fresh.reached = t.reached;  // where the needle has been stays true whatever the registration
+  fresh.reached_s = t.reached_s;
   t = fresh;
   if (!s.registration) {
     t.message = "not registered yet: register the CT to the robot first";
@@ -426,6 +427,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       }
       if (Target* t = findTarget(s, target)) {
         t->reached = true;
+        t->reached_s = in.time_s;
         e.targets_changed.push_back(target);
       }
       to = Phase::kAtTarget;

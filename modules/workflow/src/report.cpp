@@ -41,7 +41,7 @@ std::string motionSection(const Session& s) {
 
 }  // namespace
 
-std::string procedureReport(const Session& s) {
+std::string procedureReport(const Session& s, const std::vector<std::string>& images) {
   std::string out = fmt::format("# Session {}\n\n", s.session_id);
   out += fmt::format("- phase: **{}** (revision {}, {} commands accepted, {} rejected)\n",
                      toString(s.phase), s.revision, s.accepted, s.rejected);
@@ -62,16 +62,17 @@ std::string procedureReport(const Session& s) {
   }
   out += "\n## Targets (`targets.mrk.json`)\n\n";
   if (s.targets.empty()) return out + "None.\n" + motionSection(s);
+  // (no slices without targets)
   out +=
       "| # | id | status | LPS (mm) | robot (mm) | θc (°) | zc (mm) | zs (mm) | steps | TRE (mm) "
-      "|\n|---|---|---|---|---|---|---|---|---|---|\n";
+      "| reached (UTC) |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (std::size_t i = 0; i < s.targets.size(); ++i) {
     const auto& t = s.targets[i];
     const auto& j = t.solution.joints;
     const bool planned = t.registered && t.solution.reachable();
     out += fmt::format(
-        "| {} | T{} | {} | ({:.2f}, {:.2f}, {:.2f}) | {} | {} | {} | {} | {} | {} |\n", i + 1, t.id,
-        t.status(), t.lps_mm.x(), t.lps_mm.y(), t.lps_mm.z(),
+        "| {} | T{} | {} | ({:.2f}, {:.2f}, {:.2f}) | {} | {} | {} | {} | {} | {} | {} |\n", i + 1,
+        t.id, t.status(), t.lps_mm.x(), t.lps_mm.y(), t.lps_mm.z(),
         t.registered ? fmt::format("({:.2f}, {:.2f}, {:.2f})", t.robot_mm.x(), t.robot_mm.y(),
                                    t.robot_mm.z())
                      : "—",
@@ -80,7 +81,8 @@ std::string procedureReport(const Session& s) {
         planned ? fmt::format("{:.3f}", j.z_s_mm) : "—",
         planned ? fmt::format("{} / {} / {}", t.steps.motor[0], t.steps.motor[1], t.steps.motor[2])
                 : "—",
-        t.registered ? fmt::format("{:.2f}{}", t.tre_mm, t.tre_warning ? " ⚠" : "") : "—");
+        t.registered ? fmt::format("{:.2f}{}", t.tre_mm, t.tre_warning ? " ⚠" : "") : "—",
+        t.reached ? utc(t.reached_s) : "—");
   }
   std::string notes;
   for (const auto& t : s.targets) {
@@ -88,7 +90,16 @@ std::string procedureReport(const Session& s) {
       notes += "- T" + std::to_string(t.id) + ": " + t.message + "\n";
   }
   if (!notes.empty()) out += "\n" + notes;
-  return out + motionSection(s);
+  out += motionSection(s);
+  if (!images.empty()) {
+    out +=
+        "\n## Slices\n\nThrough each target: the feasible region (green), the targets, the "
+        "fiducials, the planned needle path (cyan) and, once reached, the tip where the "
+        "verified steps put it (magenta).\n\n";
+    for (const auto& image : images)
+      out += "![" + image + "](" + image + ")\n";
+  }
+  return out;
 }
 
 }  // namespace ignav::workflow

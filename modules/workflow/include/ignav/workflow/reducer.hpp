@@ -56,9 +56,10 @@ struct JournalEntry {
 // Errors (kFormat) say what is wrong with the record.
 Expected<JournalEntry> parseJournalRecord(const std::string& line);
 
-// The session for a person (the server writes it as report.md): phase, CT, registration and a
-// table of the targets with joints, motor steps and expected TRE.
-std::string procedureReport(const Session& session);
+// The session for a person (the server writes it as report.md): phase, CT, registration, a
+// table of the targets with joints, motor steps, expected TRE and when each was reached, the
+// robot and every approved motion; then `images` (paths relative to the report) as pictures.
+std::string procedureReport(const Session& session, const std::vector<std::string>& images = {});
 
 // Loads the CT a volume_loaded record names (I/O stays with the caller).
 using CtLoader = std::function<Expected<LoadedCt>(const std::string& source)>;

@@ -159,6 +159,7 @@ struct Target {
   double tre_mm = 0.0;
   bool tre_warning = false;
   bool reached = false;        // the stylet tip was brought here (verified steps)
+  double reached_s = 0.0;      // when (Unix seconds)
   std::string message;         // person-readable reachability
   std::string status() const;  // "planned" | "reached" | "unreachable" | "unregistered"
 };
