@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
 #include <thread>
 
 #include "ignav/config/robot_config.hpp"
@@ -110,6 +112,24 @@ TEST(MotionE2E, ApprovedMotionArrivesAtTheTargetsStepsAndNothingElseMoves) {
   EXPECT_EQ(steps(op->state()["motion"]["steps"]), stepsFor(robot_mm));
   const json& tip = op->state()["motion"]["tip_robot"];
   EXPECT_LT((Eigen::Vector3d(tip[0], tip[1], tip[2]) - robot_mm).norm(), 0.15);
+  // The report has the slices through the reached target, and says when it was reached. (The
+  // server writes them after its replies and state: wait for the report that lists them.)
+  std::stringstream report;
+  for (int i = 0; i < 200 && report.str().find("_reached.png)") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(25ms);
+    report.str("");
+    report << std::ifstream(server.sessionDir() / "report.md").rdbuf();
+  }
+  for (const char* view : {"coronal", "axial"}) {
+    const auto png =
+        server.sessionDir() / "report" / ("T" + std::to_string(id) + "_" + view + "_reached.png");
+    const cv::Mat image = cv::imread(png.string());
+    EXPECT_EQ(image.cols, 384) << png;
+    EXPECT_EQ(image.rows, 384) << png;
+  }
+  EXPECT_NE(report.str().find("_reached.png)"), std::string::npos) << report.str();
+  EXPECT_NE(report.str().find("| 1 | T" + std::to_string(id) + " | reached |"), std::string::npos)
+      << report.str();
 
   // The last motion retracts the stylet; then the procedure is done.
   op->waitFor(
