@@ -10,6 +10,8 @@ packages=(
   libeigen3-dev libyaml-cpp-dev nlohmann-json3-dev libspdlog-dev libfmt-dev libcli11-dev
   # images, point clouds, DICOM
   libopencv-dev libpcl-dev libdcmtk-dev dcmtk zlib1g-dev libpng-dev
+  # ODE integration (Boost.Odeint, header-only) for the needle-deflection model
+  libboost-dev
   # SHA-256 digests of motion plans (and DDS Security)
   libssl-dev
   # benchmarks: the reference DICOM converter and GNU time for peak memory

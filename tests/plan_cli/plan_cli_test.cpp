@@ -1,5 +1,7 @@
 // ignav-plan as a user runs it: a real process, JSON on stdout, exit codes.
 #include <gtest/gtest.h>
+
+#include <fmt/format.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -249,6 +251,52 @@ TEST(PlanCli, RobotPhantomFindsAndRegistersItsMarkers) {
   EXPECT_EQ(m["markups"][0]["controlPoints"][2]["label"], "stylet_tip");
   EXPECT_TRUE(std::filesystem::exists(dir / "r.tfm"));
   EXPECT_EQ(plan("find-fiducials " + (dir / "ct").string() + " --expect 0").exit_code, 2);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(PlanCli, DeflectionSimulateThenFitRecoversTheTissue) {
+  // The CLI: a path in agar (seed 000, Table I), written as depth,deflection CSV, fitted.
+  const auto sim = plan(
+      "deflection simulate --k -0.0025 --ell 20 --lambda1 0.49 --lambda2 0.22 --length 130 "
+      "--step 2");
+  ASSERT_EQ(sim.exit_code, 0) << sim.out;
+  const json j = json::parse(sim.out);
+  EXPECT_TRUE(j["admissible"].get<bool>());
+  ASSERT_EQ(j["path"].size(), 66u);
+  EXPECT_EQ(j["path"][0], json::array({0.0, 0.0, 0.0, 0.0}));
+  EXPECT_DOUBLE_EQ(j["path"].back()[0].get<double>(), 130.0);
+  const auto dir = std::filesystem::temp_directory_path() / "ignav_deflection_cli";
+  std::filesystem::create_directories(dir);
+  {
+    std::ofstream csv(dir / "path.csv");
+    csv << "depth_mm,deflection_mm\n";
+    for (std::size_t i = 1; i < j["path"].size(); ++i) {
+      csv << fmt::format("{:.17g},{:.17g}\n", j["path"][i][1].get<double>(),
+                         j["path"][i][2].get<double>());
+    }
+  }
+  const auto fit = plan("deflection fit --k -0.0025 --ell 20 --in " + (dir / "path.csv").string());
+  ASSERT_EQ(fit.exit_code, 0) << fit.out;
+  const json f = json::parse(fit.out);
+  EXPECT_NEAR(f["lambda1"].get<double>(), 0.49, 1e-6);
+  EXPECT_NEAR(f["lambda2"].get<double>(), 0.22, 1e-6);
+  EXPECT_EQ(f["stderr"].size(), 2u);
+  EXPECT_GT(f["max_error_bicycle_mm"].get<double>(), 10 * f["max_error_mm"].get<double>());
+  // An inadmissible tissue is an answer; a bad CSV line is an error naming the line.
+  const auto bad = plan("deflection simulate --k -0.0025 --ell 20 --lambda1 0 --lambda2 1");
+  EXPECT_EQ(bad.exit_code, 0);
+  EXPECT_FALSE(json::parse(bad.out)["admissible"].get<bool>());
+  std::ofstream(dir / "bad.csv") << "depth_mm,deflection_mm\n10,-1\n20,oops\n";
+  const std::string cmd = std::string(IGNAV_PLAN_EXE) +
+                          " deflection fit --k -0.0025 --ell 20 --in " +
+                          (dir / "bad.csv").string() + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string err;
+  char buf[512];
+  while (fgets(buf, sizeof buf, p))
+    err += buf;
+  EXPECT_EQ(WEXITSTATUS(pclose(p)), 2);
+  EXPECT_NE(err.find("bad.csv line 3"), std::string::npos) << err;
   std::filesystem::remove_all(dir);
 }
 

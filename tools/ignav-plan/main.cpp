@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "deflection_commands.hpp"
 #include "ignav/config/robot_config.hpp"
 #include "ignav/kinematics/ik_study.hpp"
 #include "ignav/kinematics/workspace_map.hpp"
@@ -283,6 +284,25 @@ int main(int argc, char** argv) {
   find->add_option("--tfm", find_args.tfm_out, "write the registration for 3D Slicer (.tfm)");
   find->add_option("--markups", find_args.markups_out, "write the markers (.mrk.json)");
 
+  ignav::plan::DeflectionArgs deflection_args;
+  auto* defl = app.add_subcommand("deflection", "the extended bicycle model (seed 000)");
+  defl->require_subcommand(1);
+  for (auto* sub : {defl->add_subcommand("simulate", "the tip path (s, z, y, γ) in soft tissue"),
+                    defl->add_subcommand("fit", "λ1, λ2 from an observed path (CSV)")}) {
+    sub->add_option("--k", deflection_args.needle.curvature_per_mm,
+                    "signed curvature (1/mm; negative bends towards -y)")
+        ->required();
+    sub->add_option("--ell", deflection_args.needle.wheelbase_mm, "wheelbase (mm)")->required();
+  }
+  auto* defl_sim = defl->get_subcommand("simulate");
+  defl_sim->add_option("--lambda1", deflection_args.tissue.lambda1)->required();
+  defl_sim->add_option("--lambda2", deflection_args.tissue.lambda2)->required();
+  defl_sim->add_option("--length", deflection_args.length_mm, "inserted length (mm)");
+  defl_sim->add_option("--step", deflection_args.step_mm, "sample every this many mm");
+  auto* defl_fit = defl->get_subcommand("fit");
+  defl_fit->add_option("--in", deflection_args.csv_path, "CSV: depth_mm,deflection_mm")->required();
+  defl_fit->add_flag("--fit-k", deflection_args.fit_curvature, "fit the curvature too");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -293,6 +313,12 @@ int main(int argc, char** argv) {
   }
 
   try {
+    if (*defl) {
+      const auto out = defl_sim->parsed() ? ignav::plan::simulateDeflection(deflection_args)
+                                          : ignav::plan::fitDeflection(deflection_args);
+      std::cout << out.dump(defl_sim->parsed() ? -1 : 2) << "\n";
+      return 0;
+    }
     if (*reg) {
       for (const auto& t : tre_targets)
         register_args.targets_image.push_back(parseTriple(t, "--tre"));

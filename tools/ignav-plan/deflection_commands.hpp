@@ -1,0 +1,28 @@
+// ignav-plan deflection simulate | fit: the extended bicycle model of seed 000
+// (modules/deflection).
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "ignav/deflection/bicycle_model.hpp"
+
+namespace ignav::plan {
+
+struct DeflectionArgs {
+  deflection::NeedleModel needle;
+  deflection::Tissue tissue;
+  double length_mm = 130.0;
+  double step_mm = 1.0;
+  std::string csv_path;  // fit: depth_mm,deflection_mm per line, after a header
+  bool fit_curvature = false;
+};
+
+// {"admissible": true, "path": [[s, z, y, gamma], ...]}; an inadmissible tissue is an answer:
+// {"admissible": false, "reason": ...}. Bad numbers throw CliError.
+nlohmann::json simulateDeflection(const DeflectionArgs& args);
+// {"lambda1", "lambda2", "stderr": [...], "corr", "max_error_mm", "max_error_bicycle_mm", ...}
+nlohmann::json fitDeflection(const DeflectionArgs& args);
+
+}  // namespace ignav::plan
