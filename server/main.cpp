@@ -30,6 +30,10 @@ int main(int argc, char** argv) {
   std::string controller;
   std::optional<double> speed;
   std::vector<std::string> approvers;
+  std::string tissue;
+  app.add_option("--tissue", tissue,
+                 "tissue profile for deflection predictions (configs/tissues.yaml; 'none' is "
+                 "the plain model)");
   std::string replay, speed_text = "1";
   std::uint64_t until = 0;
   app.add_option("--replay", replay,
@@ -71,12 +75,12 @@ int main(int argc, char** argv) {
       options.controller.acceleration_steps_s2 = 10.0 * *speed;
     }
     if (!approvers.empty()) options.approvers = approvers;
+    if (!tissue.empty()) options.tissue_name = tissue;
     if (!replay.empty()) {
       options.replay_session = replay;
       options.replay_until = until;
       char* end = nullptr;
-      const double replay_speed =
-          speed_text == "max" ? 0.0 : std::strtod(speed_text.c_str(), &end);
+      const double replay_speed = speed_text == "max" ? 0.0 : std::strtod(speed_text.c_str(), &end);
       if (speed_text != "max" &&
           (end == speed_text.c_str() || *end != '\0' || !(replay_speed > 0))) {
         spdlog::error("--speed: '{}' is not a positive number or max", speed_text);

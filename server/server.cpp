@@ -278,6 +278,7 @@ class Server {
       Input config_loaded;
       config_loaded.kind = InputKind::kConfigLoaded;
       config_loaded.policy = approvalPolicy(options_);
+      config_loaded.tissue = options_.tissue;
       if (!step(config_loaded)) return 3;
     } else {
       if (auto ok = recover(journal_lines); !ok) {
@@ -740,6 +741,12 @@ class Server {
     r.cannula_travel_mm = robot.config.instrument.cannula_travel_mm;
     r.stylet_travel_mm = robot.config.instrument.stylet_travel_mm;
     r.feasible_volume_cm3 = ws.volume_exact_cm3;
+    const std::string tissue =
+        session_.tissue ? session_.tissue->name + " (λ1 " +
+                              fmt::format("{:g}", session_.tissue->tissue.lambda1) + ", λ2 " +
+                              fmt::format("{:g}", session_.tissue->tissue.lambda2) + ")"
+                        : std::string();
+    r.tissue = cstr(tissue);
     viewSequence(r.feature_points_robot, features);
     robot_.write(r);
   }
@@ -818,6 +825,8 @@ class Server {
       m.tre_mm = t.tre_mm;
       m.tre_warning = t.tre_warning;
       m.order = static_cast<std::uint32_t>(i + 1);
+      m.deviation_predicted = std::isfinite(t.predicted_deviation_mm);
+      m.predicted_deviation_mm = m.deviation_predicted ? t.predicted_deviation_mm : 0.0;
       m.status = cstr(status);
       target_.write(m);
       return;
@@ -1124,10 +1133,10 @@ ServerOptions loadServerOptions(const std::string& path) {
   for (const auto& kv : s) {
     const std::string key = kv.first.Scalar();
     if (key != "robot_config" && key != "dds" && key != "session_root" && key != "controller" &&
-        key != "approval" && key != "planning") {
+        key != "approval" && key != "planning" && key != "tissue") {
       throw ConfigError(path + ": server." + key +
                         ": unknown key; expected robot_config, dds, session_root, controller, "
-                        "approval, planning");
+                        "approval, planning, tissue");
     }
   }
   try {
@@ -1157,6 +1166,19 @@ ServerOptions loadServerOptions(const std::string& path) {
           throw ConfigError(path + ": server.controller." + key +
                             ": unknown key; expected kind, host, port, speed_steps_s, "
                             "acceleration_steps_s2, control_period_ms");
+        }
+      }
+    }
+    if (const YAML::Node t = s["tissue"]) {
+      for (const auto& kv : t) {
+        const std::string key = kv.first.Scalar();
+        if (key == "profiles") {
+          o.tissue_profiles = resolve(base, kv.second.as<std::string>());
+        } else if (key == "name") {
+          o.tissue_name = kv.second.as<std::string>();
+        } else {
+          throw ConfigError(path + ": server.tissue." + key +
+                            ": unknown key; expected profiles, name");
         }
       }
     }
@@ -1193,11 +1215,22 @@ ServerOptions loadServerOptions(const std::string& path) {
   return o;
 }
 
-int runServer(const ServerOptions& options, const std::atomic<bool>& stop) {
+int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
+  ServerOptions options = given;
   auto robot = config::loadRobot(options.robot_config);
   if (!robot) {
     spdlog::error("{}", robot.error().message);
     return 2;
+  }
+  if (!options.tissue_name.empty()) {
+    auto profiles = config::loadTissueProfiles(options.tissue_profiles);
+    auto profile = profiles ? config::tissueProfile(*profiles, options.tissue_name)
+                            : Expected<config::TissueProfile>(profiles.error());
+    if (!profile) {
+      spdlog::error("{}", profile.error().message);
+      return 2;
+    }
+    options.tissue = std::move(profile).value();
   }
   if (!options.replay_session.empty()) {
     // Read only: a torn last record is left out, not cut off the file.

@@ -5,8 +5,10 @@
 #include <atomic>
 #include <cstdint>
 #include <optional>
+
 #include <string>
 #include <vector>
+#include "ignav/config/tissue_profiles.hpp"
 
 namespace ignav::server {
 
@@ -24,8 +26,11 @@ struct ServerOptions {
   ControllerOptions controller;
   std::vector<std::string> approvers;  // client ids allowed to approve motion
   double approval_expiry_s = 120.0;
-  std::size_t max_targets = 100;          // per insertion, at most 100 (paper §V)
-  double max_total_rotation_deg = 360.0;  // the cannula's rotation over one insertion
+  std::string tissue_profiles;                  // configs/tissues.yaml
+  std::string tissue_name;                      // "" = no deflection prediction
+  std::optional<config::TissueProfile> tissue;  // loaded by runServer
+  std::size_t max_targets = 100;                // per insertion, at most 100 (paper §V)
+  double max_total_rotation_deg = 360.0;        // the cannula's rotation over one insertion
   std::string robot_config;
   std::uint32_t domain_id = 0;
   std::string dds_config;    // path of a Cyclone XML file ("" = Cyclone's defaults)

@@ -218,6 +218,7 @@ std::vector<std::string> Client::poll() {
                        {"r_min_mm", r.r_min_mm},
                        {"r_max_mm", r.r_max_mm},
                        {"feasible_volume_cm3", r.feasible_volume_cm3},
+                       {"tissue", str(r.tissue)},
                        {"feature_points_robot", points(r.feature_points_robot)}};
   }));
   note("volume", impl_->volume.take([&](const ignav_msg_VolumeState& v) {
@@ -253,19 +254,21 @@ std::vector<std::string> Client::poll() {
       state_["targets"].erase(id);
       return;
     }
-    state_["targets"][id] = {{"id", t.id},
-                             {"lps", point(t.lps)},
-                             {"robot", point(t.robot)},
-                             {"registered", t.registered},
-                             {"reachable", t.reachable},
-                             {"reach", str(t.reach)},
-                             {"message", str(t.message)},
-                             {"joints", {t.theta_c_rad, t.z_c_mm, t.z_s_mm}},
-                             {"steps", {t.steps[0], t.steps[1], t.steps[2]}},
-                             {"tre_mm", t.tre_mm},
-                             {"tre_warning", t.tre_warning},
-                             {"order", t.order},
-                             {"status", str(t.status)}};
+    state_["targets"][id] = {
+        {"id", t.id},
+        {"lps", point(t.lps)},
+        {"robot", point(t.robot)},
+        {"registered", t.registered},
+        {"reachable", t.reachable},
+        {"reach", str(t.reach)},
+        {"message", str(t.message)},
+        {"joints", {t.theta_c_rad, t.z_c_mm, t.z_s_mm}},
+        {"steps", {t.steps[0], t.steps[1], t.steps[2]}},
+        {"tre_mm", t.tre_mm},
+        {"tre_warning", t.tre_warning},
+        {"order", t.order},
+        {"predicted_deviation_mm", t.deviation_predicted ? json(t.predicted_deviation_mm) : json()},
+        {"status", str(t.status)}};
   }));
   note("approval", impl_->approval.take([&](const ignav_msg_ApprovalState& a) {
     json moves = json::array();

@@ -1,11 +1,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <regex>
 #include <sstream>
 
 #include "ignav/config/robot_config.hpp"
+#include "ignav/config/tissue_profiles.hpp"
 
 namespace ignav::config {
 namespace {
@@ -138,6 +140,46 @@ TEST(RobotConfig, UnreadableInput) {
   ASSERT_FALSE(missing.ok());
   EXPECT_EQ(missing.error().code, ErrorCode::kIo);
   EXPECT_NE(missing.error().message.find("/nonexistent/robot.yaml"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace ignav::config
+
+namespace ignav::config {
+namespace {
+
+TEST(TissueProfiles, BundledFileHoldsTableOneAndErrorsNameTheKey) {
+  const auto profiles = loadTissueProfiles(IGNAV_SOURCE_DIR "/configs/tissues.yaml");
+  ASSERT_TRUE(profiles.ok()) << profiles.error().message;
+  const auto agar = tissueProfile(*profiles, "agar");
+  ASSERT_TRUE(agar.ok());
+  EXPECT_EQ(agar->tissue.lambda1, 0.49);  // seed 000, Table I
+  EXPECT_EQ(agar->tissue.lambda2, 0.22);
+  EXPECT_EQ(agar->needle.curvature_per_mm, -0.0025);
+  EXPECT_EQ(tissueProfile(*profiles, "plastisol")->tissue.lambda1, 0.144);
+  const auto missing = tissueProfile(*profiles, "liver");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().message.find("there are: agar, none, plastisol"), std::string::npos)
+      << missing.error().message;
+
+  const auto dir = std::filesystem::temp_directory_path() / "ignav_tissues_test";
+  std::filesystem::create_directories(dir);
+  auto load = [&](const std::string& text) {
+    std::ofstream(dir / "t.yaml") << text;
+    return loadTissueProfiles((dir / "t.yaml").string());
+  };
+  auto bad = load("tissues:\n  gel: {lambda1: 0.1, lambda_2: 0.2}\n");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("tissues.gel.lambda_2: unknown key"), std::string::npos)
+      << bad.error().message;
+  bad = load("tissues:\n  gel: {lambda1: 0, lambda2: 1}\n");  // inadmissible: (23)
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("tissues.gel: (23) fails"), std::string::npos)
+      << bad.error().message;
+  bad = load("needle: {wheelbase_mm: -1}\ntissues:\n  gel: {lambda1: 0, lambda2: 0}\n");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("needle.wheelbase_mm"), std::string::npos);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

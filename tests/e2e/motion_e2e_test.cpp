@@ -108,6 +108,9 @@ TEST(MotionE2E, ApprovedMotionArrivesAtTheTargetsStepsAndNothingElseMoves) {
   op->waitFor([](const json& s) { return s["motion"]["state"] == "idle"; }, 5s);
   const json& t = op->state()["targets"][std::to_string(id)];
   EXPECT_EQ(t["status"], "reached");
+  // configs/server.yaml picks agar: every target carries the model's predicted cannula drift.
+  EXPECT_NE(op->state()["robot"]["tissue"].get<std::string>().find("agar"), std::string::npos);
+  EXPECT_TRUE(t["predicted_deviation_mm"].is_number()) << t.dump();
   const Eigen::Vector3d robot_mm(t["robot"][0], t["robot"][1], t["robot"][2]);
   EXPECT_EQ(steps(op->state()["motion"]["steps"]), stepsFor(robot_mm));
   const json& tip = op->state()["motion"]["tip_robot"];
@@ -282,6 +285,12 @@ TEST(MotionE2E, BadControllerAndApprovalOptionsNameTheKey) {
     EXPECT_EQ(code, 2) << c.yaml << ": " << out;
     EXPECT_NE(out.find(c.expected), std::string::npos) << out;
   }
+  const auto [tissue_code, tissue_out] =
+      runServer("--config " IGNAV_SOURCE_DIR "/configs/server.yaml --domain 65 --tissue liver");
+  EXPECT_EQ(tissue_code, 2);
+  EXPECT_NE(tissue_out.find("tissue 'liver' is not a profile (there are: agar, none, plastisol)"),
+            std::string::npos)
+      << tissue_out;
   const auto [code, out] = runServer("--config " IGNAV_SOURCE_DIR
                                      "/configs/server.yaml --domain 65 --controller serial:/dev/x");
   EXPECT_EQ(code, 2);

@@ -282,6 +282,19 @@ TEST(PlanCli, DeflectionSimulateThenFitRecoversTheTissue) {
   EXPECT_NEAR(f["lambda2"].get<double>(), 0.22, 1e-6);
   EXPECT_EQ(f["stderr"].size(), 2u);
   EXPECT_GT(f["max_error_bicycle_mm"].get<double>(), 10 * f["max_error_mm"].get<double>());
+  // The figure of observed vs fitted: a 900 x 560 PNG (its IHDR, read here byte by byte).
+  const auto png = dir / "fit.png";
+  const auto plot = plan("deflection plot --k -0.0025 --ell 20 --in " +
+                         (dir / "path.csv").string() + " --out " + png.string());
+  ASSERT_EQ(plot.exit_code, 0) << plot.out;
+  std::ifstream in(png, std::ios::binary);
+  std::vector<unsigned char> head(24);
+  in.read(reinterpret_cast<char*>(head.data()), 24);
+  EXPECT_EQ(head[1], 'P');
+  EXPECT_EQ(head[2], 'N');
+  EXPECT_EQ((head[18] << 8) | head[19], 900);
+  EXPECT_EQ((head[22] << 8) | head[23], 560);
+  EXPECT_NEAR(json::parse(plot.out)["lambda1"].get<double>(), 0.49, 1e-6);
   // An inadmissible tissue is an answer; a bad CSV line is an error naming the line.
   const auto bad = plan("deflection simulate --k -0.0025 --ell 20 --lambda1 0 --lambda2 1");
   EXPECT_EQ(bad.exit_code, 0);

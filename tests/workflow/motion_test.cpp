@@ -554,6 +554,38 @@ TEST(Approval, ThePlansTargetLimitComesFromThePolicyAndIsJournaled) {
   EXPECT_NE(r.message.find("2 targets"), std::string::npos) << r.message;
 }
 
+TEST(Deflection, TargetsCarryTheCannulaDriftTheSessionsTissuePredicts) {
+  // With the plain model ("none": λ = 0) the drift after zc mm is the circle's (1 − cos k zc)/k.
+  config::TissueProfile none;
+  none.name = "none";
+  none.needle = {-1.0 / 400.0, 20.0, -1};
+  Session s = newSession("tissue", paperRobot(), "robot.yaml");
+  Input config = Bench::internal(InputKind::kConfigLoaded);
+  config.policy = policy();
+  config.tissue = none;
+  auto step = reduce(s, config);
+  // The profile travels in the journal, so a replay predicts the same.
+  const auto entry = parseJournalRecord(step.effects.journal.at(0));
+  ASSERT_TRUE(entry.ok()) << entry.error().message;
+  ASSERT_TRUE(entry->input.tissue.has_value());
+  EXPECT_EQ(entry->input.tissue->name, "none");
+  EXPECT_EQ(entry->input.tissue->needle.curvature_per_mm, -1.0 / 400.0);
+
+  Bench b;
+  EXPECT_TRUE(std::isnan(b.target(b.addRobotTarget(kJointsA)).predicted_deviation_mm));
+  b.s.tissue = none;
+  const auto id = b.addRobotTarget(kJointsB);
+  const auto& t = b.target(id);
+  const double k = none.needle.curvature_per_mm, zc = t.solution.joints.z_c_mm;
+  EXPECT_NEAR(t.predicted_deviation_mm, (1.0 - std::cos(k * zc)) / k, 1e-9);
+  // Agar drifts differently, and the report labels the number as a model's.
+  b.s.tissue->name = "agar";
+  b.s.tissue->tissue = {0.49, 0.22};
+  const auto agar = b.addRobotTarget(kJointsB);
+  EXPECT_GT(std::abs(b.target(agar).predicted_deviation_mm - t.predicted_deviation_mm), 0.01);
+  EXPECT_NE(procedureReport(b.s).find("model prediction"), std::string::npos);
+}
+
 // Random command sequences, adversarial approvals included, against an independent account of
 // what may move: every motor command must follow an approve that named the pending plan's id and
 // digest, from an approver, before expiry, with nothing accepted in between; and the number of

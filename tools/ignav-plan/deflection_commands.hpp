@@ -17,6 +17,7 @@ struct DeflectionArgs {
   double step_mm = 1.0;
   std::string csv_path;  // fit: depth_mm,deflection_mm per line, after a header
   bool fit_curvature = false;
+  std::string png_path;  // plot: where the figure goes
 };
 
 // {"admissible": true, "path": [[s, z, y, gamma], ...]}; an inadmissible tissue is an answer:
@@ -24,5 +25,8 @@ struct DeflectionArgs {
 nlohmann::json simulateDeflection(const DeflectionArgs& args);
 // {"lambda1", "lambda2", "stderr": [...], "corr", "max_error_mm", "max_error_bicycle_mm", ...}
 nlohmann::json fitDeflection(const DeflectionArgs& args);
+// A PNG of tip paths (depth across, deflection down): the plain model and Table I's tissues (as
+// seed 000's Fig. 5), or, with a CSV, the observations with the fitted extended and plain models.
+nlohmann::json plotDeflection(const DeflectionArgs& args);
 
 }  // namespace ignav::plan

@@ -302,6 +302,13 @@ int main(int argc, char** argv) {
   auto* defl_fit = defl->get_subcommand("fit");
   defl_fit->add_option("--in", deflection_args.csv_path, "CSV: depth_mm,deflection_mm")->required();
   defl_fit->add_flag("--fit-k", deflection_args.fit_curvature, "fit the curvature too");
+  auto* defl_plot = defl->add_subcommand(
+      "plot", "PNG: paths for several tissues (seed 000's Fig. 5), or observed vs fitted");
+  defl_plot->add_option("--k", deflection_args.needle.curvature_per_mm)->required();
+  defl_plot->add_option("--ell", deflection_args.needle.wheelbase_mm)->required();
+  defl_plot->add_option("--length", deflection_args.length_mm, "inserted length (mm)");
+  defl_plot->add_option("--in", deflection_args.csv_path, "observed path: plot it with the fits");
+  defl_plot->add_option("--out", deflection_args.png_path, "the PNG")->required();
 
   try {
     app.parse(argc, argv);
@@ -314,8 +321,9 @@ int main(int argc, char** argv) {
 
   try {
     if (*defl) {
-      const auto out = defl_sim->parsed() ? ignav::plan::simulateDeflection(deflection_args)
-                                          : ignav::plan::fitDeflection(deflection_args);
+      const auto out = defl_sim->parsed()    ? ignav::plan::simulateDeflection(deflection_args)
+                       : defl_plot->parsed() ? ignav::plan::plotDeflection(deflection_args)
+                                             : ignav::plan::fitDeflection(deflection_args);
       std::cout << out.dump(defl_sim->parsed() ? -1 : 2) << "\n";
       return 0;
     }

@@ -118,6 +118,15 @@ void evaluate(const Session& s, Target& t) {
   t.solution = *solution;
   t.message = fmt::format("target {}: {}", t.id, robot.kinematics.describe(t.solution, t.robot_mm));
   if (t.solution.reachable()) t.steps = robot.transmission.toSteps(t.solution.joints).steps;
+  if (s.tissue && t.solution.reachable()) {
+    // A model prediction only: the cannula's sideways drift after zc mm pushed into the tissue.
+    const double zc = t.solution.joints.z_c_mm;
+    if (zc <= 0.0) {
+      t.predicted_deviation_mm = 0.0;
+    } else if (auto path = deflection::simulate(s.tissue->needle, s.tissue->tissue, zc, zc)) {
+      t.predicted_deviation_mm = path->back().y_mm;
+    }
+  }
   const auto& settings = robot.config.registration;
   t.tre_mm = registration::expectedTre_mm(registration::describeFiducials(reg.image_mm), t.lps_mm,
                                           settings.fle_mm, reg.kind);
@@ -229,6 +238,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
   switch (in.kind) {
     case InputKind::kConfigLoaded:
       if (in.policy) adoptPolicy(s, *in.policy);
+      if (in.tissue) s.tissue = in.tissue;
       e.robot_changed = e.approval_changed = true;
       return std::nullopt;
     case InputKind::kLoadVolume:
@@ -581,6 +591,14 @@ json journalRecord(const Input& in, const Session& after) {
                         {"max_targets", in.policy->limits.max_targets},
                         {"max_total_rotation_rad", in.policy->limits.max_total_rotation_rad}};
   }
+  if (in.tissue) {
+    record["tissue"] = {{"name", in.tissue->name},
+                        {"source", in.tissue->source},
+                        {"lambda1", in.tissue->tissue.lambda1},
+                        {"lambda2", in.tissue->tissue.lambda2},
+                        {"curvature_per_mm", in.tissue->needle.curvature_per_mm},
+                        {"wheelbase_mm", in.tissue->needle.wheelbase_mm}};
+  }
   if (in.plan_id != 0) record["plan_id"] = in.plan_id;
   if (!in.digest.empty()) record["digest"] = in.digest;
   if (in.controller) {
@@ -665,6 +683,16 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
     e.input.plan_id = r.value("plan_id", std::uint64_t{0});
     e.input.digest = r.value("digest", "");
     if (r.contains("controller")) e.input.controller = readingFromJson(r.at("controller"));
+    if (r.contains("tissue")) {
+      const json& t = r.at("tissue");
+      config::TissueProfile profile;
+      profile.name = t.at("name").get<std::string>();
+      profile.source = t.value("source", "");
+      profile.tissue = {t.at("lambda1").get<double>(), t.at("lambda2").get<double>()};
+      profile.needle.curvature_per_mm = t.at("curvature_per_mm").get<double>();
+      profile.needle.wheelbase_mm = t.at("wheelbase_mm").get<double>();
+      e.input.tissue = std::move(profile);
+    }
     if (r.contains("policy")) {
       const json& p = r.at("policy");
       ApprovalPolicy policy;

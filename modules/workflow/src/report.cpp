@@ -48,6 +48,12 @@ std::string procedureReport(const Session& s, const std::vector<std::string>& im
   if (s.robot) {
     out += fmt::format("- robot: {} (`{}`)\n", s.robot->config.name, s.robot_path);
   }
+  if (s.tissue) {
+    out += fmt::format(
+        "- tissue: {} (λ1 {:g}, λ2 {:g}; {}). \"drift\" below is a model prediction (extended "
+        "bicycle model): the cannula tip's sideways deviation after its zc of insertion\n",
+        s.tissue->name, s.tissue->tissue.lambda1, s.tissue->tissue.lambda2, s.tissue->source);
+  }
   out += fmt::format("- CT: {} {}\n", s.volume_status.status,
                      s.volume_status.message.empty() ? "" : "— " + s.volume_status.message);
   if (s.registration) {
@@ -65,14 +71,14 @@ std::string procedureReport(const Session& s, const std::vector<std::string>& im
   // (no slices without targets)
   out +=
       "| # | id | status | LPS (mm) | robot (mm) | θc (°) | zc (mm) | zs (mm) | steps | TRE (mm) "
-      "| reached (UTC) |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+      "| drift (mm, model) | reached (UTC) |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (std::size_t i = 0; i < s.targets.size(); ++i) {
     const auto& t = s.targets[i];
     const auto& j = t.solution.joints;
     const bool planned = t.registered && t.solution.reachable();
     out += fmt::format(
-        "| {} | T{} | {} | ({:.2f}, {:.2f}, {:.2f}) | {} | {} | {} | {} | {} | {} | {} |\n", i + 1,
-        t.id, t.status(), t.lps_mm.x(), t.lps_mm.y(), t.lps_mm.z(),
+        "| {} | T{} | {} | ({:.2f}, {:.2f}, {:.2f}) | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+        i + 1, t.id, t.status(), t.lps_mm.x(), t.lps_mm.y(), t.lps_mm.z(),
         t.registered ? fmt::format("({:.2f}, {:.2f}, {:.2f})", t.robot_mm.x(), t.robot_mm.y(),
                                    t.robot_mm.z())
                      : "—",
@@ -82,6 +88,8 @@ std::string procedureReport(const Session& s, const std::vector<std::string>& im
         planned ? fmt::format("{} / {} / {}", t.steps.motor[0], t.steps.motor[1], t.steps.motor[2])
                 : "—",
         t.registered ? fmt::format("{:.2f}{}", t.tre_mm, t.tre_warning ? " ⚠" : "") : "—",
+        std::isfinite(t.predicted_deviation_mm) ? fmt::format("{:.2f}", t.predicted_deviation_mm)
+                                                : "—",
         t.reached ? utc(t.reached_s) : "—");
   }
   std::string notes;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -14,6 +15,7 @@
 #include "ignav/actuation/controller.hpp"
 #include "ignav/actuation/transmission.hpp"
 #include "ignav/config/robot_config.hpp"
+#include "ignav/config/tissue_profiles.hpp"
 #include "ignav/kinematics/solver.hpp"
 #include "ignav/planning/insertion_plan.hpp"
 #include "ignav/registration/point_registration.hpp"
@@ -132,6 +134,8 @@ struct Input {
   // kConfigLoaded: who may approve, for how long, the controller's profile. Journaled with the
   // input, so recovery and offline replay judge approvals by the same rules.
   std::optional<ApprovalPolicy> policy;
+  // kConfigLoaded: the tissue the session's deflection predictions use (none: no prediction).
+  std::optional<config::TissueProfile> tissue;
   // What the controller said just before this input (approve, resume, reset_emergency, home and
   // the controller's own inputs): the reducer judges the robot by it, and replay sees the same.
   std::optional<actuation::ControllerStatus> controller;
@@ -158,6 +162,9 @@ struct Target {
   actuation::Steps steps;
   double tre_mm = 0.0;
   bool tre_warning = false;
+  // Model prediction (extended bicycle model, the session's tissue): how far the cannula's tip
+  // drifts sideways after its zc mm of insertion. NaN without a tissue profile.
+  double predicted_deviation_mm = std::numeric_limits<double>::quiet_NaN();
   bool reached = false;        // the stylet tip was brought here (verified steps)
   double reached_s = 0.0;      // when (Unix seconds)
   std::string message;         // person-readable reachability
@@ -225,6 +232,7 @@ struct Session {
   std::uint32_t next_target_id = 1;
   bool order_fixed = false;  // reorder_targets was used: lock_plan keeps the user's order
   ApprovalPolicy policy;
+  std::optional<config::TissueProfile> tissue;
   actuation::Steps position;  // last verified absolute motor position (zero = home)
   std::optional<MotionRequest> pending;
   std::optional<ActiveMotion> motion;
