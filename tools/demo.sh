@@ -76,6 +76,15 @@ for view in axial coronal sagittal; do
   i=$((i + 1))
 done
 
+echo "== needle deflection in soft tissue (extended bicycle model, seed 000)"
+"$plan" deflection plot --k -0.0025 --ell 20 --out "$out/deflection_paths.png" | tee "$out/deflection_paths.json"
+# An "observed" path: agar (Table I) every 2 mm, fitted back; the plain model fits it worse.
+"$plan" deflection simulate --k -0.0025 --ell 20 --lambda1 0.49 --lambda2 0.22 --step 2 |
+  python3 -c 'import json,sys; print("depth_mm,deflection_mm"); [print("%.6f,%.6f" % (r[1], r[2])) for r in json.load(sys.stdin)["path"][1:]]' \
+  > "$out/agar_path.csv"
+"$plan" deflection fit --k -0.0025 --ell 20 --in "$out/agar_path.csv" | tee "$out/deflection_fit.json"
+"$plan" deflection plot --k -0.0025 --ell 20 --in "$out/agar_path.csv" --out "$out/deflection_fit.png" > /dev/null
+
 echo "== the paper's IK simulation, closed form vs exact (writes figures)"
 "$plan" study --robot "$robot" --out-dir "$out" > "$out/study.json"
 echo

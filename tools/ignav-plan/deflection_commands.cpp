@@ -96,7 +96,8 @@ void savePlot(const std::vector<Curve>& curves, const std::string& title, const 
   text("depth z (mm)", {w / 2 - 50, h - 15});
   text("deflection y (mm)", {5, top - 15});
   text(title, {left + 160, 25}, 0.55);
-  int legend = top + 20;
+  // The legend bottom left: the paths bend down to the right, away from it.
+  int legend = h - bottom - 20 * static_cast<int>(curves.size()) - 5;
   for (const auto& c : curves) {
     if (c.points) {
       for (const auto& p : c.zy_mm)
@@ -105,8 +106,8 @@ void savePlot(const std::vector<Curve>& curves, const std::string& title, const 
       for (std::size_t i = 1; i < c.zy_mm.size(); ++i)
         cv::line(img, at(c.zy_mm[i - 1]), at(c.zy_mm[i]), c.bgr, 2, cv::LINE_AA);
     }
-    cv::line(img, {w - 300, legend - 4}, {w - 270, legend - 4}, c.bgr, 2);
-    text(c.label, {w - 262, legend});
+    cv::line(img, {left + 15, legend - 4}, {left + 45, legend - 4}, c.bgr, 2);
+    text(c.label, {left + 53, legend});
     legend += 20;
   }
   const auto png = volume::encodePngBgr(img.data, img.cols, img.rows, img.step[0]);
