@@ -47,6 +47,13 @@ int main(int argc, char** argv) {
   app.add_option("--approver", approvers,
                  "a client id allowed to approve motion (repeatable; "
                  "replaces the config's list)");
+  std::string identity;
+  app.add_option("--identity", identity,
+                 "DDS Security identity folder (cert.pem, key.pem, permissions.p7s, "
+                 "governance.p7s, identity_ca.pem, permissions_ca.pem); overrides the config");
+  bool insecure = false;
+  app.add_flag("--insecure", insecure,
+               "DDS Security off even if the config names an identity (local development only)");
   CLI11_PARSE(app, argc, argv);
 
   // Logs go to stderr: stdout carries the readiness line only.
@@ -59,6 +66,8 @@ int main(int argc, char** argv) {
     if (!session_dir.empty()) options.session_dir = session_dir;
     if (!robot.empty()) options.robot_config = robot;
     if (!dds_config.empty()) options.dds_config = dds_config;
+    if (!identity.empty()) options.security.identity = identity;
+    if (insecure) options.security.identity.clear();
     if (controller == "simulated") {
       options.controller.kind = controller;
     } else if (controller.rfind("galil:", 0) == 0) {

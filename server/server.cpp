@@ -22,6 +22,7 @@
 #include "ignav/config/robot_config.hpp"
 #include "ignav/journal/journal.hpp"
 #include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/security.hpp"
 #include "ignav/registration/robot_phantom.hpp"
 #include "ignav/registration/slicer_export.hpp"
 #include "ignav/volume/load.hpp"
@@ -186,14 +187,34 @@ class Loader {
   std::deque<Input> done_;
 };
 
+// The identity the server presents, if security is on (server.yaml `security:`).
+std::optional<SecurityIdentity> serverIdentity(const SecurityOptions& o) {
+  if (o.identity.empty()) {
+    spdlog::warn(
+        "DDS SECURITY IS OFF: no identity configured (server.yaml security.identity or "
+        "--identity). Any process on the network can read patient images and send commands, "
+        "approvals included. Use this for local development only (docs/SECURITY.md).");
+    return std::nullopt;
+  }
+  SecurityIdentity id = identityFromFolder(o.identity);
+  if (!o.plugins.empty()) id.plugin_dir = o.plugins;
+  spdlog::info("DDS Security on: identity {} ({})", o.identity,
+               certificateSubject(readConfigFile(id.certificate)));
+  return id;
+}
+
 class Server {
  public:
   // Without a journal the server only replays (nothing is written).
   Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robot, fs::path session_dir,
          std::optional<journal::Journal> journal)
       : options_(o),
-        participant_(o.domain_id, o.dds_config.empty() ? "" : readConfigFile(o.dds_config)),
-        commands_(participant_, &ignav_msg_Command_desc, topic::kCommand, Qos::kRequest),
+        identity_(serverIdentity(o.security)),
+        participant_(o.domain_id, o.dds_config.empty() ? "" : readConfigFile(o.dds_config),
+                     identity_ ? &*identity_ : nullptr),
+        commands_{{participant_, &ignav_msg_Command_desc, topic::kCommandViewer, Qos::kRequest},
+                  {participant_, &ignav_msg_Command_desc, topic::kCommandPlanner, Qos::kRequest},
+                  {participant_, &ignav_msg_Command_desc, topic::kCommandApprover, Qos::kRequest}},
         replies_(participant_, &ignav_msg_Reply_desc, topic::kReply, Qos::kRequest),
         slice_requests_(participant_, &ignav_msg_SliceRequest_desc, topic::kSliceRequest,
                         Qos::kRequest),
@@ -217,7 +238,9 @@ class Server {
         session_dir_(std::move(session_dir)),
         journal_(std::move(journal)),
         started_(Clock::now()) {
-    waitset_.attach(commands_.handle());
+    for (const auto& c : commands_)
+      waitset_.attach(c.handle());
+    if (identity_) senders_.emplace(participant_, identity_->identity_ca);
     waitset_.attach(slice_requests_.handle());
     waitset_.attach(approvals_.handle());
     waitset_.attach(emergency_stops_.handle());
@@ -297,7 +320,8 @@ class Server {
     superviseController(true);
     publishHealth();  // then once a second
     std::cout << "ignav-server ready domain=" << options_.domain_id
-              << " session=" << session_dir_.string() << std::endl;
+              << " session=" << session_dir_.string() << " security=" << (identity_ ? "on" : "OFF")
+              << std::endl;
     auto last_health = Clock::now();
     auto last_event = Clock::now() - kBusyPoll;
     while (!stop.load()) {
@@ -311,38 +335,49 @@ class Server {
       std::size_t handled = 0;
       bool failed = false;
       // Emergency stops first: the robot halts before anything else is looked at.
-      handled += emergency_stops_.take([&](const ignav_msg_EmergencyStop& e) {
-        if (!failed && !step(toInput(e))) failed = true;
-      });
-      handled += approvals_.take([&](const ignav_msg_Approval& a) {
-        if (!failed && !step(toInput(a))) failed = true;
+      handled += emergency_stops_.takeFrom(
+          [&](const ignav_msg_EmergencyStop& e, dds_instance_handle_t from) {
+            if (!failed && !step(withSender(toInput(e), "any", emergency_stops_.handle(), from)))
+              failed = true;
+          });
+      handled += approvals_.takeFrom([&](const ignav_msg_Approval& a, dds_instance_handle_t from) {
+        if (!failed && !step(withSender(toInput(a), "approver", approvals_.handle(), from)))
+          failed = true;
       });
       if (failed) return 3;
       for (auto& in : loader_.finished()) {
         ++handled;
         if (!step(in)) return 3;
       }
-      handled += commands_.take([&](const ignav_msg_Command& c) {
-        if (failed) return;
-        auto in = toInput(c);
-        if (!in) {
-          workflow::Reply r{
-              c.client_id ? c.client_id : "",
-              c.request_id,
-              false,
-              "unknown_command",
-              fmt::format("command kind {} is not one of ours", static_cast<int>(c.kind)),
-              0,
-              session_.revision};
-          sendReply(r);
-          return;
-        }
-        if (auto bad = checkPath(*in)) {
-          sendReply(*bad);
-          return;
-        }
-        if (!step(*in)) failed = true;
-      });
+      for (const Role role : kRoles) {
+        const auto& reader = commands_[static_cast<int>(role)];
+        handled += reader.takeFrom([&](const ignav_msg_Command& c, dds_instance_handle_t from) {
+          if (failed) return;
+          auto in = toInput(c);
+          if (!in) {
+            sendReply({c.client_id ? c.client_id : "", c.request_id, false, "unknown_command",
+                       fmt::format("command kind {} is not one of ours", static_cast<int>(c.kind)),
+                       0, session_.revision});
+            return;
+          }
+          // The topic is the role (DDS Security permissions decide who may publish on it); a
+          // command above that role is refused whatever the client says it is.
+          if (requiredRole(c.kind) > role) {
+            sendReply({in->client_id, in->request_id, false, "not_permitted",
+                       fmt::format("'{}' needs the {} role; it came on {} ({} role)",
+                                   commandKindName(c.kind), toString(requiredRole(c.kind)),
+                                   commandTopic(role), toString(role)),
+                       0, session_.revision});
+            return;
+          }
+          if (auto bad = checkPath(*in)) {
+            sendReply(*bad);
+            return;
+          }
+          if (!step(withSender(std::move(*in), toString(role), reader.handle(), from)))
+            failed = true;
+        });
+      }
       if (failed) return 3;
       handled += slice_requests_.take([&](const ignav_msg_SliceRequest& r) { answerSlice(r); });
       while (!internal_.empty()) {
@@ -440,8 +475,8 @@ class Server {
     session_ = std::move(s.session);
     const auto& e = s.effects;
     if (!e.journal.empty() || !e.replies.empty()) {
-      spdlog::info("{} from '{}' #{}: {} -> {}", workflow::toString(in.kind), in.client_id,
-                   in.request_id,
+      spdlog::info("{} from '{}'{} #{}: {} -> {}", workflow::toString(in.kind), in.client_id,
+                   in.identity.empty() ? "" : " (" + in.identity + ")", in.request_id,
                    e.replies.empty() || e.replies.front().accepted
                        ? "accepted"
                        : "rejected (" + e.replies.front().error_code + ")",
@@ -490,7 +525,8 @@ class Server {
       const auto left = until - Clock::now();
       waitset_.wait(std::chrono::duration_cast<std::chrono::milliseconds>(
           std::min<Clock::duration>(left, std::chrono::milliseconds(50))));
-      commands_.take([&](const ignav_msg_Command& c) { refuse(c.client_id, c.request_id); });
+      for (const auto& c : commands_)
+        c.take([&](const ignav_msg_Command& cmd) { refuse(cmd.client_id, cmd.request_id); });
       approvals_.take([&](const ignav_msg_Approval& a) { refuse(a.client_id, a.request_id); });
       emergency_stops_.take(
           [&](const ignav_msg_EmergencyStop& e) { refuse(e.client_id, e.request_id); });
@@ -542,6 +578,21 @@ class Server {
                            in.path + ": no such file or folder on the server",
                            0,
                            session_.revision};
+  }
+
+  // Stamps who sent an input: the role of its topic and, with DDS Security on, the certificate
+  // subject the sender authenticated with (docs/SECURITY.md).
+  Input withSender(Input in, const char* role, dds_entity_t reader, dds_instance_handle_t from) {
+    in.role = role;
+    if (senders_) {
+      const auto sender = senders_->of(reader, from);
+      in.identity = sender.subject;
+      if (sender.subject.empty()) {
+        spdlog::warn("{} from '{}': sender identity not verified: {}", toString(in.kind),
+                     in.client_id, sender.why_not);
+      }
+    }
+    return in;
   }
 
   void sendReply(const workflow::Reply& r) {
@@ -1045,8 +1096,9 @@ class Server {
   }
 
   ServerOptions options_;
+  std::optional<SecurityIdentity> identity_;  // DDS Security on with it
   Participant participant_;
-  Reader<ignav_msg_Command> commands_;
+  Reader<ignav_msg_Command> commands_[3];  // by Role
   Writer<ignav_msg_Reply> replies_;
   Reader<ignav_msg_SliceRequest> slice_requests_;
   Writer<ignav_msg_SliceReply> slice_replies_;
@@ -1060,6 +1112,7 @@ class Server {
   Reader<ignav_msg_EmergencyStop> emergency_stops_;
   Writer<ignav_msg_ApprovalState> approval_;
   Writer<ignav_msg_MotionState> motion_;
+  std::optional<SenderIdentities> senders_;  // with DDS Security on
   ControllerHandle controller_;
   std::chrono::milliseconds control_period_;
   actuation::ControllerStatus last_reading_;
@@ -1133,10 +1186,10 @@ ServerOptions loadServerOptions(const std::string& path) {
   for (const auto& kv : s) {
     const std::string key = kv.first.Scalar();
     if (key != "robot_config" && key != "dds" && key != "session_root" && key != "controller" &&
-        key != "approval" && key != "planning" && key != "tissue") {
+        key != "approval" && key != "planning" && key != "tissue" && key != "security") {
       throw ConfigError(path + ": server." + key +
                         ": unknown key; expected robot_config, dds, session_root, controller, "
-                        "approval, planning, tissue");
+                        "approval, planning, tissue, security");
     }
   }
   try {
@@ -1192,6 +1245,20 @@ ServerOptions loadServerOptions(const std::string& path) {
         } else {
           throw ConfigError(path + ": server.planning." + key +
                             ": unknown key; expected max_targets, max_total_rotation_deg");
+        }
+      }
+    }
+    if (const YAML::Node sec = s["security"]) {
+      for (const auto& kv : sec) {
+        const std::string key = kv.first.Scalar();
+        if (key == "identity") {
+          const auto folder = kv.second.as<std::string>();
+          o.security.identity = folder.empty() ? "" : resolve(base, folder);
+        } else if (key == "plugins") {
+          o.security.plugins = kv.second.as<std::string>();
+        } else {
+          throw ConfigError(path + ": server.security." + key +
+                            ": unknown key; expected identity, plugins");
         }
       }
     }

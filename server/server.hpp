@@ -22,8 +22,16 @@ struct ControllerOptions {
   int control_period_ms = 10;  // how often a moving robot is polled and its state published
 };
 
+// DDS Security (server.yaml `security:`, docs/SECURITY.md). Without an identity the server runs
+// unauthenticated and unencrypted, for local development only, and says so loudly.
+struct SecurityOptions {
+  std::string identity;  // an identity folder (configs/security/make-test-pki.sh writes them)
+  std::string plugins;   // folder of Cyclone's libdds_security_*.so ("" = Debian's)
+};
+
 struct ServerOptions {
   ControllerOptions controller;
+  SecurityOptions security;
   std::vector<std::string> approvers;  // client ids allowed to approve motion
   double approval_expiry_s = 120.0;
   std::string tissue_profiles;                  // configs/tissues.yaml

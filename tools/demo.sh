@@ -10,17 +10,22 @@ plan=build/tools/ignav-plan/ignav-plan
 out=out/demo
 rm -rf "$out" && mkdir -p "$out"
 
+echo "== DDS Security: a test CA and an identity per role (configs/security/make-test-pki.sh)"
+configs/security/make-test-pki.sh "$out/pki"
+
 echo "== the server, the built-in phantom and the scripted client (configs/demo/plan.yaml)"
 session="$out/session"
 server_log="$out/server.log"
 build/server/ignav-server --config configs/server.yaml --session-dir "$session" \
-  > "$out/server.ready" 2> "$server_log" &
+  --identity "$out/pki/service" > "$out/server.ready" 2> "$server_log" &
 server_pid=$!
 trap 'kill $server_pid 2>/dev/null || true' EXIT
 for _ in $(seq 100); do grep -q "ready" "$out/server.ready" 2>/dev/null && break; sleep 0.1; done
 cat "$out/server.ready"
-# The scripted client is the operator (configs/server.yaml approval.approvers).
-ctl="build/tools/ignavctl/ignavctl --dds-config configs/dds/loopback.xml --client-id operator"
+# The scripted client is the operator (configs/server.yaml approval.approvers), authenticated with
+# the approver identity: it may plan and approve. Every command is encrypted on the wire.
+ctl="build/tools/ignavctl/ignavctl --dds-config configs/dds/loopback.xml --identity $out/pki/approver"
+ctl="$ctl --client-id operator"
 $ctl run configs/demo/plan.yaml --out-dir "$session"
 echo
 $ctl status

@@ -18,8 +18,8 @@ packages=(
   dcm2niix time
   # DDS
   cyclonedds-dev cyclonedds-tools
-  # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev
+  # tests and benchmarks (tshark: the DDS Security test captures the loopback)
+  libgtest-dev libgmock-dev libbenchmark-dev tshark
   # ITK reads our .tfm files back in the tests (an independent reader)
   libinsighttoolkit5-dev
   # reference DICOM files for tests (pydicom ships real edge cases)

@@ -30,9 +30,35 @@ json array(const double (&a)[N]) {
 
 }  // namespace
 
+// A writer this identity may not have: DDS Security refuses it (PermissionDenied) when the
+// permissions do not grant the topic; the refusal is kept and named when the writer is needed.
+template <typename T>
+struct OptionalWriter {
+  OptionalWriter(const Participant& p, const dds_topic_descriptor_t* desc, const char* name)
+      : topic(name) {
+    try {
+      writer = std::make_unique<Writer<T>>(p, desc, name, Qos::kRequest);
+    } catch (const PermissionDenied&) {
+      writer.reset();  // refused: named when it is needed
+    }
+  }
+  const Writer<T>& get(const std::string& what) const {
+    if (!writer) {
+      throw PermissionDenied(what +
+                             ": this identity's DDS Security permissions do not allow "
+                             "publishing on " +
+                             topic);
+    }
+    return *writer;
+  }
+  bool ready() const { return !writer || writer->matched() > 0; }
+  std::string topic;
+  std::unique_ptr<Writer<T>> writer;
+};
+
 struct Client::Impl {
   Participant participant;
-  Writer<ignav_msg_Command> commands;
+  OptionalWriter<ignav_msg_Command> commands[3];  // by Role
   Reader<ignav_msg_Reply> replies;
   Writer<ignav_msg_SliceRequest> slice_requests;
   Reader<ignav_msg_SliceReply> slice_replies;
@@ -42,15 +68,17 @@ struct Client::Impl {
   Reader<ignav_msg_RegistrationState> registration;
   Reader<ignav_msg_TargetState> target;
   Reader<ignav_msg_Health> health;
-  Writer<ignav_msg_Approval> approvals;
+  OptionalWriter<ignav_msg_Approval> approvals;
   Writer<ignav_msg_EmergencyStop> emergency_stops;
   Reader<ignav_msg_ApprovalState> approval;
   Reader<ignav_msg_MotionState> motion;
   WaitSet waitset;
 
-  Impl(std::uint32_t domain, const std::string& xml)
-      : participant(domain, xml),
-        commands(participant, &ignav_msg_Command_desc, topic::kCommand, Qos::kRequest),
+  Impl(std::uint32_t domain, const std::string& xml, const SecurityIdentity* identity)
+      : participant(domain, xml, identity),
+        commands{{participant, &ignav_msg_Command_desc, topic::kCommandViewer},
+                 {participant, &ignav_msg_Command_desc, topic::kCommandPlanner},
+                 {participant, &ignav_msg_Command_desc, topic::kCommandApprover}},
         replies(participant, &ignav_msg_Reply_desc, topic::kReply, Qos::kRequest),
         slice_requests(participant, &ignav_msg_SliceRequest_desc, topic::kSliceRequest,
                        Qos::kRequest),
@@ -62,7 +90,7 @@ struct Client::Impl {
                      Qos::kState),
         target(participant, &ignav_msg_TargetState_desc, topic::kTarget, Qos::kState),
         health(participant, &ignav_msg_Health_desc, topic::kHealth, Qos::kState),
-        approvals(participant, &ignav_msg_Approval_desc, topic::kApproval, Qos::kRequest),
+        approvals(participant, &ignav_msg_Approval_desc, topic::kApproval),
         emergency_stops(participant, &ignav_msg_EmergencyStop_desc, topic::kEmergencyStop,
                         Qos::kRequest),
         approval(participant, &ignav_msg_ApprovalState_desc, topic::kApprovalState, Qos::kState),
@@ -73,8 +101,10 @@ struct Client::Impl {
   }
 };
 
-Client::Client(std::uint32_t domain_id, const std::string& config_xml, std::string client_id)
-    : impl_(std::make_unique<Impl>(domain_id, config_xml)), client_id_(std::move(client_id)) {
+Client::Client(std::uint32_t domain_id, const std::string& config_xml, std::string client_id,
+               const SecurityIdentity* identity)
+    : impl_(std::make_unique<Impl>(domain_id, config_xml, identity)),
+      client_id_(std::move(client_id)) {
   state_["targets"] = json::object();
   // The server answers a repeated (client_id, request_id) from memory. A client id is often
   // reused by the next process (a console's name), so request ids start at the wall clock in
@@ -90,9 +120,13 @@ Client::~Client() = default;
 bool Client::waitForServer(std::chrono::milliseconds timeout) {
   const auto end = Clock::now() + timeout;
   while (Clock::now() < end) {
-    if (impl_->commands.matched() > 0 && impl_->replies.matched() > 0 &&
+    // Every writer this identity has must be matched, or its first sample could be lost.
+    bool writers = impl_->approvals.ready();
+    for (const auto& c : impl_->commands)
+      writers = writers && c.ready();
+    if (writers && impl_->commands[0].writer && impl_->replies.matched() > 0 &&
         impl_->slice_requests.matched() > 0 && impl_->slice_replies.matched() > 0 &&
-        impl_->approvals.matched() > 0 && impl_->emergency_stops.matched() > 0) {
+        impl_->emergency_stops.matched() > 0) {
       return true;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -111,7 +145,10 @@ workflow::Reply Client::send(const std::string& command, const CommandArgs& args
   for (const auto& p : args.points)
     owned.points.push_back(toMsg(p));
   owned.ids = args.ids;
-  impl_->commands.write(owned.build(request_id, *kind));
+  const Role role = requiredRole(*kind);
+  impl_->commands[static_cast<int>(role)]
+      .get("'" + command + "' needs the " + toString(role) + " role")
+      .write(owned.build(request_id, *kind));
   return awaitReply(request_id, command, timeout);
 }
 
@@ -123,7 +160,7 @@ workflow::Reply Client::approve(std::uint64_t plan_id, const std::string& digest
   a.request_id = request_id;
   a.plan_id = plan_id;
   a.digest = cstr(digest);
-  impl_->approvals.write(a);
+  impl_->approvals.get("approving needs the approver role").write(a);
   return awaitReply(request_id, "approve", timeout);
 }
 

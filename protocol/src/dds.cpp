@@ -1,6 +1,10 @@
 #include "ignav/protocol/dds.hpp"
 
+#include "ignav/protocol/security.hpp"
+
 #include <fstream>
+#include <map>
+#include <mutex>
 #include <sstream>
 
 namespace ignav::protocol {
@@ -43,11 +47,69 @@ std::size_t matchedOf(dds_entity_t entity, bool writer) {
   return s.current_count;
 }
 
+// Cyclone 0.10 authenticates one identity per process and domain: a second participant with
+// another certificate is created but never matches anyone (found by the security e2e tests).
+// The identities in use, so that this is an error instead of silence.
+struct DomainIdentity {
+  std::string certificate;  // "" = security off
+  int participants = 0;
+};
+std::mutex g_identities_mutex;
+std::map<std::uint32_t, DomainIdentity> g_identities;
+
+void claimIdentity(std::uint32_t domain, const std::string& certificate) {
+  std::lock_guard<std::mutex> lock(g_identities_mutex);
+  auto& d = g_identities[domain];
+  if (d.participants > 0 && d.certificate != certificate) {
+    throw DdsError("DDS domain " + std::to_string(domain) + ": this process already has a " +
+                   (d.certificate.empty() ? std::string("participant without security")
+                                          : "participant with the identity " + d.certificate) +
+                   "; Cyclone DDS authenticates one identity per process and domain (use one "
+                   "process per identity)");
+  }
+  d.certificate = certificate;
+  ++d.participants;
+}
+
+void releaseIdentity(std::uint32_t domain) {
+  std::lock_guard<std::mutex> lock(g_identities_mutex);
+  auto it = g_identities.find(domain);
+  if (it != g_identities.end() && --it->second.participants <= 0) g_identities.erase(it);
+}
+
 }  // namespace
 
 dds_return_t check(dds_return_t rc, const char* what) {
+  if (rc == DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) {
+    throw PermissionDenied(std::string(what) +
+                           ": not allowed by DDS Security (this identity's permissions)");
+  }
   if (rc < 0) throw DdsError(std::string(what) + ": " + dds_strretcode(rc));
   return rc;
+}
+
+const char* toString(Role role) {
+  switch (role) {
+    case Role::kViewer:
+      return "viewer";
+    case Role::kPlanner:
+      return "planner";
+    case Role::kApprover:
+      return "approver";
+  }
+  return "?";
+}
+
+const char* commandTopic(Role role) {
+  switch (role) {
+    case Role::kViewer:
+      return topic::kCommandViewer;
+    case Role::kPlanner:
+      return topic::kCommandPlanner;
+    case Role::kApprover:
+      return topic::kCommandApprover;
+  }
+  return topic::kCommandViewer;
 }
 
 std::string readConfigFile(const std::string& path) {
@@ -58,7 +120,20 @@ std::string readConfigFile(const std::string& path) {
   return text.str();
 }
 
-Participant::Participant(std::uint32_t domain_id, const std::string& config_xml) {
+Participant::Participant(std::uint32_t domain_id, const std::string& config_xml,
+                         const SecurityIdentity* identity)
+    : domain_id_(domain_id) {
+  claimIdentity(domain_id, identity ? identity->certificate : "");
+  try {
+    create(domain_id, config_xml, identity);
+  } catch (...) {
+    releaseIdentity(domain_id);
+    throw;
+  }
+}
+
+void Participant::create(std::uint32_t domain_id, const std::string& config_xml,
+                         const SecurityIdentity* identity) {
   if (!config_xml.empty()) {
     domain_ = dds_create_domain(domain_id, config_xml.c_str());
     if (domain_ < 0 && domain_ != DDS_RETCODE_PRECONDITION_NOT_MET) {
@@ -68,12 +143,32 @@ Participant::Participant(std::uint32_t domain_id, const std::string& config_xml)
     }
     if (domain_ < 0) domain_ = 0;
   }
-  participant_ = check(dds_create_participant(domain_id, nullptr, nullptr), "participant");
+  dds_qos_t* qos = nullptr;
+  if (identity) {
+    qos = dds_create_qos();
+    try {
+      addSecurityQos(qos, *identity);
+    } catch (...) {
+      dds_delete_qos(qos);
+      throw;
+    }
+  }
+  participant_ = dds_create_participant(domain_id, qos, nullptr);
+  if (qos) dds_delete_qos(qos);
+  if (participant_ < 0 && identity) {
+    throw DdsError("DDS Security refused the identity in " + identity->folder +
+                   " (its certificate, key, permissions or governance is invalid, expired or "
+                   "not signed by its CA; Cyclone's log names which): " +
+                   dds_strretcode(participant_));
+  }
+  check(participant_, "participant");
+  secure_ = identity != nullptr;
 }
 
 Participant::~Participant() {
   dds_delete(participant_);
   if (domain_ > 0) dds_delete(domain_);
+  releaseIdentity(domain_id_);
 }
 
 template <typename T>
@@ -117,6 +212,27 @@ std::size_t Reader<T>::takeWithState(const std::function<void(const T&, bool)>& 
         fn(*static_cast<const T*>(samples[i]), alive && infos[i].valid_data);
         ++count;
       }
+    }
+    dds_return_loan(reader_, samples, n);
+    if (n < kBatch) break;
+  }
+  return count;
+}
+
+template <typename T>
+std::size_t Reader<T>::takeFrom(
+    const std::function<void(const T&, dds_instance_handle_t)>& fn) const {
+  constexpr int kBatch = 32;
+  std::size_t count = 0;
+  for (;;) {
+    void* samples[kBatch] = {};
+    dds_sample_info_t infos[kBatch];
+    const dds_return_t n = dds_take(reader_, samples, infos, kBatch, kBatch);
+    if (n <= 0) break;
+    for (int i = 0; i < n; ++i) {
+      if (!infos[i].valid_data || infos[i].instance_state != DDS_IST_ALIVE) continue;
+      fn(*static_cast<const T*>(samples[i]), infos[i].publication_handle);
+      ++count;
     }
     dds_return_loan(reader_, samples, n);
     if (n < kBatch) break;

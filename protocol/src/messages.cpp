@@ -6,26 +6,27 @@ namespace {
 struct KindName {
   ignav_msg_CommandKind kind;
   workflow::InputKind input;
+  Role role;  // the least role that may give it (docs/SECURITY.md)
 };
 
 constexpr KindName kKinds[] = {
-    {ignav_msg_CMD_LOAD_VOLUME, workflow::InputKind::kLoadVolume},
-    {ignav_msg_CMD_SET_FIDUCIALS, workflow::InputKind::kSetFiducials},
-    {ignav_msg_CMD_AUTO_FIDUCIALS, workflow::InputKind::kAutoFiducials},
-    {ignav_msg_CMD_ADD_TARGET, workflow::InputKind::kAddTarget},
-    {ignav_msg_CMD_MOVE_TARGET, workflow::InputKind::kMoveTarget},
-    {ignav_msg_CMD_REMOVE_TARGET, workflow::InputKind::kRemoveTarget},
-    {ignav_msg_CMD_CLEAR_TARGETS, workflow::InputKind::kClearTargets},
-    {ignav_msg_CMD_REORDER_TARGETS, workflow::InputKind::kReorderTargets},
-    {ignav_msg_CMD_LOCK_PLAN, workflow::InputKind::kLockPlan},
-    {ignav_msg_CMD_UNLOCK_PLAN, workflow::InputKind::kUnlockPlan},
-    {ignav_msg_CMD_STOP, workflow::InputKind::kStop},
-    {ignav_msg_CMD_RESUME, workflow::InputKind::kResume},
-    {ignav_msg_CMD_EMERGENCY_STOP, workflow::InputKind::kEmergencyStop},
-    {ignav_msg_CMD_RESET_EMERGENCY, workflow::InputKind::kResetEmergency},
-    {ignav_msg_CMD_QUERY, workflow::InputKind::kQuery},
-    {ignav_msg_CMD_REQUEST_APPROVAL, workflow::InputKind::kRequestApproval},
-    {ignav_msg_CMD_HOME, workflow::InputKind::kHome},
+    {ignav_msg_CMD_LOAD_VOLUME, workflow::InputKind::kLoadVolume, Role::kPlanner},
+    {ignav_msg_CMD_SET_FIDUCIALS, workflow::InputKind::kSetFiducials, Role::kPlanner},
+    {ignav_msg_CMD_AUTO_FIDUCIALS, workflow::InputKind::kAutoFiducials, Role::kPlanner},
+    {ignav_msg_CMD_ADD_TARGET, workflow::InputKind::kAddTarget, Role::kPlanner},
+    {ignav_msg_CMD_MOVE_TARGET, workflow::InputKind::kMoveTarget, Role::kPlanner},
+    {ignav_msg_CMD_REMOVE_TARGET, workflow::InputKind::kRemoveTarget, Role::kPlanner},
+    {ignav_msg_CMD_CLEAR_TARGETS, workflow::InputKind::kClearTargets, Role::kPlanner},
+    {ignav_msg_CMD_REORDER_TARGETS, workflow::InputKind::kReorderTargets, Role::kPlanner},
+    {ignav_msg_CMD_LOCK_PLAN, workflow::InputKind::kLockPlan, Role::kPlanner},
+    {ignav_msg_CMD_UNLOCK_PLAN, workflow::InputKind::kUnlockPlan, Role::kPlanner},
+    {ignav_msg_CMD_STOP, workflow::InputKind::kStop, Role::kPlanner},
+    {ignav_msg_CMD_RESUME, workflow::InputKind::kResume, Role::kApprover},
+    {ignav_msg_CMD_EMERGENCY_STOP, workflow::InputKind::kEmergencyStop, Role::kViewer},
+    {ignav_msg_CMD_RESET_EMERGENCY, workflow::InputKind::kResetEmergency, Role::kApprover},
+    {ignav_msg_CMD_QUERY, workflow::InputKind::kQuery, Role::kViewer},
+    {ignav_msg_CMD_REQUEST_APPROVAL, workflow::InputKind::kRequestApproval, Role::kPlanner},
+    {ignav_msg_CMD_HOME, workflow::InputKind::kHome, Role::kApprover},
 };
 
 std::string copy(const char* s) {
@@ -39,6 +40,13 @@ std::optional<ignav_msg_CommandKind> commandKindFromName(const std::string& name
     if (name == workflow::toString(k.input)) return k.kind;
   }
   return std::nullopt;
+}
+
+Role requiredRole(ignav_msg_CommandKind kind) {
+  for (const auto& k : kKinds) {
+    if (k.kind == kind) return k.role;
+  }
+  return Role::kApprover;  // unknown kinds are refused anyway
 }
 
 const char* commandKindName(ignav_msg_CommandKind kind) {

@@ -533,6 +533,35 @@ TEST(Approval, UserOrderBeyondTheRotationLimitIsRefusedServerOrderIsNot) {
       << ok.message;
 }
 
+TEST(Approval, AnApproverListedByCertificateSubjectApprovesWhateverItsClientIdAndIsJournaled) {
+  Bench b;
+  const std::string subject = "CN=approver,O=ignav,C=NL";
+  b.s.policy.approvers = {"surgeon", subject};
+  b.addRobotTarget(kJointsA);
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  const auto p = b.s.pending.value();
+  // Neither the client id nor the identity listed: refused, and the message names both.
+  Input stranger = b.approve(p.plan_id, p.digest, "console");
+  stranger.identity = "CN=planner,O=ignav,C=NL";
+  const auto refused = b.send(stranger);
+  EXPECT_EQ(refused.error_code, "not_approver");
+  EXPECT_NE(refused.message.find("CN=planner"), std::string::npos) << refused.message;
+  // The identity listed, any client id: accepted, and the journal keeps who and through what.
+  Input approver = b.approve(p.plan_id, p.digest, "console");
+  approver.identity = subject;
+  approver.role = "approver";
+  const auto journal_before = b.journal.size();
+  ASSERT_TRUE(b.send(approver).accepted);
+  ASSERT_GT(b.journal.size(), journal_before);
+  const auto entry = parseJournalRecord(b.journal.at(journal_before));
+  ASSERT_TRUE(entry.ok());
+  EXPECT_EQ(entry->input.kind, InputKind::kApprove);
+  EXPECT_EQ(entry->input.identity, subject);
+  EXPECT_EQ(entry->input.role, "approver");
+  EXPECT_EQ(entry->input.client_id, "console");
+  EXPECT_EQ(b.s.motions.back().approved_by, subject);
+}
+
 TEST(Approval, ThePlansTargetLimitComesFromThePolicyAndIsJournaled) {
   Bench b;
   ApprovalPolicy p = policy();

@@ -18,6 +18,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <optional>
 #include <thread>
 
 #include "ignav/protocol/client.hpp"
@@ -372,6 +373,11 @@ int main(int argc, char** argv) {
   app.add_option("--client-id", client_id, "who this client is in replies and the journal");
   app.add_flag("--json", as_json, "machine-readable output");
   app.add_option("--wait-server", wait_s, "seconds to wait for the server");
+  std::string identity;
+  app.add_option("--identity", identity,
+                 "DDS Security identity folder (cert.pem, key.pem, permissions.p7s, ...); "
+                 "without one, security is off")
+      ->envname("IGNAV_IDENTITY");
 
   auto* status = app.add_subcommand("status", "phase, volume, registration, targets");
   std::string load_path;
@@ -425,6 +431,9 @@ int main(int argc, char** argv) {
   replay->add_option("--speed", replay_speed, "1, 10, ... times real time, or max");
   replay->add_option("--until", replay_until, "stop at this revision (journal sequence number)");
   replay->add_option("--server-config", server_config, "server YAML (robot config)");
+  std::string replay_identity;
+  replay->add_option("--server-identity", replay_identity,
+                     "the replaying server's DDS Security identity (a service identity)");
   CLI11_PARSE(app, argc, argv);
 
   if (*replay) {
@@ -434,6 +443,12 @@ int main(int argc, char** argv) {
     std::vector<std::string> args{
         server,       "--config", server_config,          "--replay",     replay_dir, "--speed",
         replay_speed, "--domain", std::to_string(domain), "--dds-config", dds_config};
+    if (!replay_identity.empty()) {
+      args.push_back("--identity");
+      args.push_back(replay_identity);
+    } else {
+      args.push_back("--insecure");
+    }
     if (replay_until != 0) {
       args.push_back("--until");
       args.push_back(std::to_string(replay_until));
@@ -450,9 +465,16 @@ int main(int argc, char** argv) {
 
   try {
     const std::string xml = dds_config.empty() ? "" : ignav::protocol::readConfigFile(dds_config);
-    Client client(domain, xml, client_id);
+    std::optional<ignav::protocol::SecurityIdentity> secure;
+    if (!identity.empty()) {
+      secure = ignav::protocol::identityFromFolder(identity);
+    } else {
+      std::cerr << "ignavctl: DDS Security is off (no --identity): for local development only\n";
+    }
+    Client client(domain, xml, client_id, secure ? &*secure : nullptr);
     if (!client.waitForServer(std::chrono::milliseconds(static_cast<long>(wait_s * 1000)))) {
-      std::cerr << "ignavctl: no ignav-server on DDS domain " << domain << "\n";
+      std::cerr << "ignavctl: no ignav-server on DDS domain " << domain
+                << (secure ? " that authenticates this identity" : "") << "\n";
       return kExitNoServer;
     }
     // The state topics are transient-local: a late joiner gets the present at once.
@@ -559,7 +581,16 @@ int main(int argc, char** argv) {
       return r.accepted ? 0 : kExitRejected;
     }
     if (*approve) {
-      client.poll();
+      // Each state topic's present arrives on its own after discovery: give the approval state
+      // a moment before concluding that nothing is pending.
+      try {
+        client.waitFor(
+            [](const json& s) {
+              return s.contains("approval") && s["approval"].value("status", "") == "pending";
+            },
+            2s);
+      } catch (const ignav::protocol::Timeout&) {
+      }
       if (approve_plan == 0) {
         const json shown = client.state().value("approval", json::object());
         if (shown.value("status", "") != "pending") {

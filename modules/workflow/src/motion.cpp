@@ -210,12 +210,16 @@ std::optional<Rejection> checkApproval(const Session& s, const Input& in) {
   if (!s.pending) return Rejection{"no_pending_approval", "no motion is waiting for approval"};
   const auto& p = *s.pending;
   const auto& approvers = s.policy.approvers;
-  if (std::find(approvers.begin(), approvers.end(), in.client_id) == approvers.end()) {
+  const auto listed = [&](const std::string& who) {
+    return !who.empty() && std::find(approvers.begin(), approvers.end(), who) != approvers.end();
+  };
+  if (!listed(in.client_id) && !listed(in.identity)) {
     std::string list;
     for (const auto& a : approvers)
       list += (list.empty() ? "" : ", ") + a;
     return Rejection{"not_approver",
-                     fmt::format("client '{}' may not approve motion (approvers: {})", in.client_id,
+                     fmt::format("client '{}'{} may not approve motion (approvers: {})",
+                                 in.client_id, in.identity.empty() ? "" : " (" + in.identity + ")",
                                  list.empty() ? "none configured" : list)};
   }
   if (in.plan_id != p.plan_id) {

@@ -386,8 +386,8 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       e.controller.push_back({ControllerAction::kMove, m.request.moves.front().steps});
       note = fmt::format("plan {} approved: {} move(s), about {:.1f} s", m.request.plan_id,
                          m.request.moves.size(), m.request.duration_s);
-      s.motions.push_back(
-          {m.request.plan_id, m.request.target_id, in.client_id, in.time_s, -1.0, ""});
+      s.motions.push_back({m.request.plan_id, m.request.target_id,
+                           in.identity.empty() ? in.client_id : in.identity, in.time_s, -1.0, ""});
       s.motion = std::move(m);
       return std::nullopt;
     }
@@ -572,6 +572,8 @@ json journalRecord(const Input& in, const Session& after) {
   if (isCommand(in.kind)) {
     record["client_id"] = in.client_id;
     record["request_id"] = in.request_id;
+    if (!in.role.empty()) record["role"] = in.role;
+    if (!in.identity.empty()) record["identity"] = in.identity;
   }
   if (!in.path.empty()) record["path"] = in.path;
   if (!in.points.empty()) record["points"] = points;
@@ -669,6 +671,8 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
     e.phase = r.at("phase").get<std::string>();
     e.input.client_id = r.value("client_id", "");
     e.input.request_id = r.value("request_id", std::uint64_t{0});
+    e.input.role = r.value("role", "");
+    e.input.identity = r.value("identity", "");
     e.input.path = r.value("path", "");
     for (const auto& p : r.value("points", json::array())) {
       e.input.points.emplace_back(p.at(0).get<double>(), p.at(1).get<double>(),

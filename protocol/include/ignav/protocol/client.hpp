@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "ignav/protocol/dds.hpp"
+#include "ignav/protocol/security.hpp"
 #include "ignav/workflow/session.hpp"
 
 namespace ignav::protocol {
@@ -46,7 +47,10 @@ struct Timeout : std::runtime_error {
 
 class Client {
  public:
-  Client(std::uint32_t domain_id, const std::string& config_xml, std::string client_id);
+  // identity: DDS Security on, as that identity (security.hpp); the writers its permissions
+  // refuse are missing, and using one throws PermissionDenied naming the topic.
+  Client(std::uint32_t domain_id, const std::string& config_xml, std::string client_id,
+         const SecurityIdentity* identity = nullptr);
   ~Client();
 
   // Until the server's command reader and reply writer are matched.

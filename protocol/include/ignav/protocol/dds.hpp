@@ -17,7 +17,10 @@ namespace ignav::protocol {
 
 // Topic names (docs/PROTOCOL.md).
 namespace topic {
-constexpr const char* kCommand = "ignav/command";
+// Commands travel on the topic of the least role that may give them (Role, docs/SECURITY.md).
+constexpr const char* kCommandViewer = "ignav/command/viewer";
+constexpr const char* kCommandPlanner = "ignav/command/planner";
+constexpr const char* kCommandApprover = "ignav/command/approver";
 constexpr const char* kReply = "ignav/reply";
 constexpr const char* kSliceRequest = "ignav/slice_request";
 constexpr const char* kSliceReply = "ignav/slice_reply";
@@ -37,9 +40,22 @@ constexpr const char* kMotion = "ignav/state/motion";
 // present). Requests and replies: reliable, volatile, keep-last 64.
 enum class Qos { kState, kRequest };
 
+// The roles of DDS Security, each allowed the command topics of those before it. Approvals
+// (approver) and emergency stops (every authenticated participant) have topics of their own.
+enum class Role { kViewer, kPlanner, kApprover };
+const char* toString(Role role);      // "viewer" | "planner" | "approver"
+const char* commandTopic(Role role);  // topic::kCommandViewer, ...
+constexpr Role kRoles[] = {Role::kViewer, Role::kPlanner, Role::kApprover};
+
 struct DdsError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+// DDS Security refused: this identity's permissions do not allow the topic or the entity.
+struct PermissionDenied : DdsError {
+  using DdsError::DdsError;
+};
+
+struct SecurityIdentity;
 
 // Throws DdsError naming `what` when a DDS call returned an error code.
 dds_return_t check(dds_return_t rc, const char* what);
@@ -47,14 +63,22 @@ dds_return_t check(dds_return_t rc, const char* what);
 class Participant {
  public:
   // config_xml: a Cyclone configuration document (e.g. configs/dds/loopback.xml's text), or ""
-  // for Cyclone's defaults / CYCLONEDDS_URI.
-  Participant(std::uint32_t domain_id, const std::string& config_xml);
+  // for Cyclone's defaults / CYCLONEDDS_URI. identity: DDS Security on with that identity
+  // (security.hpp); null: off. One identity per process and domain (Cyclone 0.10): another
+  // one throws DdsError.
+  Participant(std::uint32_t domain_id, const std::string& config_xml,
+              const SecurityIdentity* identity = nullptr);
   ~Participant();
   Participant(const Participant&) = delete;
   Participant& operator=(const Participant&) = delete;
   dds_entity_t handle() const { return participant_; }
+  bool secure() const { return secure_; }
 
  private:
+  void create(std::uint32_t domain_id, const std::string& config_xml,
+              const SecurityIdentity* identity);
+  std::uint32_t domain_id_ = 0;
+  bool secure_ = false;
   dds_entity_t domain_ = 0;
   dds_entity_t participant_ = 0;
 };
@@ -85,6 +109,9 @@ class Reader {
   std::size_t take(const std::function<void(const T&)>& fn) const;
   // Like take but also reports disposed instances: fn(sample, alive).
   std::size_t takeWithState(const std::function<void(const T&, bool alive)>& fn) const;
+  // Like take, with the handle of the publication each sample came from (who sent it).
+  std::size_t takeFrom(
+      const std::function<void(const T&, dds_instance_handle_t publication)>& fn) const;
   std::size_t matched() const;
   dds_entity_t handle() const { return reader_; }
 

@@ -52,6 +52,8 @@ inline Eigen::Matrix4d fromRowMajor(const double (&in)[16]) {
 // The command kinds by name ("load_volume", ...), for clients.
 std::optional<ignav_msg_CommandKind> commandKindFromName(const std::string& name);
 const char* commandKindName(ignav_msg_CommandKind kind);
+// The least role that may give a command: it travels on commandTopic(requiredRole(kind)).
+Role requiredRole(ignav_msg_CommandKind kind);
 
 // A command as the workflow sees it; nullopt when the kind is not one of ours.
 std::optional<workflow::Input> toInput(const ignav_msg_Command& command);

@@ -106,7 +106,8 @@ constexpr std::size_t kMaxPathLength = 4096;
 
 // Who may release motion and for how long a request stays valid (server.yaml `approval:`).
 struct ApprovalPolicy {
-  std::vector<std::string> approvers;  // client ids; empty: nobody can approve
+  // Client ids or, with DDS Security on, certificate subjects; empty: nobody can approve.
+  std::vector<std::string> approvers;
   double expiry_s = 120.0;
   planning::PlanningLimits limits;  // ordering and rotation limit
   double speed_steps_s = 2000.0;    // the controller's profile, for the duration estimates
@@ -121,9 +122,14 @@ struct LoadedCt {
 
 struct Input {
   InputKind kind = InputKind::kQuery;
-  double time_s = 0.0;  // Unix seconds, stamped by the server; the reducer never reads a clock
-  std::string client_id;
+  double time_s = 0.0;    // Unix seconds, stamped by the server; the reducer never reads a clock
+  std::string client_id;  // self-declared by the client
   std::uint64_t request_id = 0;
+  // Who sent it, as the DDS edge knows it (docs/SECURITY.md): the role whose topic carried the
+  // command ("viewer" | "planner" | "approver" | "any"), and with DDS Security on, the sender's
+  // authenticated certificate subject ("CN=approver,O=ignav,C=NL"; "" when not known).
+  std::string role;
+  std::string identity;
   std::string path;
   std::vector<Eigen::Vector3d> points;
   std::vector<std::uint32_t> ids;

@@ -1,0 +1,101 @@
+// The command-kind -> role table against the permissions the test PKI grants each role
+// (configs/security/roles.txt, what make-test-pki.sh signs): every command's topic is published
+// by its role and the roles above, never by the role below.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/security.hpp"
+
+namespace ignav::protocol {
+namespace {
+
+// role -> the topics it may publish, as roles.txt says.
+std::map<std::string, std::set<std::string>> publishedByRole() {
+  std::ifstream in(IGNAV_SOURCE_DIR "/configs/security/roles.txt");
+  std::map<std::string, std::set<std::string>> out;
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream words(line.substr(0, line.find('|')));
+    std::string role, topic;
+    words >> role;
+    while (words >> topic)
+      out[role].insert(topic);
+  }
+  return out;
+}
+
+const ignav_msg_CommandKind kAllKinds[] = {ignav_msg_CMD_LOAD_VOLUME,
+                                           ignav_msg_CMD_SET_FIDUCIALS,
+                                           ignav_msg_CMD_AUTO_FIDUCIALS,
+                                           ignav_msg_CMD_ADD_TARGET,
+                                           ignav_msg_CMD_MOVE_TARGET,
+                                           ignav_msg_CMD_REMOVE_TARGET,
+                                           ignav_msg_CMD_CLEAR_TARGETS,
+                                           ignav_msg_CMD_REORDER_TARGETS,
+                                           ignav_msg_CMD_LOCK_PLAN,
+                                           ignav_msg_CMD_UNLOCK_PLAN,
+                                           ignav_msg_CMD_STOP,
+                                           ignav_msg_CMD_RESUME,
+                                           ignav_msg_CMD_EMERGENCY_STOP,
+                                           ignav_msg_CMD_RESET_EMERGENCY,
+                                           ignav_msg_CMD_QUERY,
+                                           ignav_msg_CMD_REQUEST_APPROVAL,
+                                           ignav_msg_CMD_HOME};
+
+TEST(Roles, EveryCommandsTopicIsGrantedToItsRoleAndAboveAndNotBelow) {
+  const auto granted = publishedByRole();
+  ASSERT_EQ(granted.size(), 4u);  // viewer, planner, approver, service
+  for (const auto kind : kAllKinds) {
+    const Role role = requiredRole(kind);
+    const std::string topic = commandTopic(role);
+    for (const Role r : kRoles) {
+      const bool may = granted.at(toString(r)).count(topic) > 0;
+      EXPECT_EQ(may, r >= role) << commandKindName(kind) << " on " << topic << " by "
+                                << toString(r);
+    }
+    EXPECT_EQ(granted.at("service").count(topic), 0u) << topic;
+  }
+}
+
+TEST(Roles, OnlyApproversApproveEveryoneStopsAndEachRoleGetsMoreThanTheLast) {
+  const auto granted = publishedByRole();
+  EXPECT_EQ(granted.at("approver").count(topic::kApproval), 1u);
+  EXPECT_EQ(granted.at("planner").count(topic::kApproval), 0u);
+  EXPECT_EQ(granted.at("viewer").count(topic::kApproval), 0u);
+  for (const char* role : {"viewer", "planner", "approver"})
+    EXPECT_EQ(granted.at(role).count(topic::kEmergencyStop), 1u) << role;
+  // Arming the robot again is the approver's; planning is not the viewer's.
+  EXPECT_EQ(requiredRole(ignav_msg_CMD_RESUME), Role::kApprover);
+  EXPECT_EQ(requiredRole(ignav_msg_CMD_RESET_EMERGENCY), Role::kApprover);
+  EXPECT_EQ(requiredRole(ignav_msg_CMD_ADD_TARGET), Role::kPlanner);
+  EXPECT_EQ(requiredRole(ignav_msg_CMD_QUERY), Role::kViewer);
+  EXPECT_EQ(requiredRole(ignav_msg_CMD_EMERGENCY_STOP), Role::kViewer);
+}
+
+TEST(Roles, ACertificateSubjectReadsAsThePermissionsGrantNamesIt) {
+  // A certificate made here with openssl; its subject as openssl prints it (RFC 2253).
+  const std::string dir = ::testing::TempDir() + "/ignav_cert_test";
+  const std::string cmd = "mkdir -p " + dir +
+                          " && openssl req -x509 -newkey ec -pkeyopt "
+                          "ec_paramgen_curve:prime256v1 -nodes -keyout " +
+                          dir + "/k.pem -out " + dir +
+                          "/c.pem -days 1 -subj "
+                          "'/C=NL/O=ignav test/CN=dr smith' 2>/dev/null && openssl x509 -in " +
+                          dir + "/c.pem -noout -subject -nameopt RFC2253 > " + dir + "/s.txt";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  std::ifstream subject_file(dir + "/s.txt");
+  std::string expected;
+  std::getline(subject_file, expected);
+  expected = expected.substr(expected.find('=') + 1);  // "subject=..."
+  EXPECT_EQ(certificateSubject(readConfigFile(dir + "/c.pem")), expected);
+  EXPECT_EQ(expected, "CN=dr smith,O=ignav test,C=NL");
+  EXPECT_EQ(certificateSubject("not a certificate"), "");
+}
+
+}  // namespace
+}  // namespace ignav::protocol
