@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -38,13 +39,16 @@ double since_us(Clock::time_point t) {
 
 int main(int argc, char** argv) {
   if (argc < 3) {
-    std::fprintf(stderr, "usage: bench_latency DOMAIN DDS_CONFIG_XML [ROUNDS]\n");
+    std::fprintf(stderr, "usage: bench_latency DOMAIN DDS_CONFIG_XML [ROUNDS] [IDENTITY_DIR]\n");
     return 2;
   }
   const auto domain = static_cast<std::uint32_t>(std::stoul(argv[1]));
   const int rounds = argc > 3 ? std::stoi(argv[3]) : 2000;
-  // "operator": an approver in configs/server.yaml.
-  ignav::protocol::Client c(domain, ignav::protocol::readConfigFile(argv[2]), "operator");
+  // "operator": an approver in configs/server.yaml. With an identity folder: DDS Security on.
+  std::optional<ignav::protocol::SecurityIdentity> identity;
+  if (argc > 4) identity = ignav::protocol::identityFromFolder(argv[4]);
+  ignav::protocol::Client c(domain, ignav::protocol::readConfigFile(argv[2]), "operator",
+                            identity ? &*identity : nullptr);
   if (!c.waitForServer(std::chrono::seconds(10))) {
     std::fprintf(stderr, "no server on domain %u\n", domain);
     return 3;

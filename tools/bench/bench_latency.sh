@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Command latency of ignav-server next to Cyclone's own ping-pong on the same machine and config.
-#   tools/bench/bench_latency.sh [ROUNDS] [SESSION_PARENT]
+#   tools/bench/bench_latency.sh [ROUNDS] [SESSION_PARENT] [secure]
 # SESSION_PARENT defaults to a disk folder; pass /dev/shm to take the journal's fsync off disk.
+# "secure": DDS Security on (a test PKI; service and approver identities), to see its cost.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 rounds=${1:-2000}
@@ -9,13 +10,20 @@ parent=${2:-out/bench}
 xml=configs/dds/loopback.xml
 mkdir -p "$parent"
 session=$(mktemp -d "$parent/latency.XXXXXX")
+server_identity=(--insecure)
+client_identity=()
+if [ "${3:-}" = secure ]; then
+  configs/security/make-test-pki.sh "$session.pki" > /dev/null
+  server_identity=(--identity "$session.pki/service")
+  client_identity=("$session.pki/approver")
+fi
 build/server/ignav-server --config configs/server.yaml --domain 90 --session-dir "$session" \
-  > "$session.ready" 2> "$session.log" &
+  "${server_identity[@]}" > "$session.ready" 2> "$session.log" &
 pid=$!
-trap 'kill $pid 2>/dev/null || true; rm -rf "$session" "$session.ready" "$session.log"' EXIT
+trap 'kill $pid 2>/dev/null || true; rm -rf "$session" "$session.ready" "$session.log" "$session.pki"' EXIT
 for _ in $(seq 100); do grep -q ready "$session.ready" 2>/dev/null && break; sleep 0.1; done
-echo "ignav-server (session in $parent):"
-build/tools/bench/bench_latency 90 "$xml" "$rounds"
+echo "ignav-server (session in $parent, $(grep -o 'security=[a-zA-Z]*' "$session.ready")):"
+build/tools/bench/bench_latency 90 "$xml" "$rounds" "${client_identity[@]}"
 kill -TERM $pid; wait $pid || true
 
 echo "ddsperf ping-pong, same config (it prints half the round trip; doubled here):"
