@@ -60,6 +60,9 @@ int main(int argc, char** argv) {
   spdlog::set_default_logger(spdlog::stderr_color_mt("ignav-server"));
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
+  // A file over the size limit is an error to report (the journal refuses the change), not a
+  // reason to die.
+  std::signal(SIGXFSZ, SIG_IGN);
   try {
     auto options = ignav::server::loadServerOptions(config_path);
     if (domain) options.domain_id = *domain;

@@ -15,6 +15,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <thread>
 
 #include "ignav/actuation/controller.hpp"
@@ -463,11 +464,22 @@ class Server {
       if (c.isHalt()) runController(c);
     }
     if (!s.effects.journal.empty()) crashPoint("before_journal", s.session.revision);
+    if (!s.effects.journal.empty() && !journal_failure_.empty()) {
+      refuseUnjournaled(in, s.effects);
+      return true;
+    }
     for (const auto& line : s.effects.journal) {
       if (auto ok = journal_->append(line); !ok) {
-        // Nothing is published that the journal does not hold.
-        spdlog::critical("{}", ok.error().message);
-        return false;
+        // Nothing is published or acknowledged that the journal does not hold. The robot is
+        // halted (its arrivals could not be recorded) and every later change is refused until
+        // a restart recovers from the journal as it stands.
+        journal_failure_ = ok.error().message;
+        spdlog::critical("{}: halting the robot and refusing every change until restarted",
+                         journal_failure_);
+        (void)controller_.controller->stop();
+        publishHealth();
+        refuseUnjournaled(in, s.effects);
+        return true;
       }
     }
     if (!s.effects.journal.empty()) crashPoint("after_journal", s.session.revision);
@@ -580,6 +592,23 @@ class Server {
                            session_.revision};
   }
 
+  // An input whose journal record cannot be written: nothing of it happens (but the halts, which
+  // ran first) and its sender is told why.
+  void refuseUnjournaled(const Input& in, const workflow::Effects& effects) {
+    for (const auto& r : effects.replies) {
+      sendReply({r.client_id, r.request_id, false, "journal_failed",
+                 fmt::format("not done: the session journal cannot be written ({}){}; restart "
+                             "the server once the disk is fixed",
+                             journal_failure_,
+                             in.kind == InputKind::kEmergencyStop ? "; the robot WAS halted" : ""),
+                 0, session_.revision});
+    }
+    // The server's own inputs (a finished move, say) come back every control period: say it once.
+    if (effects.replies.empty() && unjournaled_kinds_.insert(in.kind).second) {
+      spdlog::error("{} not recorded (journal failed): dropped", workflow::toString(in.kind));
+    }
+  }
+
   // Stamps who sent an input: the role of its topic and, with DDS Security on, the certificate
   // subject the sender authenticated with (docs/SECURITY.md).
   Input withSender(Input in, const char* role, dds_entity_t reader, dds_instance_handle_t from) {
@@ -651,6 +680,11 @@ class Server {
       if (fault.controller->state == actuation::ControllerState::kIdle) {
         fault.controller->state = actuation::ControllerState::kFault;
       }
+      // The reducer answers a fault with a halt; a halt that fails for the reason just reported
+      // (the controller is gone) must not report it again, or the two feed each other without
+      // end (docs/RELIABILITY.md, finding 1).
+      if (fault.controller->fault == last_fault_reported_) return;
+      last_fault_reported_ = fault.controller->fault;
       internal_.push_back(std::move(fault));
     }
   }
@@ -902,6 +936,8 @@ class Server {
     h.uptime_s = now_s();
     h.commands_accepted = session_.accepted;
     h.commands_rejected = session_.rejected;
+    const std::string journal = journal_failure_.empty() ? "ok" : journal_failure_;
+    h.journal = cstr(journal);
     health_.write(h);
   }
 
@@ -931,8 +967,12 @@ class Server {
     std::vector<std::string> images;
     for (const auto& [id, files] : report_images_)
       images.insert(images.end(), files.begin(), files.end());
-    std::ofstream(session_dir_ / "report.md", std::ios::trunc)
-        << workflow::procedureReport(session_, images);
+    // Written aside and renamed over: a reader never meets a half-written (or empty) report.
+    const fs::path report = session_dir_ / "report.md", aside = session_dir_ / "report.md.tmp";
+    std::ofstream(aside, std::ios::trunc) << workflow::procedureReport(session_, images);
+    std::error_code ec;
+    fs::rename(aside, report, ec);
+    if (ec) spdlog::warn("{}: not updated: {}", report.string(), ec.message());
   }
 
   // The needle's planned path to joints `j` in LPS: the tip retracted at home, the cannula's
@@ -1113,6 +1153,8 @@ class Server {
   Writer<ignav_msg_ApprovalState> approval_;
   Writer<ignav_msg_MotionState> motion_;
   std::optional<SenderIdentities> senders_;  // with DDS Security on
+  std::string journal_failure_;              // why the journal cannot be written ("" = it can)
+  std::set<InputKind> unjournaled_kinds_;
   ControllerHandle controller_;
   std::chrono::milliseconds control_period_;
   actuation::ControllerStatus last_reading_;

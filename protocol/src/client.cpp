@@ -355,7 +355,8 @@ std::vector<std::string> Client::poll() {
                         {"session_dir", str(h.session_dir)},
                         {"uptime_s", h.uptime_s},
                         {"commands_accepted", h.commands_accepted},
-                        {"commands_rejected", h.commands_rejected}};
+                        {"commands_rejected", h.commands_rejected},
+                        {"journal", str(h.journal)}};
   }));
   return changed;
 }

@@ -117,10 +117,12 @@ TEST(MotionE2E, ApprovedMotionArrivesAtTheTargetsStepsAndNothingElseMoves) {
   EXPECT_LT((Eigen::Vector3d(tip[0], tip[1], tip[2]) - robot_mm).norm(), 0.15);
   // The report has the slices through the reached target, and says when it was reached. (The
   // server writes them after its replies and state: wait for the report that lists them.)
+  // (A fresh stream each time: streaming an empty file, caught mid-rewrite, sets failbit, and a
+  // reused stream then stays empty.)
   std::stringstream report;
   for (int i = 0; i < 200 && report.str().find("_reached.png)") == std::string::npos; ++i) {
     std::this_thread::sleep_for(25ms);
-    report.str("");
+    report = std::stringstream();
     report << std::ifstream(server.sessionDir() / "report.md").rdbuf();
   }
   for (const char* view : {"coronal", "axial"}) {

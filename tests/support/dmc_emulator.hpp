@@ -41,12 +41,16 @@ class Emulator {
   ~Emulator() { kill(); }
   void kill() {
     if (pid_ > 0) {
+      ::kill(pid_, SIGCONT);
       ::kill(pid_, SIGKILL);
       ::waitpid(pid_, nullptr, 0);
       pid_ = -1;
     }
   }
   int port() const { return port_; }
+  // A controller that hangs: its TCP connection stays open but nothing answers (SIGSTOP).
+  void stall() { ::kill(pid_, SIGSTOP); }
+  void resume() { ::kill(pid_, SIGCONT); }
 
  private:
   pid_t pid_ = -1;

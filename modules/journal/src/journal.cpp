@@ -1,6 +1,7 @@
 #include "ignav/journal/journal.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -20,11 +21,20 @@ Expected<Journal> Journal::open(const std::string& path) {
   if (fd < 0) {
     return makeError(ErrorCode::kIo, path + ": cannot open journal: " + std::strerror(errno));
   }
-  return Journal(fd, path);
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) {
+    const std::string why = std::strerror(errno);
+    ::close(fd);
+    return makeError(ErrorCode::kIo, path + ": cannot stat journal: " + why);
+  }
+  return Journal(fd, path, static_cast<std::size_t>(st.st_size));
 }
 
 Journal::Journal(Journal&& other) noexcept
-    : fd_(std::exchange(other.fd_, -1)), path_(std::move(other.path_)), records_(other.records_) {}
+    : fd_(std::exchange(other.fd_, -1)),
+      path_(std::move(other.path_)),
+      records_(other.records_),
+      bytes_(other.bytes_) {}
 
 Journal& Journal::operator=(Journal&& other) noexcept {
   if (this != &other) {
@@ -32,6 +42,7 @@ Journal& Journal::operator=(Journal&& other) noexcept {
     fd_ = std::exchange(other.fd_, -1);
     path_ = std::move(other.path_);
     records_ = other.records_;
+    bytes_ = other.bytes_;
   }
   return *this;
 }
@@ -45,18 +56,24 @@ Status Journal::append(const std::string& line) {
     return makeError(ErrorCode::kInvalidArgument, "journal record spans lines");
   }
   const std::string record = line + "\n";
+  // A failed record is cut off again (best effort: if even that fails, recovery drops a torn
+  // last line anyway).
+  auto failed = [&](const char* what) {
+    const std::string why = std::strerror(errno);
+    (void)::ftruncate(fd_, static_cast<off_t>(bytes_));
+    return makeError(ErrorCode::kIo, path_ + ": journal " + what + " failed: " + why);
+  };
   std::size_t written = 0;
   while (written < record.size()) {
     const ssize_t n = ::write(fd_, record.data() + written, record.size() - written);
     if (n < 0) {
       if (errno == EINTR) continue;
-      return makeError(ErrorCode::kIo, path_ + ": journal write failed: " + std::strerror(errno));
+      return failed("write");
     }
     written += static_cast<std::size_t>(n);
   }
-  if (::fdatasync(fd_) != 0) {
-    return makeError(ErrorCode::kIo, path_ + ": journal sync failed: " + std::strerror(errno));
-  }
+  if (::fdatasync(fd_) != 0) return failed("sync");
+  bytes_ += record.size();
   ++records_;
   return Ok{};
 }

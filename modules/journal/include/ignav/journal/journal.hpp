@@ -19,16 +19,20 @@ class Journal {
   Journal& operator=(const Journal&) = delete;
   ~Journal();
 
-  // One line (no newline inside); durable when this returns Ok.
+  // One line (no newline inside); durable when this returns Ok. On an error (disk full, a file
+  // size limit, I/O) the file is cut back to its last whole record, so a later append or a
+  // recovery never meets half a record.
   Status append(const std::string& line);
   const std::string& path() const { return path_; }
   std::size_t records() const { return records_; }
 
  private:
-  Journal(int fd, std::string path) : fd_(fd), path_(std::move(path)) {}
+  Journal(int fd, std::string path, std::size_t bytes)
+      : fd_(fd), path_(std::move(path)), bytes_(bytes) {}
   int fd_ = -1;
   std::string path_;
   std::size_t records_ = 0;
+  std::size_t bytes_ = 0;  // the file's size after the last whole record
 };
 
 // The records of a journal file. A last line without its newline is a write cut short by a crash
