@@ -57,6 +57,9 @@ struct OptionalWriter {
 };
 
 struct Client::Impl {
+  // Replies go to every client on the topic; a client keeps its own only (docs/RELIABILITY.md:
+  // with 20 clients, waking for and copying everyone's slices took the cores).
+  std::string client_id;
   Participant participant;
   OptionalWriter<ignav_msg_Command> commands[3];  // by Role
   Reader<ignav_msg_Reply> replies;
@@ -74,15 +77,25 @@ struct Client::Impl {
   Reader<ignav_msg_MotionState> motion;
   WaitSet waitset;
 
-  Impl(std::uint32_t domain, const std::string& xml, const SecurityIdentity* identity)
-      : participant(domain, xml, identity),
+  template <typename T>
+  static bool mine(const void* sample, void* id) {
+    const char* to = static_cast<const T*>(sample)->client_id;
+    return to && *static_cast<const std::string*>(id) == to;
+  }
+
+  Impl(std::uint32_t domain, const std::string& xml, const SecurityIdentity* identity,
+       std::string id)
+      : client_id(std::move(id)),
+        participant(domain, xml, identity),
         commands{{participant, &ignav_msg_Command_desc, topic::kCommandViewer},
                  {participant, &ignav_msg_Command_desc, topic::kCommandPlanner},
                  {participant, &ignav_msg_Command_desc, topic::kCommandApprover}},
-        replies(participant, &ignav_msg_Reply_desc, topic::kReply, Qos::kRequest),
+        replies(participant, &ignav_msg_Reply_desc, topic::kReply, Qos::kRequest,
+                &mine<ignav_msg_Reply>, &client_id),
         slice_requests(participant, &ignav_msg_SliceRequest_desc, topic::kSliceRequest,
                        Qos::kRequest),
-        slice_replies(participant, &ignav_msg_SliceReply_desc, topic::kSliceReply, Qos::kRequest),
+        slice_replies(participant, &ignav_msg_SliceReply_desc, topic::kSliceReply, Qos::kRequest,
+                      &mine<ignav_msg_SliceReply>, &client_id),
         workflow(participant, &ignav_msg_WorkflowState_desc, topic::kWorkflow, Qos::kState),
         robot(participant, &ignav_msg_RobotState_desc, topic::kRobot, Qos::kState),
         volume(participant, &ignav_msg_VolumeState_desc, topic::kVolume, Qos::kState),
@@ -103,7 +116,7 @@ struct Client::Impl {
 
 Client::Client(std::uint32_t domain_id, const std::string& config_xml, std::string client_id,
                const SecurityIdentity* identity)
-    : impl_(std::make_unique<Impl>(domain_id, config_xml, identity)),
+    : impl_(std::make_unique<Impl>(domain_id, config_xml, identity, client_id)),
       client_id_(std::move(client_id)) {
   state_["targets"] = json::object();
   // The server answers a repeated (client_id, request_id) from memory. A client id is often
@@ -178,7 +191,7 @@ workflow::Reply Client::awaitReply(std::uint64_t request_id, const std::string& 
   const auto end = Clock::now() + timeout;
   // Poll for the first 2 ms before sleeping: a reply usually comes within that, and waking a
   // sleeping thread costs ~150 µs here (docs/PERFORMANCE.md).
-  const auto spin_until = Clock::now() + std::chrono::milliseconds(2);
+  const auto spin_until = Clock::now() + reply_spin_;
   std::optional<workflow::Reply> mine;
   while (!mine) {
     impl_->replies.take([&](const ignav_msg_Reply& r) {

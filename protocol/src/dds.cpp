@@ -193,6 +193,17 @@ Reader<T>::Reader(const Participant& p, const dds_topic_descriptor_t* desc, cons
 }
 
 template <typename T>
+Reader<T>::Reader(const Participant& p, const dds_topic_descriptor_t* desc, const char* name,
+                  Qos qos, dds_topic_filter_arg_fn keep, void* arg) {
+  const QosHolder q(qos);
+  // A topic entity of this reader's own: Cyclone applies a filter to every reader of the entity,
+  // and it must be set before any data can flow.
+  const dds_entity_t t = makeTopic(p, desc, name, q);
+  dds_set_topic_filter_and_arg(t, keep, arg);
+  reader_ = check(dds_create_reader(p.handle(), t, q.qos, nullptr), name);
+}
+
+template <typename T>
 std::size_t Reader<T>::matched() const {
   return matchedOf(reader_, false);
 }
@@ -207,9 +218,13 @@ std::size_t Reader<T>::takeWithState(const std::function<void(const T&, bool)>& 
     const dds_return_t n = dds_take(reader_, samples, infos, kBatch, kBatch);
     if (n <= 0) break;
     for (int i = 0; i < n; ++i) {
-      const bool alive = infos[i].instance_state == DDS_IST_ALIVE;
-      if (infos[i].valid_data || !alive) {
-        fn(*static_cast<const T*>(samples[i]), alive && infos[i].valid_data);
+      // Only a disposal says an instance is gone (its last data, if not yet taken, comes with
+      // it); data whose writer has left since (a sender that exited at once) is still data.
+      if (infos[i].instance_state == DDS_IST_NOT_ALIVE_DISPOSED) {
+        fn(*static_cast<const T*>(samples[i]), false);
+        ++count;
+      } else if (infos[i].valid_data) {
+        fn(*static_cast<const T*>(samples[i]), true);
         ++count;
       }
     }
@@ -230,7 +245,9 @@ std::size_t Reader<T>::takeFrom(
     const dds_return_t n = dds_take(reader_, samples, infos, kBatch, kBatch);
     if (n <= 0) break;
     for (int i = 0; i < n; ++i) {
-      if (!infos[i].valid_data || infos[i].instance_state != DDS_IST_ALIVE) continue;
+      // Not the instance state: a command whose sender has already gone (an emergency stop from
+      // a script that exits at once) is still a command (docs/RELIABILITY.md, finding 3).
+      if (!infos[i].valid_data) continue;
       fn(*static_cast<const T*>(samples[i]), infos[i].publication_handle);
       ++count;
     }

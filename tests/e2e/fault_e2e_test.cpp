@@ -4,10 +4,12 @@
 // Real ignav-server processes over Cyclone DDS on loopback; domains 100-103.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <fstream>
 #include <sstream>
 #include <thread>
 
+#include "ignav/protocol/messages.hpp"
 #include "server_process.hpp"
 #include "support/dmc_emulator.hpp"
 
@@ -201,6 +203,62 @@ TEST(FaultE2E, AClientThatVanishesHoldingAPendingApprovalMovesNothing) {
   const auto approved = approveShown(*op);
   ASSERT_TRUE(approved.accepted) << approved.message;
   op->waitFor([](const json& s) { return phaseIs(s, "at_target"); }, 30s);
+}
+
+// A console that sends an emergency stop and exits at once (a script, a crash right after the
+// press): its writer is gone by the time the server takes the sample. The server once skipped
+// samples of instances without writers, so such a stop could be lost (docs/RELIABILITY.md,
+// finding 3). Repeated, because it is a race.
+TEST(FaultE2E, AnEmergencyStopFromASenderThatExitsAtOnceIsStillTaken) {
+  ServerProcess server(104);
+  auto op = server.client("operator");
+  ASSERT_TRUE(op->send("load_volume", {"phantom:", {}, {}}).accepted);
+  op->waitFor([](const json& s) { return field(s, "volume", "status") == "loaded"; }, 60s);
+  // Another console keeps the server's loop busy with large slices, so that the sender is gone
+  // before the loop comes round to take its stop.
+  std::atomic<bool> busy{true};
+  std::thread viewer([&] {
+    auto v = server.client("viewer");
+    protocol::SliceArgs big;
+    big.size_px = 1024;
+    while (busy)
+      (void)v->slice(big, 10s);
+  });
+  struct Join {
+    std::atomic<bool>& busy;
+    std::thread& t;
+    ~Join() {
+      busy = false;
+      t.join();
+    }
+  } join{busy, viewer};
+  const std::string xml = protocol::readConfigFile(IGNAV_SOURCE_DIR "/configs/dds/loopback.xml");
+  for (int round = 0; round < 20; ++round) {
+    SCOPED_TRACE("round " + std::to_string(round));
+    {
+      protocol::Participant gone(server.domain(), xml);
+      protocol::Writer<ignav_msg_EmergencyStop> stop(gone, &ignav_msg_EmergencyStop_desc,
+                                                     protocol::topic::kEmergencyStop,
+                                                     protocol::Qos::kRequest);
+      for (int i = 0; i < 500 && stop.matched() == 0; ++i)
+        std::this_thread::sleep_for(10ms);
+      ASSERT_GT(stop.matched(), 0u);
+      const std::string id = "script-" + std::to_string(round);
+      ignav_msg_EmergencyStop e{};
+      e.client_id = protocol::cstr(id);
+      e.request_id = 1;
+      stop.write(e);
+    }  // the sender's participant, and its writer, are deleted here
+    try {
+      op->waitFor([](const json& s) { return phaseIs(s, "emergency"); }, 5s);
+    } catch (const protocol::Timeout&) {
+      FAIL() << "round " << round << ": the emergency stop was not taken";
+    }
+    const auto reset = op->send("reset_emergency");
+    ASSERT_TRUE(reset.accepted) << reset.message;
+    ASSERT_TRUE(op->send("resume").accepted) << "round " << round;
+    op->waitFor([](const json& s) { return phaseIs(s, "registration"); }, 5s);
+  }
 }
 
 }  // namespace

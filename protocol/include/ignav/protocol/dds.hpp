@@ -105,9 +105,15 @@ template <typename T>
 class Reader {
  public:
   Reader(const Participant& p, const dds_topic_descriptor_t* desc, const char* name, Qos qos);
-  // Calls `fn` for each valid sample taken (alive data), returns how many.
+  // Only the samples `keep(sample, arg)` accepts are stored and wake a waitset (a local filter:
+  // they still arrive and are decoded). `arg` must outlive the reader.
+  Reader(const Participant& p, const dds_topic_descriptor_t* desc, const char* name, Qos qos,
+         dds_topic_filter_arg_fn keep, void* arg);
+  // Calls `fn` for each sample of data taken, returns how many. Whether its writer still exists
+  // does not matter (a sender may exit right after writing).
   std::size_t take(const std::function<void(const T&)>& fn) const;
-  // Like take but also reports disposed instances: fn(sample, alive).
+  // Like take but also reports disposed instances: fn(sample, alive), alive false for a disposal
+  // (only the key fields are set).
   std::size_t takeWithState(const std::function<void(const T&, bool alive)>& fn) const;
   // Like take, with the handle of the publication each sample came from (who sent it).
   std::size_t takeFrom(
