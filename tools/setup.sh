@@ -20,6 +20,8 @@ packages=(
   cyclonedds-dev cyclonedds-tools
   # tests and benchmarks (tshark: the DDS Security test captures the loopback)
   libgtest-dev libgmock-dev libbenchmark-dev tshark
+  # fuzzing (libFuzzer ships with clang's runtime) and sanitizer symbolisation
+  clang libclang-rt-14-dev llvm
   # ITK reads our .tfm files back in the tests (an independent reader)
   libinsighttoolkit5-dev
   # reference DICOM files for tests (pydicom ships real edge cases)

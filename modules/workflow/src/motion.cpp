@@ -10,6 +10,21 @@
 #include <fmt/format.h>
 
 namespace ignav::workflow::detail {
+
+kinematics::Joints currentJoints(const config::Robot& robot, const actuation::Steps& position) {
+  kinematics::Joints j = robot.transmission.toJoints(position);
+  const auto& g = robot.kinematics.instrument();
+  // Within one step of a limit, outside it: the coupled transmission reaches zs = 0 as
+  // -0.17 µm, say. Such a pose is on the limit, not a pose no plan may start from
+  // (docs/RELIABILITY.md, finding 5); a stalled motor leaves the robot much further out.
+  auto snap = [](double& v, double hi, double one_step) {
+    if (v < 0.0 && v > -one_step) v = 0.0;
+    if (v > hi && v < hi + one_step) v = hi;
+  };
+  snap(j.z_c_mm, g.cannula_travel_mm, 1.0 / robot.transmission.cannulaStepsPerMm());
+  snap(j.z_s_mm, g.stylet_travel_mm, 1.0 / robot.transmission.styletStepsPerMm());
+  return j;
+}
 namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
@@ -73,7 +88,7 @@ namespace ignav::workflow::detail {
 
 Expected<std::optional<MotionRequest>> nextRequest(const Session& s, double time_s) {
   const auto& robot = *s.robot;
-  const kinematics::Joints start = robot.transmission.toJoints(s.position);
+  const kinematics::Joints start = currentJoints(robot, s.position);
   MotionRequest r;
   r.plan_id = s.next_plan_id;
   r.from = s.position;
@@ -116,7 +131,7 @@ Expected<std::optional<MotionRequest>> nextRequest(const Session& s, double time
 
 std::optional<Rejection> orderPlan(Session& s, std::string& summary) {
   const auto& robot = *s.robot;
-  const kinematics::Joints start = robot.transmission.toJoints(s.position);
+  const kinematics::Joints start = currentJoints(robot, s.position);
   const auto todo = unreached(s);
   planning::Ordering ordering;
   if (s.order_fixed) {

@@ -16,6 +16,9 @@ struct Rejection {
 
 // The request for the next motion from the verified position: to the first target in plan order
 // not reached yet, else the final retraction of the stylet. nullopt: nothing left to do.
+// The joints at these motor positions, for planning from: what quantisation alone puts outside
+// a joint range is put back on its limit.
+kinematics::Joints currentJoints(const config::Robot& robot, const actuation::Steps& position);
 Expected<std::optional<MotionRequest>> nextRequest(const Session& s, double time_s);
 
 // Orders the unreached targets (unless the user fixed the order) and checks the rotation limit;
