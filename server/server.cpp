@@ -892,7 +892,9 @@ class Server {
     for (std::size_t i = 0; i < session_.targets.size(); ++i) {
       const auto& t = session_.targets[i];
       if (t.id != id) continue;
-      const std::string reach = kinematics::toString(t.solution.reach);
+      // Named, not temporaries: the sample points into them until it is written (ASan found a
+      // `cond ? reach : std::string()` that died first).
+      const std::string reach = t.registered ? kinematics::toString(t.solution.reach) : "";
       const std::string status = t.status();
       ignav_msg_TargetState m{};
       m.id = t.id;
@@ -900,7 +902,7 @@ class Server {
       m.robot = toMsg(t.robot_mm);
       m.registered = t.registered;
       m.reachable = t.registered && t.solution.reachable();
-      m.reach = cstr(t.registered ? reach : std::string());
+      m.reach = cstr(reach);
       m.message = cstr(t.message);
       m.theta_c_rad = t.solution.joints.theta_c_rad;
       m.z_c_mm = t.solution.joints.z_c_mm;

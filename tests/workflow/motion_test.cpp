@@ -639,7 +639,8 @@ TEST(Deflection, TargetsCarryTheCannulaDriftTheSessionsTissuePredicts) {
   EXPECT_TRUE(std::isnan(b.target(b.addRobotTarget(kJointsA)).predicted_deviation_mm));
   b.s.tissue = none;
   const auto id = b.addRobotTarget(kJointsB);
-  const auto& t = b.target(id);
+  // A copy: adding targets below may move the session's vector (ASan found the reference).
+  const Target t = b.target(id);
   const double k = none.needle.curvature_per_mm, zc = t.solution.joints.z_c_mm;
   EXPECT_NEAR(t.predicted_deviation_mm, (1.0 - std::cos(k * zc)) / k, 1e-9);
   // Agar drifts differently, and the report labels the number as a model's.

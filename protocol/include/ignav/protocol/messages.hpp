@@ -14,6 +14,9 @@ namespace ignav::protocol {
 inline char* cstr(const std::string& s) {
   return const_cast<char*>(s.c_str());
 }
+// Never of a temporary: the sample would point into a string that is gone before it is written
+// (ASan found one; docs/RELIABILITY.md).
+char* cstr(std::string&& s) = delete;
 
 template <typename Seq, typename T>
 void viewSequence(Seq& seq, std::vector<T>& items) {
