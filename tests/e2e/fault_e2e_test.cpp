@@ -250,9 +250,12 @@ TEST(FaultE2E, AnEmergencyStopFromASenderThatExitsAtOnceIsStillTaken) {
       e.client_id = protocol::cstr(id);
       e.request_id = 1;
       stop.write(e);
+      // Delivered (acknowledged by the server's reader), so that what follows is about the
+      // server taking it, not about DDS delivering it before the writer's linger ends.
+      ASSERT_EQ(dds_wait_for_acks(stop.handle(), DDS_SECS(10)), DDS_RETCODE_OK);
     }  // the sender's participant, and its writer, are deleted here
     try {
-      op->waitFor([](const json& s) { return phaseIs(s, "emergency"); }, 5s);
+      op->waitFor([](const json& s) { return phaseIs(s, "emergency"); }, 10s);
     } catch (const protocol::Timeout&) {
       FAIL() << "round " << round << ": the emergency stop was not taken";
     }

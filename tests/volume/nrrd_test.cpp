@@ -152,6 +152,15 @@ TEST(Nrrd, GzipEncodingFromZlib) {
   expectRefVolume(*v);
 }
 
+// Found by fuzz_nrrd: float values whose grid level lies past int16 were converted anyway
+// (undefined behaviour). Such a file is refused with the reason.
+TEST(Nrrd, FloatLevelsPastInt16AreRefusedNotConverted) {
+  const auto v =
+      readNrrd(IGNAV_SOURCE_DIR "/tests/fuzz/regressions/nrrd/float_levels_past_int16.nrrd");
+  ASSERT_FALSE(v.ok());
+  EXPECT_NE(v.error().message.find("not on a grid"), std::string::npos) << v.error().message;
+}
+
 TEST(Nrrd, BigEndianShort) {
   Bytes be;
   for (int x : refValues()) {

@@ -160,6 +160,50 @@ TEST(Workflow, RepeatedRequestIsAnsweredFromMemory) {
   EXPECT_EQ(again.effects.replies[0].target_id, first.effects.replies[0].target_id);
 }
 
+// Found by fuzz_command: a client id of raw bytes threw out of the journal's JSON and took the
+// server down. Text fields must be UTF-8; the rest is refused with the byte that is wrong.
+TEST(Workflow, TextThatIsNotUtf8IsRefusedAndNothingIsJournaled) {
+  const Session s = planningSession();
+  for (const std::string& bad : {std::string("op\xF5"), std::string("\xC0\xAF"),  // overlong '/'
+                                 std::string("a\xED\xA0\x80"),                    // a surrogate
+                                 std::string("\xE2\x82")}) {                      // cut short
+    Input in = command(InputKind::kAddTarget, 7, {{1, 2, 3}});
+    in.client_id = bad;
+    auto step = reduce(s, in);
+    ASSERT_EQ(step.effects.replies.size(), 1u);
+    EXPECT_EQ(step.effects.replies[0].error_code, "bad_text");
+    EXPECT_NE(step.effects.replies[0].message.find("client_id is not UTF-8"), std::string::npos)
+        << step.effects.replies[0].message;
+    EXPECT_TRUE(step.effects.journal.empty());
+    EXPECT_EQ(step.session.revision, s.revision);
+  }
+  Input load = command(InputKind::kLoadVolume, 8);
+  load.path =
+      "/data/\xFF"
+      "ct";
+  const auto step = reduce(s, load);
+  EXPECT_EQ(step.effects.replies.at(0).error_code, "bad_text");
+  EXPECT_NE(step.effects.replies[0].message.find("path is not UTF-8 text (byte 6 is 0xFF)"),
+            std::string::npos)
+      << step.effects.replies[0].message;
+  // Well-formed text of every length of sequence is taken.
+  Input ok = command(InputKind::kAddTarget, 9, {{1, 2, 3}});
+  ok.client_id = "op\xC3\xA9\xE2\x82\xAC\xF0\x9F\x92\x89";  // é € 💉
+  EXPECT_TRUE(reduce(s, ok).effects.replies.at(0).accepted);
+}
+
+// A sender spraying client ids cannot grow the reply memory without end.
+TEST(Workflow, RepliesAreRememberedForABoundedNumberOfClients) {
+  Session s = planningSession();
+  for (int i = 0; i < 1000; ++i) {
+    Input in = command(InputKind::kQuery, 1);
+    in.client_id = "spray-" + std::to_string(i);
+    s = reduce(s, in).session;
+  }
+  EXPECT_LE(s.replies.size(), 256u);
+  EXPECT_TRUE(s.replies.count("spray-999"));  // the latest is kept
+}
+
 TEST(Workflow, JournalRecordsReplayToTheSameSession) {
   // Run a session, keep its journal, then feed the parsed records to a fresh session.
   Session live = newSession("t", paperRobot(), "robot.yaml");

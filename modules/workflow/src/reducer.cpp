@@ -18,6 +18,7 @@ using nlohmann::json;
 
 // Enough for any client's retries in flight; the session is copied per step, so not more.
 constexpr std::size_t kRepliesKeptPerClient = 32;
+constexpr std::size_t kClientsRemembered = 256;
 
 using detail::Rejection;
 
@@ -35,12 +36,54 @@ bool declared(Phase from, InputKind kind, Phase to) {
   return false;
 }
 
+// The index of the first byte that does not belong to well-formed UTF-8 (no overlong forms, no
+// surrogates, nothing past U+10FFFF), or npos. The journal is JSON, which holds text only: a
+// client id of raw bytes once threw out of the reducer and took the server down (found by
+// fuzz_command, docs/RELIABILITY.md).
+std::size_t invalidUtf8At(const std::string& text) {
+  const auto* b = reinterpret_cast<const unsigned char*>(text.data());
+  const std::size_t n = text.size();
+  for (std::size_t i = 0; i < n;) {
+    const unsigned c = b[i];
+    std::size_t len = 0;
+    unsigned lo = 0x80, hi = 0xBF;  // the second byte's range
+    if (c < 0x80) {
+      ++i;
+      continue;
+    } else if (c >= 0xC2 && c <= 0xDF) {
+      len = 2;
+    } else if (c >= 0xE0 && c <= 0xEF) {
+      len = 3;
+      if (c == 0xE0) lo = 0xA0;
+      if (c == 0xED) hi = 0x9F;
+    } else if (c >= 0xF0 && c <= 0xF4) {
+      len = 4;
+      if (c == 0xF0) lo = 0x90;
+      if (c == 0xF4) hi = 0x8F;
+    } else {
+      return i;
+    }
+    if (i + len > n || b[i + 1] < lo || b[i + 1] > hi) return i;
+    for (std::size_t k = 2; k < len; ++k)
+      if (b[i + k] < 0x80 || b[i + k] > 0xBF) return i;
+    i += len;
+  }
+  return std::string::npos;
+}
+
+std::optional<Rejection> checkText(const char* field, const std::string& text) {
+  const std::size_t at = invalidUtf8At(text);
+  if (at == std::string::npos) return std::nullopt;
+  return Rejection{"bad_text", fmt::format("{} is not UTF-8 text (byte {} is 0x{:02X})", field, at,
+                                           static_cast<unsigned char>(text[at]))};
+}
+
 std::optional<Rejection> checkClient(const Input& in) {
   if (in.client_id.empty() || in.client_id.size() > kMaxIdLength) {
     return Rejection{"bad_client_id",
                      fmt::format("client_id must have 1 to {} characters", kMaxIdLength)};
   }
-  return std::nullopt;
+  return checkText("client_id", in.client_id);
 }
 
 std::optional<Rejection> checkShape(const Input& in) {
@@ -48,6 +91,7 @@ std::optional<Rejection> checkShape(const Input& in) {
     return Rejection{"too_long", fmt::format("path has {} characters; at most {}", in.path.size(),
                                              kMaxPathLength)};
   }
+  if (auto bad = checkText("path", in.path)) return bad;
   if (in.points.size() > kMaxTargets || in.ids.size() > kMaxTargets) {
     return Rejection{"oversized", fmt::format("{} points and {} ids given; at most {} of each",
                                               in.points.size(), in.ids.size(), kMaxTargets)};
@@ -649,6 +693,14 @@ void remember(Session& s, const Reply& reply) {
   kept[reply.request_id] = reply;
   while (kept.size() > kRepliesKeptPerClient)
     kept.erase(kept.begin());
+  // Bounded in clients too: a sender spraying client ids would otherwise grow this without end.
+  // Another client's replies go (the first in order: deterministic, as replay needs); its retries
+  // would be executed again, a cost only a crowd of more than kClientsRemembered pays.
+  while (s.replies.size() > kClientsRemembered) {
+    auto victim = s.replies.begin();
+    if (victim->first == reply.client_id) ++victim;
+    s.replies.erase(victim);
+  }
 }
 
 }  // namespace
@@ -780,7 +832,8 @@ Step reduce(const Session& session, const Input& in) {
     reply.message = r.message;
     reply.revision = session.revision;
     ++rejected.session.rejected;
-    if (command && !in.client_id.empty() && in.client_id.size() <= kMaxIdLength) {
+    if (command && !in.client_id.empty() && in.client_id.size() <= kMaxIdLength &&
+        invalidUtf8At(in.client_id) == std::string::npos) {
       remember(rejected.session, reply);
     }
     rejected.effects.replies.push_back(reply);
