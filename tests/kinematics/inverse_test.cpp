@@ -98,6 +98,18 @@ TEST(Reachability, EveryReasonCode) {
   EXPECT_EQ(std::string(toString(Reach::kTooDeep)), "too_deep");
 }
 
+// Found by fuzz_command: the message of a target 1e300 mm away (300 digits per coordinate)
+// overran a fixed 256-byte buffer. Now it is whole, however long.
+TEST(Reachability, TheReasonOfAFarTargetIsWholeHoweverLong) {
+  const auto k = Kinematics::create(paperInstrument()).value();
+  const Eigen::Vector3d far(1e300, -1e300, 1e300);
+  const auto s = k.inverse(far).value();
+  const std::string why = k.describe(s, far);
+  EXPECT_GT(why.size(), 900u);
+  EXPECT_EQ(why.rfind("target (1000000", 0), 0u) << why.substr(0, 40);
+  EXPECT_NE(why.find(" mm is "), std::string::npos);  // the reason follows the coordinates
+}
+
 TEST(Inverse, NonFiniteTargetIsAnErrorNotAResult) {
   const auto k = Kinematics::create(paperInstrument()).value();
   const auto s = k.inverse({NAN, 1.0, -150.0});

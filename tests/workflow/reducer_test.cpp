@@ -192,6 +192,38 @@ TEST(Workflow, TextThatIsNotUtf8IsRefusedAndNothingIsJournaled) {
   EXPECT_TRUE(reduce(s, ok).effects.replies.at(0).accepted);
 }
 
+// Found by fuzz_command: a target 1e300 mm away printed past a fixed message buffer.
+TEST(Workflow, CoordinatesBeyondAKilometreAreRefused) {
+  const Session s = planningSession();
+  const auto step = reduce(s, command(InputKind::kAddTarget, 7, {{1e300, 0, 0}}));
+  EXPECT_EQ(step.effects.replies.at(0).error_code, "out_of_range");
+  EXPECT_NE(step.effects.replies[0].message.find("points[0]"), std::string::npos);
+  EXPECT_TRUE(step.effects.journal.empty());
+  EXPECT_TRUE(reduce(s, command(InputKind::kAddTarget, 8, {{999999, 0, 0}}))
+                  .effects.replies.at(0)
+                  .accepted);  // far, unreachable, but a place
+}
+
+// Found by fuzz_journal: integer fields holding floats out of range were converted anyway
+// (undefined behaviour); now the record is refused, naming the field.
+TEST(Workflow, JournalIntegersAreCheckedNotCast) {
+  const std::string good =
+      R"({"input":"add_target","phase":"planning","revision":5,"t":1.0,"v":1,"client_id":"a",)"
+      R"("request_id":3,"points":[[1,2,3]],"ids":[]})";
+  ASSERT_TRUE(parseJournalRecord(good).ok());
+  for (const auto& [from, to] :
+       {std::pair<std::string, std::string>{"\"revision\":5", "\"revision\":1.8e22"},
+        {"\"revision\":5", "\"revision\":-5"},
+        {"\"request_id\":3", "\"request_id\":3.5"},
+        {"\"ids\":[]", "\"ids\":[4294967296]"},
+        {"\"v\":1", "\"v\":1e300"}}) {
+    std::string bad = good;
+    bad.replace(bad.find(from), from.size(), to);
+    const auto parsed = parseJournalRecord(bad);
+    EXPECT_FALSE(parsed.ok()) << bad;
+  }
+}
+
 // A sender spraying client ids cannot grow the reply memory without end.
 TEST(Workflow, RepliesAreRememberedForABoundedNumberOfClients) {
   Session s = planningSession();

@@ -1,6 +1,7 @@
 // Inverse kinematics: the paper's closed form (MODEL.md §6.2) and its exact refinement (§6.1).
 #include <algorithm>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 
 #include "ignav/kinematics/solver.hpp"
@@ -146,36 +147,46 @@ ClosedFormSolution Kinematics::inverseClosedForm(const Eigen::Vector3d& p) const
   return s;
 }
 
+namespace {
+
+// printf into a string as long as it takes: a target 1e300 mm away prints 300 digits, and the
+// fixed buffer this replaced was overrun (found by fuzz_command, docs/RELIABILITY.md).
+__attribute__((format(printf, 1, 2))) std::string printed(const char* format, ...) {
+  va_list args;
+  va_start(args, format);
+  va_list count;
+  va_copy(count, args);
+  const int n = std::vsnprintf(nullptr, 0, format, count);
+  va_end(count);
+  std::string out(static_cast<std::size_t>(std::max(0, n)), '\0');
+  if (n > 0) std::vsnprintf(out.data(), out.size() + 1, format, args);
+  va_end(args);
+  return out;
+}
+
+}  // namespace
+
 std::string Kinematics::describe(const InverseSolution& s, const Eigen::Vector3d& p) const {
-  char buf[256];
-  const int n =
-      std::snprintf(buf, sizeof buf, "target (%.3f, %.3f, %.3f) mm ", p.x(), p.y(), p.z());
-  const size_t at = static_cast<size_t>(std::max(0, n));
+  const std::string target = printed("target (%.3f, %.3f, %.3f) mm ", p.x(), p.y(), p.z());
   switch (s.reach) {
     case Reach::kReachable:
-      std::snprintf(buf + at, sizeof buf - at, "is reachable");
-      break;
+      return target + "is reachable";
     case Reach::kInsideMinRadius:
-      std::snprintf(buf + at, sizeof buf - at,
-                    "is %.3f mm inside the minimum radius %.3f mm around the cannula axis",
-                    s.excess_mm, r_min_mm_);
-      break;
+      return target +
+             printed("is %.3f mm inside the minimum radius %.3f mm around the cannula axis",
+                     s.excess_mm, r_min_mm_);
     case Reach::kBeyondMaxRadius:
-      std::snprintf(buf + at, sizeof buf - at, "is %.3f mm beyond the maximum radius %.3f mm",
-                    s.excess_mm, r_max_mm_);
-      break;
+      return target +
+             printed("is %.3f mm beyond the maximum radius %.3f mm", s.excess_mm, r_max_mm_);
     case Reach::kTooShallow:
-      std::snprintf(buf + at, sizeof buf - at,
-                    "is %.3f mm too shallow: it needs cannula translation %.3f mm < 0", s.excess_mm,
-                    s.joints.z_c_mm);
-      break;
+      return target + printed("is %.3f mm too shallow: it needs cannula translation %.3f mm < 0",
+                              s.excess_mm, s.joints.z_c_mm);
     case Reach::kTooDeep:
-      std::snprintf(buf + at, sizeof buf - at,
-                    "is %.3f mm too deep: it needs cannula translation %.3f mm > travel %.3f mm",
-                    s.excess_mm, s.joints.z_c_mm, instrument_.cannula_travel_mm);
-      break;
+      return target +
+             printed("is %.3f mm too deep: it needs cannula translation %.3f mm > travel %.3f mm",
+                     s.excess_mm, s.joints.z_c_mm, instrument_.cannula_travel_mm);
   }
-  return buf;
+  return target;
 }
 
 }  // namespace ignav::kinematics

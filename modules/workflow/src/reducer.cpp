@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <set>
+#include <type_traits>
 
 #include <fmt/format.h>
 
@@ -19,6 +21,7 @@ using nlohmann::json;
 // Enough for any client's retries in flight; the session is copied per step, so not more.
 constexpr std::size_t kRepliesKeptPerClient = 32;
 constexpr std::size_t kClientsRemembered = 256;
+constexpr double kMaxCoordinate_mm = 1e6;
 
 using detail::Rejection;
 
@@ -99,6 +102,13 @@ std::optional<Rejection> checkShape(const Input& in) {
   for (std::size_t i = 0; i < in.points.size(); ++i) {
     if (!in.points[i].allFinite()) {
       return Rejection{"non_finite", fmt::format("points[{}] has a non-finite coordinate", i)};
+    }
+    // A kilometre is no place in a patient; far larger finite values once overran a message
+    // buffer downstream (docs/RELIABILITY.md).
+    if (in.points[i].cwiseAbs().maxCoeff() > kMaxCoordinate_mm) {
+      return Rejection{"out_of_range",
+                       fmt::format("points[{}] has a coordinate of {:.4g} mm; at most ±{:.0f} mm",
+                                   i, in.points[i].cwiseAbs().maxCoeff(), kMaxCoordinate_mm)};
     }
   }
   auto want = [&](std::size_t points, std::size_t ids) -> std::optional<Rejection> {
@@ -659,6 +669,33 @@ json journalRecord(const Input& in, const Session& after) {
   return record;
 }
 
+// An integer field of a journal record, checked: nlohmann's get<int>() of a float (1.8e22, say)
+// is an out-of-range conversion, undefined behaviour (found by fuzz_journal).
+template <typename Int>
+Int integer(const json& v, const char* field) {
+  static_assert(std::is_integral_v<Int>);
+  bool fits = false;
+  if (v.is_number_unsigned()) {
+    fits = v.get<std::uint64_t>() <= static_cast<std::uint64_t>(std::numeric_limits<Int>::max());
+  } else if (v.is_number_integer()) {
+    const auto i = v.get<std::int64_t>();
+    fits = std::is_signed_v<Int>
+               ? i >= static_cast<std::int64_t>(std::numeric_limits<Int>::min()) &&
+                     i <= static_cast<std::int64_t>(std::numeric_limits<Int>::max())
+               : i >= 0 && static_cast<std::uint64_t>(i) <=
+                               static_cast<std::uint64_t>(std::numeric_limits<Int>::max());
+  }
+  if (!fits)
+    throw std::invalid_argument(std::string(field) + ": " + v.dump() +
+                                " is not an integer in range");
+  return v.get<Int>();
+}
+
+template <typename Int>
+Int integer(const json& object, const char* field, Int fallback) {
+  return object.contains(field) ? integer<Int>(object.at(field), field) : fallback;
+}
+
 std::optional<actuation::ControllerStatus> readingFromJson(const json& j) {
   actuation::ControllerStatus c;
   const std::string state = j.at("state").get<std::string>();
@@ -671,7 +708,12 @@ std::optional<actuation::ControllerStatus> readingFromJson(const json& j) {
     }
   }
   if (!known) throw std::invalid_argument("unknown controller state '" + state + "'");
-  c.position.motor = j.at("position").get<std::array<std::int64_t, 3>>();
+  const json& position = j.at("position");
+  if (!position.is_array() || position.size() != 3) {
+    throw std::invalid_argument("controller.position: not 3 numbers");
+  }
+  for (std::size_t a = 0; a < 3; ++a)
+    c.position.motor[a] = integer<std::int64_t>(position[a], "controller.position");
   c.moving = j.at("moving").get<std::array<bool, 3>>();
   c.fault = j.at("fault").get<std::string>();
   return c;
@@ -710,7 +752,7 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
   auto bad = [](const std::string& why) { return makeError(ErrorCode::kFormat, why); };
   if (r.is_discarded() || !r.is_object()) return bad("not a JSON object");
   try {
-    if (r.value("v", 0) != kJournalFormat) {
+    if (integer(r, "v", 0) != kJournalFormat) {
       return bad("format version " + r.value("v", json(0)).dump() + ", this build reads " +
                  std::to_string(kJournalFormat));
     }
@@ -719,10 +761,10 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
     e.input.kind = inputKindFromName(r.at("input").get<std::string>(), known);
     if (!known) return bad("unknown input '" + r.at("input").get<std::string>() + "'");
     e.input.time_s = r.at("t").get<double>();
-    e.revision = r.at("revision").get<std::uint64_t>();
+    e.revision = integer<std::uint64_t>(r.at("revision"), "revision");
     e.phase = r.at("phase").get<std::string>();
     e.input.client_id = r.value("client_id", "");
-    e.input.request_id = r.value("request_id", std::uint64_t{0});
+    e.input.request_id = integer(r, "request_id", std::uint64_t{0});
     e.input.role = r.value("role", "");
     e.input.identity = r.value("identity", "");
     e.input.path = r.value("path", "");
@@ -731,12 +773,12 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
                                   p.at(2).get<double>());
     }
     for (const auto& id : r.value("ids", json::array())) {
-      e.input.ids.push_back(id.get<std::uint32_t>());
+      e.input.ids.push_back(integer<std::uint32_t>(id, "ids"));
     }
     e.input.error = r.value("error", "");
     e.input.loaded.source = r.value("source", "");
     e.input.loaded.description = r.value("description", "");
-    e.input.plan_id = r.value("plan_id", std::uint64_t{0});
+    e.input.plan_id = integer(r, "plan_id", std::uint64_t{0});
     e.input.digest = r.value("digest", "");
     if (r.contains("controller")) e.input.controller = readingFromJson(r.at("controller"));
     if (r.contains("tissue")) {
@@ -756,7 +798,7 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
       policy.expiry_s = p.at("expiry_s").get<double>();
       policy.speed_steps_s = p.at("speed_steps_s").get<double>();
       policy.acceleration_steps_s2 = p.at("acceleration_steps_s2").get<double>();
-      policy.limits.max_targets = p.value("max_targets", policy.limits.max_targets);
+      policy.limits.max_targets = integer(p, "max_targets", policy.limits.max_targets);
       policy.limits.max_total_rotation_rad =
           p.value("max_total_rotation_rad", policy.limits.max_total_rotation_rad);
       e.input.policy = std::move(policy);
