@@ -682,7 +682,7 @@ class Server {
       }
       // The reducer answers a fault with a halt; a halt that fails for the reason just reported
       // (the controller is gone) must not report it again, or the two feed each other without
-      // end (docs/RELIABILITY.md, finding 1).
+      // end (docs/RELIABILITY.md, R1).
       if (fault.controller->fault == last_fault_reported_) return;
       last_fault_reported_ = fault.controller->fault;
       internal_.push_back(std::move(fault));

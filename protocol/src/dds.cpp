@@ -246,7 +246,7 @@ std::size_t Reader<T>::takeFrom(
     if (n <= 0) break;
     for (int i = 0; i < n; ++i) {
       // Not the instance state: a command whose sender has already gone (an emergency stop from
-      // a script that exits at once) is still a command (docs/RELIABILITY.md, finding 3).
+      // a script that exits at once) is still a command (docs/RELIABILITY.md, R2).
       if (!infos[i].valid_data) continue;
       fn(*static_cast<const T*>(samples[i]), infos[i].publication_handle);
       ++count;

@@ -69,7 +69,7 @@ std::size_t journalLines(const ServerProcess& server) {
 
 // A fault is recorded, not recorded again and again: the failed halt of a controller that is gone
 // once fed a new fault every loop (a journal of millions of records, a core at 100 %;
-// docs/RELIABILITY.md finding 1).
+// docs/RELIABILITY.md R1).
 void expectJournalSettles(const ServerProcess& server) {
   // The halt that follows the fault meets the same silence: three driver timeouts of 1 s.
   std::this_thread::sleep_for(4s);
@@ -210,7 +210,7 @@ TEST(FaultE2E, AClientThatVanishesHoldingAPendingApprovalMovesNothing) {
 // A console that sends an emergency stop and exits at once (a script, a crash right after the
 // press): its writer is gone by the time the server takes the sample. The server once skipped
 // samples of instances without writers, so such a stop could be lost (docs/RELIABILITY.md,
-// finding 3). Repeated, because it is a race.
+// R2). Repeated, because it is a race.
 TEST(FaultE2E, AnEmergencyStopFromASenderThatExitsAtOnceIsStillTaken) {
   ServerProcess server(104);
   auto op = server.client("operator");

@@ -1,5 +1,5 @@
 // The reply topics over real Cyclone DDS on loopback (domain 106): a client keeps its own replies
-// only, and replies are keyed by client, not by request (docs/RELIABILITY.md, findings 2 and 4).
+// only, and replies are keyed by client, not by request (docs/RELIABILITY.md, L1 and L2).
 #include <gtest/gtest.h>
 
 #include <chrono>

@@ -16,7 +16,7 @@ kinematics::Joints currentJoints(const config::Robot& robot, const actuation::St
   const auto& g = robot.kinematics.instrument();
   // Within one step of a limit, outside it: the coupled transmission reaches zs = 0 as
   // -0.17 µm, say. Such a pose is on the limit, not a pose no plan may start from
-  // (docs/RELIABILITY.md, finding 5); a stalled motor leaves the robot much further out.
+  // (docs/RELIABILITY.md, K1); a stalled motor leaves the robot much further out.
   auto snap = [](double& v, double hi, double one_step) {
     if (v < 0.0 && v > -one_step) v = 0.0;
     if (v > hi && v < hi + one_step) v = hi;
