@@ -73,11 +73,28 @@ __attribute__((always_inline)) inline std::pair<std::int32_t, std::int32_t> conv
   return {lo, hi};
 }
 
+// ThreadSanitizer instruments the resolver that target_clones makes, and the dynamic linker runs
+// it before TSan's runtime is up: every TSan binary died before main (docs/RELIABILITY.md).
+#if defined(__SANITIZE_THREAD__)
+#define IGNAV_THREAD_SANITIZER 1
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define IGNAV_THREAD_SANITIZER 1
+#endif
+#endif
+#ifdef IGNAV_THREAD_SANITIZER
+#define IGNAV_AVX2_CLONES
+#else
+#define IGNAV_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
+#endif
+
 // The conversion is the reader's hottest loop; AVX2 (when the CPU has it) halves its cost over
 // the SSE2 baseline, chosen once at load time by the dynamic linker.
-__attribute__((target_clones("avx2", "default"))) std::pair<std::int32_t, std::int32_t> convert16(
-    const std::uint16_t* in, std::int16_t* out, std::size_t n, std::uint32_t mask,
-    std::int32_t sign_bit, std::int32_t add) {
+IGNAV_AVX2_CLONES std::pair<std::int32_t, std::int32_t> convert16(const std::uint16_t* in,
+                                                                  std::int16_t* out, std::size_t n,
+                                                                  std::uint32_t mask,
+                                                                  std::int32_t sign_bit,
+                                                                  std::int32_t add) {
   return convertFrame(in, out, n, mask, sign_bit, add);
 }
 
