@@ -67,6 +67,21 @@ std::size_t journalLines(const ServerProcess& server) {
   return n;
 }
 
+// The server's arguments for the Galil look-alike `dmc`, moving slowly enough to be caught
+// mid-move.
+std::vector<std::string> overGalil(const test::Emulator& dmc) {
+  return {"--controller", "galil:127.0.0.1:" + std::to_string(dmc.port()), "--controller-speed",
+          "4000"};
+}
+
+// Plans one target, approves its first motion and waits until the robot is moving.
+void startApprovedMove(Client& op) {
+  plannedTarget(op, {-10, 15, -190});
+  lockAndWaitForApproval(op);
+  ASSERT_TRUE(approveShown(op).accepted);
+  op.waitFor([](const json& s) { return field(s, "motion", "state") == "moving"; }, 10s);
+}
+
 // A fault is recorded, not recorded again and again: the failed halt of a controller that is gone
 // once fed a new fault every loop (a journal of millions of records, a core at 100 %;
 // docs/RELIABILITY.md R1).
@@ -137,13 +152,9 @@ TEST(FaultE2E, AJournalThatCannotBeWrittenRefusesEveryChangeAndLosesNothing) {
 
 TEST(FaultE2E, AControllerThatHangsMidMoveBecomesAFaultAndTheServerStaysResponsive) {
   test::Emulator dmc;
-  ServerProcess server(101, {"--controller", "galil:127.0.0.1:" + std::to_string(dmc.port()),
-                             "--controller-speed", "4000"});
+  ServerProcess server(101, overGalil(dmc));
   auto op = server.client("operator");
-  plannedTarget(*op, {-10, 15, -190});
-  lockAndWaitForApproval(*op);
-  ASSERT_TRUE(approveShown(*op).accepted);
-  op->waitFor([](const json& s) { return field(s, "motion", "state") == "moving"; }, 10s);
+  ASSERT_NO_FATAL_FAILURE(startApprovedMove(*op));
   dmc.stall();
   // The driver's 1 s command timeout turns the silence into a fault.
   op->waitFor([](const json& s) { return phaseIs(s, "fault"); }, 10s);
@@ -162,13 +173,9 @@ TEST(FaultE2E, AControllerThatHangsMidMoveBecomesAFaultAndTheServerStaysResponsi
 
 TEST(FaultE2E, AControllerThatVanishesMidMoveBecomesAFaultNotACrash) {
   test::Emulator dmc;
-  ServerProcess server(102, {"--controller", "galil:127.0.0.1:" + std::to_string(dmc.port()),
-                             "--controller-speed", "4000"});
+  ServerProcess server(102, overGalil(dmc));
   auto op = server.client("operator");
-  plannedTarget(*op, {-10, 15, -190});
-  lockAndWaitForApproval(*op);
-  ASSERT_TRUE(approveShown(*op).accepted);
-  op->waitFor([](const json& s) { return field(s, "motion", "state") == "moving"; }, 10s);
+  ASSERT_NO_FATAL_FAILURE(startApprovedMove(*op));
   dmc.kill();
   op->waitFor([](const json& s) { return phaseIs(s, "fault"); }, 10s);
   op->waitFor([](const json& s) { return !field(s, "motion", "fault").empty(); }, 5s);
