@@ -915,6 +915,9 @@ class Server {
       m.deviation_predicted = std::isfinite(t.predicted_deviation_mm);
       m.predicted_deviation_mm = m.deviation_predicted ? t.predicted_deviation_mm : 0.0;
       m.status = cstr(status);
+      std::vector<ignav_msg_Point3> path;
+      if (m.reachable) path = toMsgs(needlePathLps(t.solution.joints));
+      viewSequence(m.path_lps, path);
       target_.write(m);
       return;
     }
@@ -1080,6 +1083,10 @@ class Server {
     if (!slice) return fail(slice.error().message);
     volume::Overlays overlays;
     if (req.overlays) overlays = overlaysFor();
+    if (req.overlays && req.region_only) {
+      overlays.points.clear();
+      overlays.paths.clear();
+    }
     auto png = volume::renderPng(*slice, overlays);
     if (!png) return fail(png.error().message);
     out.ok = true;

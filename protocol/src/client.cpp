@@ -223,6 +223,7 @@ SliceResult Client::slice(const SliceArgs& args, std::chrono::milliseconds timeo
   req.window = args.window;
   req.level = args.level;
   req.overlays = args.overlays;
+  req.region_only = args.region_only;
   impl_->slice_requests.write(req);
   const auto end = Clock::now() + timeout;
   std::optional<SliceResult> mine;
@@ -318,7 +319,8 @@ std::vector<std::string> Client::poll() {
         {"tre_warning", t.tre_warning},
         {"order", t.order},
         {"predicted_deviation_mm", t.deviation_predicted ? json(t.predicted_deviation_mm) : json()},
-        {"status", str(t.status)}};
+        {"status", str(t.status)},
+        {"path_lps", points(t.path_lps)}};
   }));
   note("approval", impl_->approval.take([&](const ignav_msg_ApprovalState& a) {
     json moves = json::array();

@@ -1,0 +1,269 @@
+// The gateway between a real ignav-server (its own process, real Cyclone DDS on loopback) and
+// WebSocket/HTTP clients written here with Boost.Beast, as a browser would talk to it.
+#include "gateway.hpp"
+
+#include <gtest/gtest.h>
+
+#include <boost/asio.hpp>
+#include <boost/beast.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <thread>
+
+#include "e2e/server_process.hpp"
+
+namespace ignav::web {
+namespace {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+using tcp = asio::ip::tcp;
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+// A gateway served from a thread of the test.
+class RunningGateway {
+ public:
+  RunningGateway(std::uint32_t domain, const std::string& client_id = "operator") {
+    GatewayOptions o;
+    o.port = 0;
+    o.app_dir = IGNAV_SOURCE_DIR "/tests/web/app_fixture";
+    o.domain = domain;
+    o.dds_config_xml = e2e::loopbackXml();
+    o.client_id = client_id;
+    gateway_ = std::make_unique<Gateway>(o);
+    thread_ = std::thread([this] { gateway_->run(); });
+  }
+  ~RunningGateway() {
+    gateway_->stop();
+    thread_.join();
+  }
+  std::uint16_t port() const { return gateway_->port(); }
+
+ private:
+  std::unique_ptr<Gateway> gateway_;
+  std::thread thread_;
+};
+
+// One browser tab's WebSocket, read synchronously with a deadline.
+class Browser {
+ public:
+  explicit Browser(std::uint16_t port, const std::string& origin = "") {
+    tcp::resolver resolver(io_);
+    beast::get_lowest_layer(ws_).connect(*resolver.resolve("127.0.0.1", std::to_string(port)));
+    host_ = "127.0.0.1:" + std::to_string(port);
+    ws_.set_option(websocket::stream_base::decorator([origin](websocket::request_type& req) {
+      if (!origin.empty()) req.set(http::field::origin, origin);
+    }));
+    ws_.handshake(host_, "/ws");
+  }
+
+  void send(const json& message) { ws_.write(asio::buffer(message.dump())); }
+  void sendText(const std::string& text) { ws_.write(asio::buffer(text)); }
+
+  json next(std::chrono::milliseconds timeout = 20s) {
+    beast::get_lowest_layer(ws_).expires_after(timeout);
+    beast::flat_buffer buffer;
+    ws_.read(buffer);
+    json m = json::parse(beast::buffers_to_string(buffer.data()));
+    if (m["type"] == "state") state_.update(m["state"]);
+    return m;
+  }
+  // Reads until a message of `type` (and seq, when given) arrives; state is kept meanwhile.
+  json until(const std::string& type, std::optional<std::uint64_t> seq = std::nullopt) {
+    for (;;) {
+      json m = next();
+      if (m["type"] == type && (!seq || m["seq"] == *seq)) return m;
+    }
+  }
+  json request(json message) {
+    const std::uint64_t seq = ++seq_;
+    message["seq"] = seq;
+    send(message);
+    json m;
+    do {
+      m = next();
+    } while (!((m["type"] == "reply" || m["type"] == "slice" || m["type"] == "error") &&
+               m["seq"] == seq));
+    return m;
+  }
+  void waitState(const std::function<bool(const json&)>& done) {
+    while (!done(state_))
+      next();
+  }
+  const json& state() const { return state_; }
+
+ private:
+  asio::io_context io_;
+  websocket::stream<beast::tcp_stream> ws_{io_};
+  std::string host_;
+  json state_ = json::object();
+  std::uint64_t seq_ = 0;
+};
+
+http::response<http::string_body> httpGet(std::uint16_t port, const std::string& target) {
+  asio::io_context io;
+  beast::tcp_stream stream(io);
+  tcp::resolver resolver(io);
+  stream.connect(*resolver.resolve("127.0.0.1", std::to_string(port)));
+  http::request<http::empty_body> req(http::verb::get, target, 11);
+  req.set(http::field::host, "127.0.0.1");
+  http::write(stream, req);
+  beast::flat_buffer buffer;
+  http::response<http::string_body> res;
+  http::read(stream, buffer, res);
+  return res;
+}
+
+json command(const std::string& kind, json extra = json::object()) {
+  extra["op"] = "command";
+  extra["kind"] = kind;
+  return extra;
+}
+
+TEST(Gateway, BrowserDrivesTheServerAndSeesItsVerdicts) {
+  e2e::ServerProcess server(110);
+  RunningGateway gateway(110);
+  Browser tab(gateway.port());
+  const json hello = tab.next();
+  EXPECT_EQ(hello["type"], "hello");
+  EXPECT_EQ(hello["client_id"], "operator");
+  EXPECT_EQ(hello["security"], false);
+  tab.waitState([](const json& s) { return s.contains("workflow"); });
+  EXPECT_EQ(tab.state()["workflow"]["phase"], "imaging");
+
+  // A command the workflow refuses comes back as the server's reply, not a gateway error.
+  const json early = tab.request(command("add_target", {{"points", {{1, 2, 3}}}}));
+  EXPECT_EQ(early["type"], "reply");
+  EXPECT_EQ(early["accepted"], false);
+  EXPECT_EQ(early["error_code"], "wrong_phase") << early;
+
+  // Bad input: refused by the gateway with the field named; the connection stays usable.
+  tab.sendText("{\"op\":\"command\",\"seq\":500,\"kind\":\"add_target\",\"points\":[[1,2]]}");
+  const json bad = tab.until("error", 500);
+  EXPECT_EQ(bad["code"], "bad_request");
+  EXPECT_NE(bad["message"].get<std::string>().find("points[0]"), std::string::npos);
+  tab.sendText("\xff\xfe not even text");  // a text frame that is not UTF-8 fails the socket
+  Browser tab2(gateway.port());            // ... and a new tab still works
+
+  const json load = tab2.request(command("load_volume", {{"path", "phantom:"}}));
+  ASSERT_EQ(load["accepted"], true) << load;
+  tab2.waitState(
+      [](const json& s) { return s.contains("volume") && s["volume"]["status"] == "loaded"; });
+  const json fid = tab2.request(command("auto_fiducials"));
+  ASSERT_EQ(fid["accepted"], true) << fid;
+  tab2.waitState([](const json& s) {
+    return s.contains("registration") && s["registration"]["status"] == "registered" &&
+           s["workflow"]["phase"] == "planning";
+  });
+
+  // A reachable target, placed where the registration puts robot point (8, 12, -175).
+  const Eigen::Vector3d lps = e2e::lpsOf(tab2.state(), {8.0, 12.0, -175.0});
+  const json added =
+      tab2.request(command("add_target", {{"points", {{lps.x(), lps.y(), lps.z()}}}}));
+  ASSERT_EQ(added["accepted"], true) << added;
+  const std::string id = std::to_string(added["target_id"].get<int>());
+  tab2.waitState([&](const json& s) { return s["targets"].contains(id); });
+  const json target = tab2.state()["targets"][id];
+  EXPECT_TRUE(target["reachable"].get<bool>());
+  // The planned path ends at the target (the server's forward kinematics, checked here against
+  // the click).
+  ASSERT_GE(target["path_lps"].size(), 2u);
+  const json tip = target["path_lps"].back();
+  EXPECT_LT((Eigen::Vector3d(tip[0], tip[1], tip[2]) - lps).norm(), 1e-3);
+
+  // A slice through the target: a real PNG of the size announced, and a pixel -> LPS mapping
+  // that puts the centre pixel at the requested centre.
+  const json slice = tab2.request({{"op", "slice"},
+                                   {"view", "axial"},
+                                   {"centre_lps", {lps.x(), lps.y(), lps.z()}},
+                                   {"size_px", 128},
+                                   {"pixel_mm", 0.5},
+                                   {"overlays", "region"}});
+  ASSERT_EQ(slice["type"], "slice");
+  ASSERT_EQ(slice["ok"], true) << slice["message"];
+  EXPECT_EQ(slice["width"], 128);
+  // Decoded independently: base64 by OpenSSL's decoder is ours too, so decode by hand here.
+  const std::string b64 = slice["png_base64"];
+  std::vector<std::uint8_t> png;
+  {
+    auto value = [](char c) -> int {
+      if (c >= 'A' && c <= 'Z') return c - 'A';
+      if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+      if (c >= '0' && c <= '9') return c - '0' + 52;
+      return c == '+' ? 62 : c == '/' ? 63 : -1;
+    };
+    std::uint32_t acc = 0;
+    int bits = 0;
+    for (const char c : b64) {
+      const int v = value(c);
+      if (v < 0) break;
+      acc = (acc << 6) | static_cast<std::uint32_t>(v);
+      bits += 6;
+      if (bits >= 8) {
+        bits -= 8;
+        png.push_back(static_cast<std::uint8_t>((acc >> bits) & 0xff));
+      }
+    }
+  }
+  const cv::Mat image = cv::imdecode(png, cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(image.empty());
+  EXPECT_EQ(image.cols, 128);
+  EXPECT_EQ(image.rows, 128);
+  Eigen::Matrix4d m;
+  for (int i = 0; i < 16; ++i)
+    m(i / 4, i % 4) = slice["pixel_to_lps"][static_cast<std::size_t>(i)];
+  const Eigen::Vector4d centre = m * Eigen::Vector4d(64.0, 64.0, 0.0, 1.0);
+  EXPECT_LT((centre.head<3>() - lps).norm(), 0.51);  // within a pixel of the requested centre
+
+  // A second tab joining now gets the same targets at once.
+  Browser tab3(gateway.port());
+  tab3.waitState([&](const json& s) { return s.contains("targets") && s["targets"].contains(id); });
+  EXPECT_EQ(tab3.state()["targets"][id]["lps"], tab2.state()["targets"][id]["lps"]);
+
+  // An emergency stop from a tab reaches the server.
+  const json stop = tab3.request({{"op", "emergency_stop"}});
+  EXPECT_EQ(stop["accepted"], true) << stop;
+  tab2.waitState([](const json& s) { return s["workflow"]["phase"] == "emergency"; });
+}
+
+TEST(Gateway, ServesTheAppAndNothingElse) {
+  e2e::ServerProcess server(111);
+  RunningGateway gateway(111);
+  const auto index = httpGet(gateway.port(), "/");
+  EXPECT_EQ(index.result(), http::status::ok);
+  EXPECT_EQ(index[http::field::content_type], "text/html; charset=utf-8");
+  EXPECT_NE(index.body().find("fixture page"), std::string::npos);
+  EXPECT_EQ(httpGet(gateway.port(), "/missing.js").result(), http::status::not_found);
+  EXPECT_EQ(httpGet(gateway.port(), "/../CMakeLists.txt").result(), http::status::bad_request);
+  EXPECT_EQ(httpGet(gateway.port(), "/%2e%2e/CMakeLists.txt").result(), http::status::bad_request);
+  EXPECT_EQ(httpGet(gateway.port(), "/.hidden").result(), http::status::bad_request);
+
+  // /healthz reports the server once discovery has matched it.
+  json health;
+  for (int i = 0; i < 100; ++i) {
+    health = json::parse(httpGet(gateway.port(), "/healthz").body());
+    if (health["server"] == true) break;
+    std::this_thread::sleep_for(50ms);
+  }
+  EXPECT_EQ(health["server"], true) << health;
+
+  // A page from another origin may not open the WebSocket; the same origin may.
+  EXPECT_THROW(Browser(gateway.port(), "http://evil.example"), beast::system_error);
+  Browser same(gateway.port(), "http://127.0.0.1:" + std::to_string(gateway.port()));
+  EXPECT_EQ(same.next()["type"], "hello");
+}
+
+TEST(Gateway, WithoutAServerRequestsFailClearlyAndTheStateSaysSo) {
+  RunningGateway gateway(112);  // nothing on domain 112
+  Browser tab(gateway.port());
+  EXPECT_EQ(tab.next()["type"], "hello");
+  const json r = tab.request(command("query"));
+  EXPECT_EQ(r["type"], "error");
+  EXPECT_EQ(r["code"], "no_server");
+  EXPECT_NE(r["message"].get<std::string>().find("domain 112"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace ignav::web

@@ -1,0 +1,229 @@
+#include "browser_messages.hpp"
+
+#include <openssl/evp.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace ignav::web {
+namespace {
+
+using nlohmann::json;
+
+// Thrown inside the parser only; parseBrowserMessage turns it into a BadRequest.
+struct BadField : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+const json* field(const json& msg, const char* name, bool required) {
+  const auto it = msg.find(name);
+  if (it == msg.end()) {
+    if (required) throw BadField(std::string("'") + name + "' is missing");
+    return nullptr;
+  }
+  return &*it;
+}
+
+std::uint64_t unsignedField(const json& msg, const char* name, bool required,
+                            std::uint64_t fallback, std::uint64_t max) {
+  const json* v = field(msg, name, required);
+  if (!v) return fallback;
+  if (!v->is_number_unsigned() && !(v->is_number_integer() && v->get<std::int64_t>() >= 0)) {
+    throw BadField(std::string("'") + name + "' must be a non-negative integer, not " + v->dump());
+  }
+  const auto value = v->get<std::uint64_t>();
+  if (value > max) {
+    throw BadField(std::string("'") + name + "' is " + std::to_string(value) + ", above " +
+                   std::to_string(max));
+  }
+  return value;
+}
+
+double numberField(const json& msg, const char* name, double fallback) {
+  const json* v = field(msg, name, false);
+  if (!v) return fallback;
+  if (!v->is_number()) throw BadField(std::string("'") + name + "' must be a number");
+  const double value = v->get<double>();
+  if (!std::isfinite(value)) throw BadField(std::string("'") + name + "' must be finite");
+  return value;
+}
+
+std::string stringField(const json& msg, const char* name, bool required,
+                        const std::string& fallback = "") {
+  const json* v = field(msg, name, required);
+  if (!v) return fallback;
+  if (!v->is_string()) throw BadField(std::string("'") + name + "' must be a string");
+  return v->get<std::string>();
+}
+
+Eigen::Vector3d pointFrom(const json& p, const std::string& where) {
+  if (!p.is_array() || p.size() != 3) throw BadField(where + " must be [x, y, z]");
+  Eigen::Vector3d out;
+  for (int i = 0; i < 3; ++i) {
+    const json& c = p[static_cast<std::size_t>(i)];
+    if (!c.is_number()) throw BadField(where + " must hold numbers");
+    out[i] = c.get<double>();
+    if (!std::isfinite(out[i])) throw BadField(where + " must be finite");
+  }
+  return out;
+}
+
+CommandRequest commandFrom(const json& msg) {
+  CommandRequest out;
+  out.kind = stringField(msg, "kind", true);
+  if (!protocol::commandKindFromName(out.kind)) {
+    throw BadField("'kind' \"" + out.kind + "\" is not a command (docs/PROTOCOL.md)");
+  }
+  out.args.path = stringField(msg, "path", false);
+  if (const json* points = field(msg, "points", false)) {
+    if (!points->is_array()) throw BadField("'points' must be an array");
+    if (points->size() > kMaxPoints) {
+      throw BadField("'points' holds " + std::to_string(points->size()) + " points, above " +
+                     std::to_string(kMaxPoints));
+    }
+    for (std::size_t i = 0; i < points->size(); ++i)
+      out.args.points.push_back(pointFrom((*points)[i], "points[" + std::to_string(i) + "]"));
+  }
+  if (const json* ids = field(msg, "ids", false)) {
+    if (!ids->is_array()) throw BadField("'ids' must be an array");
+    if (ids->size() > kMaxIds) {
+      throw BadField("'ids' holds " + std::to_string(ids->size()) + " ids, above " +
+                     std::to_string(kMaxIds));
+    }
+    for (std::size_t i = 0; i < ids->size(); ++i) {
+      const json& id = (*ids)[i];
+      if (!id.is_number_unsigned() || id.get<std::uint64_t>() > UINT32_MAX) {
+        throw BadField("ids[" + std::to_string(i) + "] must be a target id (0 to 4294967295)");
+      }
+      out.args.ids.push_back(id.get<std::uint32_t>());
+    }
+  }
+  return out;
+}
+
+SliceRequest sliceFrom(const json& msg) {
+  SliceRequest out;
+  out.args.view = stringField(msg, "view", true);
+  out.args.centre_lps = pointFrom(*field(msg, "centre_lps", true), "'centre_lps'");
+  out.args.size_px =
+      static_cast<std::uint32_t>(unsignedField(msg, "size_px", false, 512, UINT32_MAX));
+  out.args.pixel_mm = numberField(msg, "pixel_mm", 0.0);
+  out.args.window = numberField(msg, "window", 0.0);
+  out.args.level = numberField(msg, "level", 0.0);
+  const std::string overlays = stringField(msg, "overlays", false, "region");
+  if (overlays == "none") {
+    out.args.overlays = false;
+  } else if (overlays == "region") {
+    out.args.overlays = out.args.region_only = true;
+  } else if (overlays == "all") {
+    out.args.overlays = true;
+  } else {
+    throw BadField("'overlays' \"" + overlays + "\" is not none, region or all");
+  }
+  return out;
+}
+
+}  // namespace
+
+std::variant<BrowserRequest, BadRequest> parseBrowserMessage(std::string_view text) {
+  if (text.size() > kMaxMessageBytes) {
+    return BadRequest{std::nullopt, "the message has " + std::to_string(text.size()) +
+                                        " bytes, above " + std::to_string(kMaxMessageBytes)};
+  }
+  const json msg = json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (msg.is_discarded()) return BadRequest{std::nullopt, "the message is not JSON"};
+  if (!msg.is_object()) return BadRequest{std::nullopt, "the message is not a JSON object"};
+  BrowserRequest out;
+  try {
+    out.seq = unsignedField(msg, "seq", true, 0, std::numeric_limits<std::uint64_t>::max());
+  } catch (const BadField& e) {
+    return BadRequest{std::nullopt, e.what()};
+  }
+  try {
+    const std::string op = stringField(msg, "op", true);
+    if (op == "command") {
+      out.body = commandFrom(msg);
+    } else if (op == "approve") {
+      ApproveRequest a;
+      a.plan_id = unsignedField(msg, "plan_id", true, 0, std::numeric_limits<std::uint64_t>::max());
+      a.digest = stringField(msg, "digest", true);
+      out.body = a;
+    } else if (op == "emergency_stop") {
+      out.body = EmergencyStopRequest{};
+    } else if (op == "slice") {
+      out.body = sliceFrom(msg);
+    } else {
+      throw BadField("'op' \"" + op + "\" is not command, approve, emergency_stop or slice");
+    }
+  } catch (const BadField& e) {
+    return BadRequest{out.seq, e.what()};
+  } catch (const json::exception& e) {  // a value of the right JSON type that does not convert
+    return BadRequest{out.seq, e.what()};
+  }
+  return out;
+}
+
+json helloMessage(const std::string& client_id, const std::string& subject, bool security,
+                  const std::string& version) {
+  return {{"type", "hello"},
+          {"client_id", client_id},
+          {"subject", subject},
+          {"security", security},
+          {"version", version}};
+}
+
+json connectionMessage(bool server_matched) {
+  return {{"type", "connection"}, {"server", server_matched}};
+}
+
+json stateMessage(const json& state, const std::vector<std::string>& changed) {
+  json part = json::object();
+  if (changed.empty()) {
+    part = state;
+  } else {
+    for (const auto& topic : changed) {
+      const std::string key = topic == "target" ? "targets" : topic;
+      if (state.contains(key)) part[key] = state[key];
+    }
+  }
+  return {{"type", "state"}, {"state", part}};
+}
+
+json replyMessage(std::uint64_t seq, const workflow::Reply& reply) {
+  return {{"type", "reply"},
+          {"seq", seq},
+          {"accepted", reply.accepted},
+          {"error_code", reply.error_code},
+          {"message", reply.message},
+          {"target_id", reply.target_id},
+          {"revision", reply.revision}};
+}
+
+json sliceMessage(std::uint64_t seq, const protocol::SliceResult& slice) {
+  json m = json::array();
+  for (int i = 0; i < 16; ++i)
+    m.push_back(slice.pixel_to_lps(i / 4, i % 4));
+  return {{"type", "slice"},      {"seq", seq},
+          {"ok", slice.ok},       {"message", slice.message},
+          {"width", slice.width}, {"height", slice.height},
+          {"pixel_to_lps", m},    {"png_base64", slice.ok ? base64(slice.png) : std::string()}};
+}
+
+json errorMessage(std::optional<std::uint64_t> seq, const std::string& code,
+                  const std::string& message) {
+  return {
+      {"type", "error"}, {"seq", seq ? json(*seq) : json()}, {"code", code}, {"message", message}};
+}
+
+std::string base64(const std::vector<std::uint8_t>& bytes) {
+  std::string out(4 * ((bytes.size() + 2) / 3), '\0');
+  // EVP_EncodeBlock writes a terminating NUL too: room for it, then trim.
+  out.resize(out.size() + 1);
+  const int n = EVP_EncodeBlock(reinterpret_cast<unsigned char*>(out.data()), bytes.data(),
+                                static_cast<int>(bytes.size()));
+  out.resize(static_cast<std::size_t>(n));
+  return out;
+}
+
+}  // namespace ignav::web

@@ -1,0 +1,61 @@
+// ignav-web: the browser viewer's gateway (docs/WEB.md). Prints one ready line with the URL.
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <boost/asio/signal_set.hpp>
+#include <csignal>
+#include <iostream>
+#include <thread>
+
+#include "gateway.hpp"
+#include "ignav/protocol/dds.hpp"
+#include "ignav/protocol/security.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"ignav-web: the web viewer's gateway to ignav-server"};
+  ignav::web::GatewayOptions options;
+  options.app_dir = IGNAV_WEB_APP_DIR;
+  std::string dds_config = "configs/dds/loopback.xml";
+  std::string identity;
+  app.add_option("--listen", options.listen_address, "HTTP address (loopback by default)");
+  app.add_option("--port", options.port, "HTTP port (0: any free port)");
+  app.add_option("--app-dir", options.app_dir, "the built browser app");
+  app.add_option("--domain", options.domain, "DDS domain id");
+  app.add_option("--dds-config", dds_config, "Cyclone XML ('' = defaults)");
+  app.add_option("--client-id", options.client_id,
+                 "the DDS client id every browser of this gateway acts as");
+  app.add_option("--identity", identity,
+                 "DDS Security identity folder; without one, security is off")
+      ->envname("IGNAV_IDENTITY");
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    options.dds_config_xml = dds_config.empty() ? "" : ignav::protocol::readConfigFile(dds_config);
+    if (!identity.empty()) {
+      options.identity = ignav::protocol::identityFromFolder(identity);
+    } else {
+      spdlog::warn("DDS Security is off (no --identity): for local development only");
+    }
+    if (options.listen_address != "127.0.0.1" && options.listen_address != "::1") {
+      spdlog::warn("listening on {}, not loopback: anyone who reaches it acts as '{}'",
+                   options.listen_address, options.client_id);
+    }
+    ignav::web::Gateway gateway(options);
+    std::cout << "ignav-web ready url=http://" << options.listen_address << ":" << gateway.port()
+              << "/ client_id=" << options.client_id
+              << " security=" << (options.identity ? "on" : "OFF") << std::endl;
+    // SIGINT/SIGTERM end the serving loop; the gateway closes its sockets and participant.
+    boost::asio::io_context signals_io;
+    boost::asio::signal_set signals(signals_io, SIGINT, SIGTERM);
+    signals.async_wait([&](const boost::system::error_code&, int) { gateway.stop(); });
+    std::thread signal_thread([&] { signals_io.run(); });
+    gateway.run();
+    signals_io.stop();
+    signal_thread.join();
+    spdlog::info("stopped");
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "ignav-web: " << e.what() << "\n";
+    return 1;
+  }
+}
