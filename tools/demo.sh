@@ -22,6 +22,18 @@ server_pid=$!
 trap 'kill $server_pid 2>/dev/null || true' EXIT
 for _ in $(seq 100); do grep -q "ready" "$out/server.ready" 2>/dev/null && break; sleep 0.1; done
 cat "$out/server.ready"
+
+echo "== the web viewer (docs/WEB.md): the same workflow, live in a browser"
+# As the viewer role: a browser can watch, page through slices and press emergency stop, while the
+# scripted client below plans and approves. (Run a gateway with a planner or approver identity to
+# click targets and approve from the browser.)
+build/tools/ignav-web/ignav-web --dds-config configs/dds/loopback.xml --port "${IGNAV_WEB_PORT:-0}" \
+  --identity "$out/pki/viewer" --client-id web-viewer > "$out/web.ready" 2> "$out/web.log" &
+web_pid=$!
+trap 'kill $server_pid $web_pid 2>/dev/null || true' EXIT
+for _ in $(seq 100); do grep -q "ready" "$out/web.ready" 2>/dev/null && break; sleep 0.1; done
+web_url=$(sed -n 's/.*url=\([^ ]*\).*/\1/p' "$out/web.ready")
+echo "web viewer: $web_url  (open it in a browser while the demo runs; IGNAV_DEMO_KEEP=1 keeps it up)"
 # The scripted client is the operator (configs/server.yaml approval.approvers), authenticated with
 # the approver identity: it may plan and approve. Every command is encrypted on the wire.
 ctl="build/tools/ignavctl/ignavctl --dds-config configs/dds/loopback.xml --identity $out/pki/approver"
@@ -32,6 +44,14 @@ $ctl status
 echo
 $ctl targets ls | tee "$session/summary.txt"
 $ctl motion | tee -a "$session/summary.txt"
+# What a browser shows at the end of the session, as a picture in the session folder.
+node tools/ignav-web/screenshot.mjs --url "$web_url" --out "$session/web_viewer.png" \
+  --chromium "$(command -v chromium)" || echo "(no screenshot of the web viewer)"
+if [ "${IGNAV_DEMO_KEEP:-0}" = 1 ]; then
+  echo "server and web viewer stay up: $web_url  (Ctrl-C ends them)"
+  wait $server_pid || true
+fi
+kill -TERM $web_pid && wait $web_pid || true
 kill -TERM $server_pid && wait $server_pid
 trap - EXIT
 echo "server stopped cleanly; its log: $server_log"

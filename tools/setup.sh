@@ -26,7 +26,12 @@ packages=(
   libinsighttoolkit5-dev
   # reference DICOM files for tests (pydicom ships real edge cases)
   python3-pydicom python3-numpy
+  # the web viewer's browser test: Debian's chromium, driven headless by playwright-core
+  chromium fonts-dejavu-core
 )
+# The web viewer's app is built with node and npm (tools/ignav-web/app); a machine that has a
+# newer Node.js of its own keeps it.
+command -v node >/dev/null 2>&1 && command -v npm >/dev/null 2>&1 || packages+=(nodejs npm)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -164,7 +164,7 @@ TEST(Gateway, BrowserDrivesTheServerAndSeesItsVerdicts) {
       tab2.request(command("add_target", {{"points", {{lps.x(), lps.y(), lps.z()}}}}));
   ASSERT_EQ(added["accepted"], true) << added;
   const std::string id = std::to_string(added["target_id"].get<int>());
-  tab2.waitState([&](const json& s) { return s["targets"].contains(id); });
+  tab2.waitState([&](const json& s) { return s.contains("targets") && s["targets"].contains(id); });
   const json target = tab2.state()["targets"][id];
   EXPECT_TRUE(target["reachable"].get<bool>());
   // The planned path ends at the target (the server's forward kinematics, checked here against
@@ -184,7 +184,7 @@ TEST(Gateway, BrowserDrivesTheServerAndSeesItsVerdicts) {
   ASSERT_EQ(slice["type"], "slice");
   ASSERT_EQ(slice["ok"], true) << slice["message"];
   EXPECT_EQ(slice["width"], 128);
-  // Decoded independently: base64 by OpenSSL's decoder is ours too, so decode by hand here.
+  // Decoded by hand, not with the OpenSSL routine the gateway encodes with.
   const std::string b64 = slice["png_base64"];
   std::vector<std::uint8_t> png;
   {
@@ -214,8 +214,10 @@ TEST(Gateway, BrowserDrivesTheServerAndSeesItsVerdicts) {
   Eigen::Matrix4d m;
   for (int i = 0; i < 16; ++i)
     m(i / 4, i % 4) = slice["pixel_to_lps"][static_cast<std::size_t>(i)];
-  const Eigen::Vector4d centre = m * Eigen::Vector4d(64.0, 64.0, 0.0, 1.0);
-  EXPECT_LT((centre.head<3>() - lps).norm(), 0.51);  // within a pixel of the requested centre
+  // docs/PROTOCOL.md: the requested centre lands on pixel ((size - 1)/2, (size - 1)/2).
+  const Eigen::Vector4d centre = m * Eigen::Vector4d(63.5, 63.5, 0.0, 1.0);
+  EXPECT_LT((centre.head<3>() - lps).norm(), 1e-9);
+  EXPECT_NEAR(m.col(0).head<3>().norm(), 0.5, 1e-12);  // pixel_mm along u
 
   // A second tab joining now gets the same targets at once.
   Browser tab3(gateway.port());
