@@ -2,6 +2,8 @@
 // WebSocket/HTTP clients written here with Boost.Beast, as a browser would talk to it.
 #include "gateway.hpp"
 
+#include "browser_socket.hpp"
+
 #include <gtest/gtest.h>
 
 #include <boost/asio.hpp>
@@ -46,61 +48,7 @@ class RunningGateway {
   std::thread thread_;
 };
 
-// One browser tab's WebSocket, read synchronously with a deadline.
-class Browser {
- public:
-  explicit Browser(std::uint16_t port, const std::string& origin = "") {
-    tcp::resolver resolver(io_);
-    beast::get_lowest_layer(ws_).connect(*resolver.resolve("127.0.0.1", std::to_string(port)));
-    host_ = "127.0.0.1:" + std::to_string(port);
-    ws_.set_option(websocket::stream_base::decorator([origin](websocket::request_type& req) {
-      if (!origin.empty()) req.set(http::field::origin, origin);
-    }));
-    ws_.handshake(host_, "/ws");
-  }
-
-  void send(const json& message) { ws_.write(asio::buffer(message.dump())); }
-  void sendText(const std::string& text) { ws_.write(asio::buffer(text)); }
-
-  json next(std::chrono::milliseconds timeout = 20s) {
-    beast::get_lowest_layer(ws_).expires_after(timeout);
-    beast::flat_buffer buffer;
-    ws_.read(buffer);
-    json m = json::parse(beast::buffers_to_string(buffer.data()));
-    if (m["type"] == "state") state_.update(m["state"]);
-    return m;
-  }
-  // Reads until a message of `type` (and seq, when given) arrives; state is kept meanwhile.
-  json until(const std::string& type, std::optional<std::uint64_t> seq = std::nullopt) {
-    for (;;) {
-      json m = next();
-      if (m["type"] == type && (!seq || m["seq"] == *seq)) return m;
-    }
-  }
-  json request(json message) {
-    const std::uint64_t seq = ++seq_;
-    message["seq"] = seq;
-    send(message);
-    json m;
-    do {
-      m = next();
-    } while (!((m["type"] == "reply" || m["type"] == "slice" || m["type"] == "error") &&
-               m["seq"] == seq));
-    return m;
-  }
-  void waitState(const std::function<bool(const json&)>& done) {
-    while (!done(state_))
-      next();
-  }
-  const json& state() const { return state_; }
-
- private:
-  asio::io_context io_;
-  websocket::stream<beast::tcp_stream> ws_{io_};
-  std::string host_;
-  json state_ = json::object();
-  std::uint64_t seq_ = 0;
-};
+using Browser = BrowserSocket;
 
 http::response<http::string_body> httpGet(std::uint16_t port, const std::string& target) {
   asio::io_context io;

@@ -308,6 +308,10 @@ void Gateway::Impl::accept() {
       if (ec != asio::error::operation_aborted) spdlog::warn("accept: {}", ec.message());
       if (!acceptor.is_open()) return;
     } else {
+      // Small messages both ways: without this, Nagle's algorithm meeting the browser's delayed
+      // ACK holds a reply that follows another message for 40 ms (bench_web measured it).
+      beast::error_code ignored;
+      socket.set_option(tcp::no_delay(true), ignored);
       std::make_shared<HttpSession>(std::move(socket), *this)->read();
     }
     accept();
