@@ -205,6 +205,55 @@ TEST(Gateway, ServesTheAppAndNothingElse) {
   EXPECT_EQ(same.next()["type"], "hello");
 }
 
+// A tab that floods the gateway is told "busy" beyond 64 waiting requests; its emergency stop is
+// never refused for that and goes ahead of everything queued.
+TEST(Gateway, FloodIsBoundedAndEmergencyStopGoesFirst) {
+  e2e::ServerProcess server(113);
+  RunningGateway gateway(113);
+  Browser tab(gateway.port());
+  tab.waitState([](const json& s) { return s.contains("workflow"); });
+  ASSERT_EQ(tab.request(command("load_volume", {{"path", "phantom:"}}))["accepted"], true);
+  tab.waitState([](const json& s) {
+    return s.contains("volume") && s["volume"]["status"] == "loaded" &&
+           s["workflow"]["phase"] == "registration";
+  });
+  // 200 large slices at once (each takes the server milliseconds), then an emergency stop.
+  constexpr int kSlices = 200;
+  for (int i = 1; i <= kSlices; ++i) {
+    tab.sendText(json{
+        {"op", "slice"},
+        {"seq", 1000 + i},
+        {"view", "axial"},
+        {"centre_lps", {0, 0, 0}},
+        {"size_px", 1024},
+        {"overlays",
+         "none"}}.dump());
+  }
+  tab.sendText(json{{"op", "emergency_stop"}, {"seq", 5000}}.dump());
+  int busy = 0, slices = 0, slices_after_stop = 0;
+  bool stopped = false;
+  while (slices + busy < kSlices || !stopped) {
+    const json m = tab.next(60s);
+    if (m["type"] == "error" && m["code"] == "busy") ++busy;
+    if (m["type"] == "slice") {
+      ++slices;
+      if (stopped) ++slices_after_stop;
+    }
+    if (m["type"] == "reply" && m["seq"] == 5000) {
+      EXPECT_EQ(m["accepted"], true) << m;
+      stopped = true;
+    }
+  }
+  // The first 64 were queued, the rest refused at once (a few more may fit when a slice finishes
+  // while the burst is still being read).
+  EXPECT_GE(slices, 64);
+  EXPECT_GE(busy, kSlices - 70);
+  EXPECT_EQ(slices + busy, kSlices);
+  // The stop overtook every queued slice but the one being rendered when it arrived (at most
+  // a few: the DDS thread may have taken some before the stop was read off the socket).
+  EXPECT_GE(slices_after_stop, 55);
+}
+
 TEST(Gateway, WithoutAServerRequestsFailClearlyAndTheStateSaysSo) {
   RunningGateway gateway(112);  // nothing on domain 112
   Browser tab(gateway.port());
