@@ -1,0 +1,291 @@
+// The panels around the slice views: connection, workflow, volume, registration, targets,
+// approval, motion and the last reply. Each is rebuilt only when what it shows has changed, so
+// that a stream of motion updates neither flickers the table nor swallows a click on it.
+import { formatLps } from "./geometry";
+import type { SocketStatus } from "./socket";
+import type {
+  Answer,
+  ApprovalState,
+  HelloMessage,
+  MotionState,
+  RegistrationState,
+  TargetState,
+  Vec3,
+  VolumeState,
+  WorkflowState,
+} from "./state";
+import { targetDisplay } from "./status";
+
+export interface PanelActions {
+  goTo(lps: Vec3): void;
+  command(kind: string, ids: number[]): void;
+  approve(plan_id: number, digest: string): void;
+}
+
+const kDegPerRad = 180 / Math.PI;
+
+export function byId<T extends HTMLElement = HTMLElement>(id: string): T {
+  const element = document.getElementById(id);
+  if (!element) throw new Error(`index.html has no #${id}`);
+  return element as T;
+}
+
+function el<K extends keyof HTMLElementTagNameMap>(
+  tag: K,
+  attributes: Record<string, string> = {},
+  ...children: (Node | string)[]
+): HTMLElementTagNameMap[K] {
+  const element = document.createElement(tag);
+  for (const [name, value] of Object.entries(attributes)) element.setAttribute(name, value);
+  element.append(...children);
+  return element;
+}
+
+// Definition-list rows: [term, value, data-testid?, tooltip?].
+function facts(rows: [string, string, string?, string?][]): HTMLElement {
+  const dl = el("dl");
+  for (const [term, value, testid, title] of rows) {
+    const attributes: Record<string, string> = {};
+    if (testid) attributes["data-testid"] = testid;
+    if (title) attributes.title = title;
+    dl.append(el("dt", {}, term), el("dd", attributes, value));
+  }
+  return dl;
+}
+
+const mm = (x: number, digits = 2) => `${x.toFixed(digits)} mm`;
+
+export class Panels {
+  private readonly keys = new Map<string, string>();
+  private approvalExpiry: { plan_id: number; expires_at_ms: number } | null = null;
+  private replies = 0;
+
+  constructor(private readonly actions: PanelActions) {}
+
+  // True when `value` differs from what `slot` showed last (and remembers it).
+  private changed(slot: string, value: unknown): boolean {
+    const key = JSON.stringify(value);
+    if (this.keys.get(slot) === key) return false;
+    this.keys.set(slot, key);
+    return true;
+  }
+
+  connection(status: SocketStatus, server: boolean | null): void {
+    const gateway = status.open
+      ? "gateway: connected"
+      : status.retry_in_ms > 0
+        ? `gateway: disconnected, retrying in ${(status.retry_in_ms / 1000).toFixed(1)} s`
+        : "gateway: connecting…";
+    const serverText = server === null ? "server: ?" : server ? "server: connected" : "server: not connected";
+    const element = byId("connection");
+    element.textContent = `${gateway} · ${serverText}`;
+    element.className = status.open && server ? "ok" : "bad";
+  }
+
+  workflow(workflow: WorkflowState | undefined): void {
+    const allowed = new Set(workflow?.allowed_commands ?? []);
+    byId("phase").textContent = workflow?.phase ?? "";
+    byId("phase").dataset.phase = workflow?.phase ?? "";
+    byId("allowed").textContent = workflow ? [...allowed].join(", ") : "";
+    byId("last-event").textContent = workflow?.last_event ?? "";
+    for (const button of document.querySelectorAll<HTMLButtonElement>("button[data-command]")) {
+      button.disabled = !allowed.has(button.dataset.command ?? "");
+    }
+  }
+
+  volume(volume: VolumeState | undefined): void {
+    if (!this.changed("volume", volume)) return;
+    const body = byId("volume-body");
+    if (!volume) {
+      body.replaceChildren("no volume state yet");
+      return;
+    }
+    const [done, total] = volume.progress;
+    body.replaceChildren(
+      facts([
+        ["status", volume.status, "volume-status"],
+        ["progress", total > 0 ? `${done} / ${total} files` : "–"],
+        ["source", volume.source || "–"],
+        ["size", `${volume.dims.join(" × ")} voxels, ${volume.spacing_mm.map((s) => s.toFixed(2)).join(" × ")} mm`],
+        ["message", volume.message || "–", "volume-message"],
+      ]),
+    );
+  }
+
+  registration(registration: RegistrationState | undefined, pending: Vec3[]): void {
+    if (this.changed("registration", registration)) {
+      const body = byId("registration-body");
+      if (!registration) {
+        body.replaceChildren("no registration state yet");
+      } else {
+        const registered = registration.status === "registered";
+        body.replaceChildren(
+          facts([
+            ["status", registration.status + (registration.auto_detected ? " (auto-detected)" : ""), "registration-status"],
+            ["kind", registration.kind || "–"],
+            ["FRE", registered ? mm(registration.fre_mm, 3) : "–", "fre"],
+            ["residuals", registered ? registration.residuals_mm.map((r) => r.toFixed(3)).join(", ") + " mm" : "–"],
+            ["scale", registered ? registration.scale.toFixed(4) : "–"],
+            ["message", registration.message || "–", "registration-message"],
+          ]),
+        );
+      }
+    }
+    if (this.changed("pending-fiducials", pending)) {
+      byId("pending-fiducials").replaceChildren(
+        ...pending.map((p, i) => el("li", {}, `F${i + 1}: ${formatLps(p)}`)),
+      );
+    }
+  }
+
+  targets(
+    targets: Record<string, TargetState> | undefined,
+    workflow: WorkflowState | undefined,
+    approval: ApprovalState | undefined,
+    motion: MotionState | undefined,
+  ): void {
+    const phase = workflow?.phase ?? "";
+    const allowed = workflow?.allowed_commands ?? [];
+    // Motion matters to the table only as "which target is it moving to".
+    const moving = motion ? { state: motion.state, target_id: motion.target_id } : undefined;
+    const pending = approval ? { status: approval.status, target_id: approval.target_id } : undefined;
+    if (!this.changed("targets", [targets, phase, allowed, moving, pending])) return;
+
+    const list = Object.values(targets ?? {}).sort((a, b) => a.order - b.order || a.id - b.id);
+    const canReorder = allowed.includes("reorder_targets");
+    const canRemove = allowed.includes("remove_target");
+    const rows = list.map((target, index) => {
+      const shown = targetDisplay(target, phase, approval, motion);
+      const [theta_c_rad, z_c_mm, z_s_mm] = target.joints;
+      const known = target.registered && target.reachable;
+      const button = (label: string, testid: string, enabled: boolean, title: string, act: () => void) => {
+        const b = el("button", { "data-testid": testid, title }, label);
+        b.disabled = !enabled;
+        b.addEventListener("click", (event) => {
+          event.stopPropagation(); // not also "go to"
+          act();
+        });
+        return b;
+      };
+      const reorder = (offset: number) => {
+        const ids = list.map((t) => t.id);
+        [ids[index], ids[index + offset]] = [ids[index + offset]!, ids[index]!];
+        this.actions.command("reorder_targets", ids);
+      };
+      const row = el(
+        "tr",
+        { "data-testid": `target-row-${target.id}`, title: `T${target.id}: ${shown.detail}` },
+        el("td", {}, String(target.order)),
+        el("td", {}, `T${target.id}`),
+        el("td", {}, formatLps(target.lps)),
+        el("td", { "data-testid": `target-status-${target.id}`, style: `color: ${shown.colour}` }, shown.label),
+        el("td", { "data-testid": `target-reach-${target.id}`, class: "reason" }, shown.detail),
+        el("td", {}, known ? (theta_c_rad * kDegPerRad).toFixed(1) : "–"),
+        el("td", {}, known ? z_c_mm.toFixed(2) : "–"),
+        el("td", {}, known ? z_s_mm.toFixed(2) : "–"),
+        el("td", {}, known ? target.steps.join(", ") : "–"),
+        el("td", { class: target.tre_warning ? "warning" : "" }, target.registered ? target.tre_mm.toFixed(2) : "–"),
+        el("td", {}, target.predicted_deviation_mm === null ? "–" : target.predicted_deviation_mm.toFixed(2)),
+        el(
+          "td",
+          { class: "actions" },
+          button("↑", `target-up-${target.id}`, canReorder && index > 0, "earlier", () => reorder(-1)),
+          button("↓", `target-down-${target.id}`, canReorder && index < list.length - 1, "later", () => reorder(1)),
+          button("✕", `target-delete-${target.id}`, canRemove, "delete", () =>
+            this.actions.command("remove_target", [target.id]),
+          ),
+        ),
+      );
+      row.addEventListener("click", () => this.actions.goTo(target.lps));
+      return row;
+    });
+    byId("targets-body").replaceChildren(...rows);
+    byId("targets-empty").hidden = rows.length > 0;
+  }
+
+  approval(approval: ApprovalState | undefined, hello: HelloMessage | null): void {
+    if (!this.changed("approval", [approval, hello])) return;
+    const body = byId("approval-body");
+    const approve = byId<HTMLButtonElement>("approve");
+    if (!approval || approval.status !== "pending") {
+      body.replaceChildren(el("p", { "data-testid": "approval-none" }, "no motion waits for approval"));
+      approve.hidden = true;
+      this.approvalExpiry = null;
+      this.tick();
+      return;
+    }
+    // Counted from arrival rather than from the server's wall clock, which may differ from ours.
+    this.approvalExpiry = { plan_id: approval.plan_id, expires_at_ms: performance.now() + approval.expires_in_s * 1000 };
+    const identity = [hello?.client_id, hello?.subject].filter((x): x is string => !!x);
+    const mayApprove = identity.some((who) => approval.approvers.includes(who));
+    body.replaceChildren(
+      el("pre", { "data-testid": "approval-summary" }, approval.summary),
+      facts([
+        ["plan", String(approval.plan_id), "approval-plan"],
+        ["target", approval.target_id === 0 ? "final retraction" : `T${approval.target_id}`],
+        ["digest", `${approval.digest.slice(0, 12)}…`, "approval-digest", approval.digest],
+        ["moves", approval.moves.map((m) => `${m.kind} ${m.steps.join("/")}`).join("; ") || "–"],
+        ["duration", `${approval.duration_s.toFixed(1)} s`],
+        ["TRE", mm(approval.tre_mm)],
+        ["approvers", approval.approvers.join(", ")],
+      ]),
+      el("p", { "data-testid": "approval-expiry", id: "approval-expiry" }),
+      mayApprove ? "" : el("p", { class: "note" }, `this viewer acts as ${identity.join(" / ") || "?"}: not an approver`),
+    );
+    approve.hidden = !mayApprove;
+    approve.onclick = () => this.actions.approve(approval.plan_id, approval.digest);
+    this.tick();
+  }
+
+  // The approval's countdown; called every second.
+  tick(): void {
+    const expiry = document.getElementById("approval-expiry");
+    if (!expiry || !this.approvalExpiry) return;
+    const left_s = (this.approvalExpiry.expires_at_ms - performance.now()) / 1000;
+    expiry.textContent = left_s > 0 ? `expires in ${Math.ceil(left_s)} s` : "expired: request approval again";
+    expiry.className = left_s > 10 ? "" : "warning";
+  }
+
+  motion(motion: MotionState | undefined): void {
+    if (!this.changed("motion", motion && { ...motion, uptime_s: 0 })) return;
+    const body = byId("motion-body");
+    if (!motion) {
+      body.replaceChildren("no motion state yet");
+      return;
+    }
+    const [theta_c_rad, z_c_mm, z_s_mm] = motion.joints;
+    body.replaceChildren(
+      facts([
+        ["controller", motion.controller],
+        ["state", motion.state, "motion-state"],
+        ["move", motion.move_count > 0 ? `${motion.move_index} / ${motion.move_count} ${motion.move_kind}` : "–"],
+        ["plan", motion.plan_id ? `${motion.plan_id} → T${motion.target_id}` : "–"],
+        ["joints", `θc ${(theta_c_rad * kDegPerRad).toFixed(1)}°, zc ${mm(z_c_mm)}, zs ${mm(z_s_mm)}`],
+        ["steps", motion.steps.join(", ")],
+        ["tip (LPS)", motion.tip_lps ? `${formatLps(motion.tip_lps)} mm` : "–"],
+        ["fault", motion.fault || "–", "motion-fault"],
+      ]),
+    );
+  }
+
+  // The answer to what this viewer just asked, at once: "accepted" or the server's reason.
+  reply(what: string, answer: Answer): void {
+    let text: string;
+    let ok = false;
+    if (answer.type === "reply") {
+      ok = answer.accepted;
+      text = answer.accepted
+        ? `${what}: accepted${answer.target_id ? ` (target ${answer.target_id})` : ""}`
+        : `${what}: rejected: ${answer.error_code}: ${answer.message}`;
+    } else if (answer.type === "error") {
+      text = `${what}: failed: ${answer.code}: ${answer.message}`;
+    } else {
+      text = `${what}: unexpected answer ${answer.type}`;
+    }
+    const line = byId("last-reply");
+    line.textContent = text;
+    line.title = text;
+    line.className = ok ? "ok" : "bad";
+    line.dataset.count = String(++this.replies);
+  }
+}

@@ -1,0 +1,219 @@
+// The server's state as the gateway forwards it: protocol::Client::poll() (protocol/src/client.cpp)
+// gives the shapes, protocol/idl/ignav.idl the meaning of every field. Lengths in mm, angles in
+// rad, matrices row-major 4x4.
+
+export type Vec3 = [number, number, number];
+
+export interface WorkflowState {
+  session_id: string;
+  phase: string;
+  allowed_commands: string[];
+  revision: number;
+  last_event: string;
+}
+
+export interface RobotState {
+  name: string;
+  config_path: string;
+  r_min_mm: number;
+  r_max_mm: number;
+  feasible_volume_cm3: number;
+  tissue: string;
+  feature_points_robot: Vec3[];
+}
+
+export interface VolumeState {
+  status: string; // none | loading | loaded | failed
+  source: string;
+  message: string;
+  dims: Vec3;
+  spacing_mm: Vec3;
+  ijk_to_lps: number[];
+  hu_min: number;
+  hu_max: number;
+  progress: [number, number]; // files done, of total
+}
+
+export interface RegistrationState {
+  status: string; // none | registered | rejected
+  message: string;
+  kind: string;
+  image_points: Vec3[];
+  robot_points: Vec3[];
+  image_to_robot: number[];
+  scale: number;
+  fre_mm: number;
+  residuals_mm: number[];
+  auto_detected: boolean;
+}
+
+export interface TargetState {
+  id: number;
+  lps: Vec3;
+  robot: Vec3;
+  registered: boolean;
+  reachable: boolean;
+  reach: string;
+  message: string;
+  joints: [number, number, number]; // theta_c_rad, z_c_mm, z_s_mm
+  steps: [number, number, number];
+  tre_mm: number;
+  tre_warning: boolean;
+  order: number;
+  predicted_deviation_mm: number | null;
+  status: string; // planned | reached | unreachable | unregistered
+  path_lps?: Vec3[]; // absent from servers that predate docs/WEB.md
+}
+
+export interface PlannedMove {
+  kind: string;
+  steps: [number, number, number];
+  duration_s: number;
+}
+
+export interface ApprovalState {
+  status: string; // none | pending
+  plan_id: number;
+  digest: string;
+  target_id: number; // 0: the final retraction of the stylet
+  summary: string;
+  from_steps: [number, number, number];
+  moves: PlannedMove[];
+  duration_s: number;
+  tre_mm: number;
+  expires_in_s: number;
+  expires_at_unix_s: number;
+  approvers: string[];
+}
+
+export interface MotionState {
+  controller: string;
+  state: string; // disconnected | idle | moving | fault
+  fault: string;
+  plan_id: number;
+  target_id: number;
+  move_index: number;
+  move_count: number;
+  move_kind: string;
+  steps: [number, number, number];
+  goal_steps: [number, number, number];
+  verified_steps: [number, number, number];
+  joints: [number, number, number];
+  tip_robot: Vec3;
+  tip_lps: Vec3 | null;
+  uptime_s: number;
+}
+
+export interface HealthState {
+  version: string;
+  session_id: string;
+  session_dir: string;
+  uptime_s: number;
+  commands_accepted: number;
+  commands_rejected: number;
+  journal: string;
+}
+
+// Every topic is absent until the server first publishes it.
+export interface ServerState {
+  workflow?: WorkflowState;
+  robot?: RobotState;
+  volume?: VolumeState;
+  registration?: RegistrationState;
+  targets?: Record<string, TargetState>;
+  approval?: ApprovalState;
+  motion?: MotionState;
+  health?: HealthState;
+}
+
+// ---- gateway messages (docs/WEB.md) ------------------------------------------------------
+
+export interface HelloMessage {
+  type: "hello";
+  client_id: string;
+  subject: string;
+  security: boolean;
+  version: string;
+}
+
+export interface ConnectionMessage {
+  type: "connection";
+  server: boolean;
+}
+
+export interface StateMessage {
+  type: "state";
+  state: ServerState;
+}
+
+export interface ReplyMessage {
+  type: "reply";
+  seq: number;
+  accepted: boolean;
+  error_code: string;
+  message: string;
+  target_id: number;
+  revision: number;
+}
+
+export interface SliceMessage {
+  type: "slice";
+  seq: number;
+  ok: boolean;
+  message: string;
+  width: number;
+  height: number;
+  pixel_to_lps: number[];
+  png_base64: string;
+}
+
+export interface ErrorMessage {
+  type: "error";
+  seq: number;
+  code: string;
+  message: string;
+}
+
+export type GatewayMessage =
+  | HelloMessage
+  | ConnectionMessage
+  | StateMessage
+  | ReplyMessage
+  | SliceMessage
+  | ErrorMessage;
+
+// What a request is answered with.
+export type Answer = ReplyMessage | SliceMessage | ErrorMessage;
+
+export type ViewName = "axial" | "sagittal" | "coronal";
+
+export interface SliceRequest {
+  op: "slice";
+  view: ViewName;
+  centre_lps: Vec3;
+  size_px: number;
+  pixel_mm: number;
+  window: number;
+  level: number;
+  overlays: "none" | "region" | "all";
+}
+
+export interface CommandRequest {
+  op: "command";
+  kind: string;
+  points: Vec3[];
+  ids: number[];
+  path: string;
+}
+
+export interface ApproveRequest {
+  op: "approve";
+  plan_id: number;
+  digest: string;
+}
+
+export interface EmergencyStopRequest {
+  op: "emergency_stop";
+}
+
+export type Request = SliceRequest | CommandRequest | ApproveRequest | EmergencyStopRequest;
