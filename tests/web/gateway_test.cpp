@@ -225,7 +225,7 @@ TEST(Gateway, FloodIsBoundedAndEmergencyStopGoesFirst) {
         {"seq", 1000 + i},
         {"view", "axial"},
         {"centre_lps", {0, 0, 0}},
-        {"size_px", 1024},
+        {"size_px", 512},
         {"overlays",
          "none"}}.dump());
   }

@@ -2,7 +2,6 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
-#include <boost/asio/signal_set.hpp>
 #include <csignal>
 #include <iostream>
 #include <thread>
@@ -10,6 +9,13 @@
 #include "gateway.hpp"
 #include "ignav/protocol/dds.hpp"
 #include "ignav/protocol/security.hpp"
+
+namespace {
+std::atomic<bool> g_stop_requested{false};  // lock-free, so a signal handler may set it
+void requestStop(int) {
+  g_stop_requested = true;
+}
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"ignav-web: the web viewer's gateway to ignav-server"};
@@ -44,14 +50,19 @@ int main(int argc, char** argv) {
     std::cout << "ignav-web ready url=http://" << options.listen_address << ":" << gateway.port()
               << "/ client_id=" << options.client_id
               << " security=" << (options.identity ? "on" : "OFF") << std::endl;
-    // SIGINT/SIGTERM end the serving loop; the gateway closes its sockets and participant.
-    boost::asio::io_context signals_io;
-    boost::asio::signal_set signals(signals_io, SIGINT, SIGTERM);
-    signals.async_wait([&](const boost::system::error_code&, int) { gateway.stop(); });
-    std::thread signal_thread([&] { signals_io.run(); });
+    // SIGINT/SIGTERM end the serving loop; the gateway closes its sockets and participant. (A
+    // handler, not a blocked mask and sigwait: some of Cyclone's threads unblock every signal.)
+    std::signal(SIGINT, requestStop);
+    std::signal(SIGTERM, requestStop);
+    std::atomic<bool> served{false};
+    std::thread watcher([&] {
+      while (!g_stop_requested && !served)
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      gateway.stop();
+    });
     gateway.run();
-    signals_io.stop();
-    signal_thread.join();
+    served = true;
+    watcher.join();
     spdlog::info("stopped");
     return 0;
   } catch (const std::exception& e) {
