@@ -1,4 +1,5 @@
 // ignav-web: the browser viewer's gateway (docs/WEB.md). Prints one ready line with the URL.
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -36,6 +37,8 @@ int main(int argc, char** argv) {
                  "DDS Security identity folder; without one, security is off")
       ->envname("IGNAV_IDENTITY");
   CLI11_PARSE(app, argc, argv);
+  // Logs go to stderr: stdout carries the ready line only.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("ignav-web"));
 
   try {
     options.dds_config_xml = dds_config.empty() ? "" : ignav::protocol::readConfigFile(dds_config);
