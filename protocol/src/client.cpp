@@ -387,6 +387,12 @@ void Client::waitFor(const std::function<bool(const nlohmann::json&)>& done,
   }
 }
 
+bool Client::mayPublish(const std::string& command) const {
+  if (command == "approve") return impl_->approvals.writer != nullptr;
+  const auto kind = commandKindFromName(command);
+  return kind && impl_->commands[static_cast<int>(requiredRole(*kind))].writer != nullptr;
+}
+
 Eigen::Matrix4d matrixFromState(const nlohmann::json& row_major) {
   Eigen::Matrix4d m;
   for (int i = 0; i < 16; ++i)

@@ -23,12 +23,15 @@ namespace websocket = beast::websocket;
 using tcp = asio::ip::tcp;
 using nlohmann::json;
 using namespace std::chrono_literals;
+namespace fs = std::filesystem;
 
 // A gateway served from a thread of the test.
 class RunningGateway {
  public:
-  RunningGateway(std::uint32_t domain, const std::string& client_id = "operator") {
+  RunningGateway(std::uint32_t domain, const std::string& client_id = "operator",
+                 std::optional<protocol::SecurityIdentity> identity = std::nullopt) {
     GatewayOptions o;
+    o.identity = std::move(identity);
     o.port = 0;
     o.app_dir = IGNAV_SOURCE_DIR "/tests/web/app_fixture";
     o.domain = domain;
@@ -78,6 +81,12 @@ TEST(Gateway, BrowserDrivesTheServerAndSeesItsVerdicts) {
   EXPECT_EQ(hello["type"], "hello");
   EXPECT_EQ(hello["client_id"], "operator");
   EXPECT_EQ(hello["security"], false);
+  // Without DDS Security every command may be published (the server still judges each).
+  for (const char* command : {"add_target", "lock_plan", "approve", "reset_emergency"}) {
+    EXPECT_NE(std::find(hello["permitted"].begin(), hello["permitted"].end(), command),
+              hello["permitted"].end())
+        << command;
+  }
   tab.waitState([](const json& s) { return s.contains("workflow"); });
   EXPECT_EQ(tab.state()["workflow"]["phase"], "imaging");
 
@@ -252,6 +261,36 @@ TEST(Gateway, FloodIsBoundedAndEmergencyStopGoesFirst) {
   // The stop overtook every queued slice but the one being rendered when it arrived (at most
   // a few: the DDS thread may have taken some before the stop was read off the socket).
   EXPECT_GE(slices_after_stop, 55);
+}
+
+// With DDS Security, a gateway holding the viewer identity tells its browsers what that role may
+// not publish, and a command above it is refused by the permissions, not sent.
+TEST(Gateway, AViewerGatewayKnowsWhatItMayNotDo) {
+  const fs::path pki = fs::temp_directory_path() / ("ignav_web_pki_" + std::to_string(::getpid()));
+  fs::remove_all(pki);
+  const std::string make =
+      IGNAV_SOURCE_DIR "/configs/security/make-test-pki.sh " + pki.string() + " >/dev/null";
+  ASSERT_EQ(std::system(make.c_str()), 0);
+  e2e::ServerProcess server(114, {"--identity", (pki / "service").string()});
+  RunningGateway gateway(114, "web-viewer",
+                         protocol::identityFromFolder((pki / "viewer").string()));
+  Browser tab(gateway.port());
+  const json hello = tab.next();
+  EXPECT_EQ(hello["security"], true);
+  EXPECT_EQ(hello["subject"], "CN=viewer,O=ignav,C=NL");
+  const auto permitted = hello["permitted"].get<std::vector<std::string>>();
+  auto has = [&](const char* c) {
+    return std::find(permitted.begin(), permitted.end(), c) != permitted.end();
+  };
+  EXPECT_TRUE(has("query"));
+  EXPECT_FALSE(has("add_target"));
+  EXPECT_FALSE(has("approve"));
+  tab.waitState([](const json& s) { return s.contains("workflow"); });
+  const json refused = tab.request(command("load_volume", {{"path", "phantom:"}}));
+  EXPECT_EQ(refused["type"], "error");
+  EXPECT_EQ(refused["code"], "not_permitted") << refused;
+  EXPECT_EQ(tab.request(command("query"))["accepted"], true);
+  fs::remove_all(pki);
 }
 
 TEST(Gateway, WithoutAServerRequestsFailClearlyAndTheStateSaysSo) {

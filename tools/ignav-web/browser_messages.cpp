@@ -165,12 +165,9 @@ std::variant<BrowserRequest, BadRequest> parseBrowserMessage(std::string_view te
 }
 
 json helloMessage(const std::string& client_id, const std::string& subject, bool security,
-                  const std::string& version) {
-  return {{"type", "hello"},
-          {"client_id", client_id},
-          {"subject", subject},
-          {"security", security},
-          {"version", version}};
+                  const std::string& version, const std::vector<std::string>& permitted) {
+  return {{"type", "hello"},      {"client_id", client_id}, {"subject", subject},
+          {"security", security}, {"version", version},     {"permitted", permitted}};
 }
 
 json connectionMessage(bool server_matched) {

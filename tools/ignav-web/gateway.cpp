@@ -79,7 +79,8 @@ struct Gateway::Impl {
   asio::io_context io;
   tcp::acceptor acceptor{io};
   protocol::Client client;
-  std::string subject;  // of the identity's certificate, "" without security
+  std::string subject;                 // of the identity's certificate, "" without security
+  std::vector<std::string> permitted;  // what this identity may publish (hello)
 
   // ---- the I/O thread's ----
   std::set<std::shared_ptr<WsSession>> sessions;
@@ -100,6 +101,10 @@ struct Gateway::Impl {
       std::ifstream pem(options.identity->certificate);
       subject = protocol::certificateSubject(
           std::string(std::istreambuf_iterator<char>(pem), std::istreambuf_iterator<char>()));
+    }
+    for (const auto kind : workflow::kAllInputs) {
+      const std::string name = workflow::toString(kind);
+      if (workflow::isCommand(kind) && client.mayPublish(name)) permitted.push_back(name);
     }
     // Browsers never wait for a reply by polling; the DDS thread sleeps on the waitset.
     client.setReplySpin(std::chrono::microseconds(0));
@@ -321,7 +326,8 @@ void Gateway::Impl::accept() {
 void Gateway::Impl::joined(const std::shared_ptr<WsSession>& s) {
   sessions.insert(s);
   spdlog::info("browser {} connected ({} in all)", s->peer(), sessions.size());
-  s->send(helloMessage(options.client_id, subject, options.identity.has_value(), kVersion));
+  s->send(
+      helloMessage(options.client_id, subject, options.identity.has_value(), kVersion, permitted));
   s->send(stateMessage(full_state, {}));
   s->send(connectionMessage(server_matched));
 }

@@ -81,6 +81,9 @@ class Client {
   void waitFor(const std::function<bool(const nlohmann::json&)>& done,
                std::chrono::milliseconds timeout);
   const nlohmann::json& state() const { return state_; }
+  // Whether this identity's DDS Security permissions let it publish what `command` travels on (a
+  // command name, or "approve"); always true without security. The server still judges it.
+  bool mayPublish(const std::string& command) const;
   const std::string& clientId() const { return client_id_; }
 
  private:

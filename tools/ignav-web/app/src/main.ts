@@ -182,7 +182,7 @@ function scheduleRender(): void {
 function render(): void {
   renderScheduled = false;
   panels.connection(socketStatus, serverConnected);
-  panels.workflow(state.workflow);
+  panels.workflow(state.workflow, hello);
   panels.volume(state.volume);
   panels.registration(state.registration, pendingFiducials);
   panels.targets(state.targets, state.workflow, state.approval, state.motion);

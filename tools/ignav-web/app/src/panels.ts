@@ -82,11 +82,14 @@ export class Panels {
     element.className = status.open && server ? "ok" : "bad";
   }
 
-  workflow(workflow: WorkflowState | undefined): void {
-    const allowed = new Set(workflow?.allowed_commands ?? []);
+  // A button is enabled when the workflow allows its command now and the gateway's identity may
+  // send it at all (a viewer's gateway shows the plan but cannot change it).
+  workflow(workflow: WorkflowState | undefined, hello: HelloMessage | null): void {
+    const permitted = new Set(hello?.permitted ?? []);
+    const allowed = new Set((workflow?.allowed_commands ?? []).filter((c) => permitted.has(c)));
     byId("phase").textContent = workflow?.phase ?? "";
     byId("phase").dataset.phase = workflow?.phase ?? "";
-    byId("allowed").textContent = workflow ? [...allowed].join(", ") : "";
+    byId("allowed").textContent = workflow ? workflow.allowed_commands.join(", ") : "";
     byId("last-event").textContent = workflow?.last_event ?? "";
     for (const button of document.querySelectorAll<HTMLButtonElement>("button[data-command]")) {
       button.disabled = !allowed.has(button.dataset.command ?? "");
@@ -217,7 +220,8 @@ export class Panels {
     // Counted from arrival rather than from the server's wall clock, which may differ from ours.
     this.approvalExpiry = { plan_id: approval.plan_id, expires_at_ms: performance.now() + approval.expires_in_s * 1000 };
     const identity = [hello?.client_id, hello?.subject].filter((x): x is string => !!x);
-    const mayApprove = identity.some((who) => approval.approvers.includes(who));
+    const mayApprove =
+      (hello?.permitted ?? []).includes("approve") && identity.some((who) => approval.approvers.includes(who));
     body.replaceChildren(
       el("pre", { "data-testid": "approval-summary" }, approval.summary),
       facts([

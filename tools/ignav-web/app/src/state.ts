@@ -134,6 +134,7 @@ export interface HelloMessage {
   subject: string;
   security: boolean;
   version: string;
+  permitted: string[]; // the commands (and "approve") this gateway's DDS identity may publish
 }
 
 export interface ConnectionMessage {
