@@ -115,3 +115,8 @@ test("target colours follow the workflow, the approval and the motion", () => {
   ).detail;
   assert.equal(why, "beyond_max_radius: 3.2 mm beyond the maximum radius 26.5 mm");
 });
+
+test("formatLps: rounded for people, and what rounds to zero is 0, not -0", () => {
+  assert.equal(g.formatLps([-0.001, 1.25, -3.456], 2), "0.00, 1.25, -3.46");
+  assert.equal(g.formatLps([-0.04, 0.05, 12]), "0.0, 0.1, 12.0");
+});

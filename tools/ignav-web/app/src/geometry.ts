@@ -144,6 +144,7 @@ export function parseLps(text: string): Vec3 | null {
   return [values[0], values[1], values[2]];
 }
 
+// Rounded for people; what rounds to zero shows as 0, not -0.
 export function formatLps(p: Vec3, digits = 1): string {
-  return p.map((x) => x.toFixed(digits)).join(", ");
+  return p.map((x) => (Math.abs(x) < 0.5 * 10 ** -digits ? 0 : x).toFixed(digits)).join(", ");
 }

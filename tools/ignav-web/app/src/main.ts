@@ -1,7 +1,7 @@
 // The web viewer (docs/WEB.md): the server's state as the gateway streams it, three slice views
 // sharing one centre point, and the operator's workflow as clicks: fiducials, then targets,
 // then lock, approve, watch. Every click is a command; the server decides and the reply shows.
-import { add, fittingPixelMm, parseLps, scale, spacingAlong, volumeCentre } from "./geometry";
+import { add, fittingPixelMm, formatLps, parseLps, scale, spacingAlong, volumeCentre } from "./geometry";
 import { Panels, byId } from "./panels";
 import { GatewaySocket, type SocketStatus } from "./socket";
 import type { Answer, HelloMessage, Request, ServerState, Vec3, ViewName } from "./state";
@@ -104,7 +104,7 @@ function zoom(factor: number): void {
 }
 
 function showCentre(): void {
-  byId("centre").textContent = settings ? settings.centre_lps.map((x) => x.toFixed(2)).join(", ") : "–";
+  byId("centre").textContent = settings ? formatLps(settings.centre_lps, 2) : "–";
 }
 
 // The spacing of the voxels along a view's normal: one wheel step, and the plane's thickness.

@@ -7,6 +7,7 @@ import {
   type SliceFrame,
   add,
   cssFromPixel,
+  formatLps,
   pixelFromCss,
   pixelToLps,
   project,
@@ -187,7 +188,7 @@ export class SliceView {
         this.canvas.dataset.pixelToLps = JSON.stringify(answer.pixel_to_lps);
         this.canvas.dataset.centreLps = JSON.stringify(request.centre_lps);
         this.canvas.dataset.slicesShown = String(++this.slicesShown);
-        this.caption.textContent = `${this.name} · ${request.centre_lps.map((x) => x.toFixed(1)).join(", ")} mm · ${request.pixel_mm.toFixed(3)} mm/px`;
+        this.caption.textContent = `${this.name} · ${formatLps(request.centre_lps)} mm · ${request.pixel_mm.toFixed(3)} mm/px`;
       } catch (error) {
         this.showNothing(`slice: ${String(error)}`);
       }
