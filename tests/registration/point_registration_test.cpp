@@ -334,5 +334,52 @@ TEST(RegistrationErrors, TreAtTheCentroidIsFleOverRootN) {
       1e-12);
 }
 
+// A matrix from elsewhere (3D Slicer over OpenIGTLink): accepted when it is a proper similarity,
+// refused with the reason otherwise.
+TEST(RegistrationFromMatrix, ASimilarityIsTakenAsIs) {
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  const Eigen::Matrix3d r =
+      Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, -2, 0.5).normalized()).matrix();
+  m.topLeftCorner<3, 3>() = 1.05 * r;
+  m.topRightCorner<3, 1>() << 10, -20, 30;
+  auto reg = registrationFromMatrix(m, RegistrationLimits{});
+  ASSERT_TRUE(reg.ok()) << reg.error().message;
+  EXPECT_NEAR(reg->scale, 1.05, 1e-12);
+  EXPECT_LT((reg->rotation - r).cwiseAbs().maxCoeff(), 1e-12);
+  const Eigen::Vector3d p(3, 4, -5);
+  EXPECT_LT((reg->toRobot(p) - (1.05 * r * p + Eigen::Vector3d(10, -20, 30))).norm(), 1e-12);
+  EXPECT_LT((reg->toImage(reg->toRobot(p)) - p).norm(), 1e-12);
+  EXPECT_EQ(reg->kind, TransformKind::kSimilarity);
+  m.topLeftCorner<3, 3>() = r;
+  EXPECT_EQ(registrationFromMatrix(m, RegistrationLimits{})->kind, TransformKind::kRigid);
+}
+
+TEST(RegistrationFromMatrix, WhatIsNotARegistrationIsRefusedWithItsReason) {
+  const auto reason = [](const Eigen::Matrix4d& m) {
+    auto reg = registrationFromMatrix(m, RegistrationLimits{});
+    return reg.ok() ? std::string("accepted") : reg.error().reason;
+  };
+  const Eigen::Matrix4d id = Eigen::Matrix4d::Identity();
+  Eigen::Matrix4d m = id;
+  m(0, 1) = 0.05;
+  EXPECT_EQ(reason(m), "not_similarity");
+  m = id;
+  m(2, 2) = -1;  // RAS and LPS mixed up would mirror two axes; one is a mirror
+  EXPECT_EQ(reason(m), "mirror");
+  m = id;
+  m(1, 3) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(reason(m), "non_finite");
+  m = id;
+  m(3, 0) = 0.1;
+  EXPECT_EQ(reason(m), "not_affine");
+  m = 1.5 * id;
+  m(3, 3) = 1;
+  EXPECT_EQ(reason(m), "scale_out_of_range");
+  m = id;
+  m(0, 3) = 1e7;
+  EXPECT_EQ(reason(m), "out_of_range");
+  EXPECT_EQ(reason(Eigen::Matrix4d::Zero()), "not_affine");
+}
+
 }  // namespace
 }  // namespace ignav::registration

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <fmt/format.h>
+#include <Eigen/Geometry>
 
 #include <iostream>
 #include <random>
@@ -773,6 +774,129 @@ TEST(Approval, RandomSequencesNeverMoveWithoutAValidApproval) {
   EXPECT_GT(moves_started, 250u);
   std::cout << approvals_accepted << " approvals accepted, " << approvals_refused << " refused, "
             << moves_started << " moves started\n";
+}
+
+// Manual control (the BRP MANUAL workphase): halts first, refuses computer control, and resume
+// takes over wherever the hands left the motors.
+TEST(Manual, HaltsRefusesMotionAndResumeAdoptsThePosition) {
+  Bench b;
+  const auto id = b.addRobotTarget({0.6, 20.0, 15.0});
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  ASSERT_TRUE(b.s.pending.has_value());
+  const auto manual = b.feed(b.command(InputKind::kManual));
+  ASSERT_TRUE(manual.effects.replies.at(0).accepted);
+  EXPECT_EQ(b.s.phase, Phase::kManual);
+  ASSERT_FALSE(manual.effects.controller.empty());
+  EXPECT_TRUE(manual.effects.controller.front().isHalt());
+  EXPECT_FALSE(b.s.pending.has_value());  // the approval request died with the change
+  for (InputKind kind : {InputKind::kStop, InputKind::kLockPlan, InputKind::kRequestApproval,
+                         InputKind::kCheckReady, InputKind::kManual}) {
+    auto in = b.command(kind);
+    in.path = "robot";
+    const auto r = b.send(in);
+    EXPECT_EQ(r.error_code, "wrong_phase") << toString(kind);
+  }
+  // Someone turns the cannula by hand, a tenth of a radian.
+  const Steps hands = paperRobot()->transmission.toSteps({0.1, 0.0, 0.0}).steps;
+  ASSERT_NE(hands, Steps{});
+  (void)b.sim().placeAt(hands);
+  const auto resumed = b.send(b.command(InputKind::kResume));
+  ASSERT_TRUE(resumed.accepted) << resumed.message;
+  EXPECT_EQ(b.s.position, hands);
+  EXPECT_EQ(b.s.phase, Phase::kPlanLocked);
+  // The fresh request starts where the robot now is.
+  ASSERT_TRUE(b.s.pending.has_value());
+  EXPECT_EQ(b.s.pending->from, hands);
+  EXPECT_EQ(b.s.pending->target_id, id);
+  // And the journal says so: replaying it gives the same session.
+  auto replayed = replayJournal(
+      newSession("bench", paperRobot(), "robot.yaml"), b.journal,
+      [](const std::string&) -> Expected<LoadedCt> {
+        LoadedCt ct;
+        ct.volume = std::make_shared<volume::Volume>();
+        return ct;
+      },
+      "journal");
+  ASSERT_TRUE(replayed.ok()) << replayed.error().message;
+  EXPECT_EQ(replayed->phase, Phase::kPlanLocked);
+  EXPECT_EQ(replayed->position, hands);
+}
+
+// A readiness question changes nothing: no revision, no journal record, no lost approval.
+TEST(CheckReady, AnswersWithoutChangingAnything) {
+  Bench b;
+  b.addRobotTarget({0.6, 20.0, 15.0});
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  const auto revision = b.s.revision;
+  const auto plan = b.s.pending.value().plan_id;
+  const auto lines = b.journal.size();
+  auto ask = b.command(InputKind::kCheckReady);
+  ask.path = "targeting";
+  const auto r = b.send(ask);
+  EXPECT_TRUE(r.accepted) << r.message;
+  EXPECT_EQ(b.s.revision, revision);
+  EXPECT_EQ(b.journal.size(), lines);
+  ASSERT_TRUE(b.s.pending.has_value());
+  EXPECT_EQ(b.s.pending->plan_id, plan);
+  ask.path = "everything";
+  ++ask.request_id;
+  EXPECT_EQ(b.send(ask).error_code, "bad_arguments");
+  // A controller that does not answer is not ready.
+  ask.path = "robot";
+  ++ask.request_id;
+  ask.controller = ControllerStatus{};  // disconnected
+  EXPECT_EQ(b.send(ask).error_code, "controller_unavailable");
+}
+
+TEST(CheckReady, TargetingNeedsARegistration) {
+  Session s = newSession("t", paperRobot(), "robot.yaml");
+  Input config;
+  config.kind = InputKind::kConfigLoaded;
+  s = reduce(s, config).session;
+  Input ask;
+  ask.kind = InputKind::kCheckReady;
+  ask.client_id = "slicer";
+  ask.request_id = 1;
+  ask.path = "targeting";
+  ask.controller = ControllerStatus{};
+  ask.controller->state = ControllerState::kIdle;
+  EXPECT_EQ(reduce(s, ask).effects.replies.at(0).error_code, "not_registered");
+  ask.path = "robot";
+  EXPECT_TRUE(reduce(s, ask).effects.replies.at(0).accepted);
+}
+
+// A registration computed elsewhere (Slicer's, as a matrix): the targets are judged by it, its
+// TRE is unknown (no fiducials), a bad matrix changes nothing, and the journal keeps it exactly.
+TEST(SetRegistration, AMatrixRegistersAndIsJournaledExactly) {
+  Bench b;
+  const auto id = b.addRobotTarget({0.6, 20.0, 15.0});
+  const Eigen::Vector3d lps = b.target(id).lps_mm;
+  const Eigen::Vector3d robot_before = b.target(id).robot_mm;
+  Eigen::Matrix4d m = b.s.registration->imageToRobot();
+  m.topRightCorner<3, 1>() += Eigen::Vector3d(0.5, -0.25, 1.0);  // the robot moved a little
+  auto set = b.command(InputKind::kSetRegistration);
+  set.matrix = m;
+  const auto r = b.send(set);
+  ASSERT_TRUE(r.accepted) << r.message;
+  EXPECT_LT((b.target(id).robot_mm - (m * lps.homogeneous()).head<3>()).norm(), 1e-9);
+  EXPECT_LT((b.target(id).robot_mm - robot_before - Eigen::Vector3d(0.5, -0.25, 1.0)).norm(), 1e-9);
+  EXPECT_TRUE(std::isnan(b.target(id).tre_mm));
+  const auto entry = parseJournalRecord(b.journal.back());
+  ASSERT_TRUE(entry.ok()) << entry.error().message;
+  ASSERT_TRUE(entry->input.matrix.has_value());
+  EXPECT_EQ(*entry->input.matrix, m);  // bit for bit
+
+  const auto revision = b.s.revision;
+  Eigen::Matrix4d sheared = m;
+  sheared(0, 1) += 0.1;
+  set.matrix = sheared;
+  ++set.request_id;
+  EXPECT_EQ(b.send(set).error_code, "not_similarity");
+  EXPECT_EQ(b.s.revision, revision);
+  EXPECT_LT((b.target(id).robot_mm - (m * lps.homogeneous()).head<3>()).norm(), 1e-9);
+  auto missing = b.command(InputKind::kSetRegistration);
+  missing.request_id = 1000;  // (the sheared one took the next id)
+  EXPECT_EQ(b.send(missing).error_code, "bad_arguments");
 }
 
 }  // namespace

@@ -103,6 +103,48 @@ Eigen::Matrix4d Registration::imageToRobot() const {
   return m;
 }
 
+Expected<Registration> registrationFromMatrix(const Eigen::Matrix4d& m,
+                                              const RegistrationLimits& limits) {
+  auto reject = [](const char* reason, std::string message) -> Expected<Registration> {
+    return makeError(ErrorCode::kDegenerate, "image-to-robot matrix: " + std::move(message),
+                     reason);
+  };
+  if (!m.allFinite()) return reject("non_finite", "an element is not finite");
+  const Eigen::RowVector4d bottom = m.row(3);
+  if ((bottom - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-6) {
+    return reject("not_affine", fmt::format("the bottom row is [{:.4g} {:.4g} {:.4g} {:.4g}], "
+                                            "not [0 0 0 1]",
+                                            bottom(0), bottom(1), bottom(2), bottom(3)));
+  }
+  const Eigen::Matrix3d a = m.topLeftCorner<3, 3>();
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Vector3d sv = svd.singularValues();
+  if (!(sv(2) > 0.0) || (sv(0) - sv(2)) / sv(0) > 1e-4) {
+    return reject("not_similarity",
+                  fmt::format("its 3x3 part stretches unevenly (singular values {:.6g}, {:.6g}, "
+                              "{:.6g}): shear or anisotropic scale is not a registration",
+                              sv(0), sv(1), sv(2)));
+  }
+  if (a.determinant() < 0.0) {
+    return reject("mirror", "it mirrors (negative determinant): RAS and LPS mixed up?");
+  }
+  const Eigen::Vector3d t = m.topRightCorner<3, 1>();
+  if (t.cwiseAbs().maxCoeff() > 1e6) {
+    return reject("out_of_range", fmt::format("a translation of {:.4g} mm", t.cwiseAbs().maxCoeff()));
+  }
+  Registration r;
+  r.scale = sv.mean();
+  r.kind = std::abs(r.scale - 1.0) < 1e-6 ? TransformKind::kRigid : TransformKind::kSimilarity;
+  r.rotation = svd.matrixU() * svd.matrixV().transpose();
+  r.translation_mm = t;
+  if (!(r.scale >= limits.min_scale && r.scale <= limits.max_scale)) {
+    return reject("scale_out_of_range",
+                  fmt::format("scale {:.4f} is outside the plausible range [{:.4f}, {:.4f}]",
+                              r.scale, limits.min_scale, limits.max_scale));
+  }
+  return r;
+}
+
 Expected<Registration> registerPoints(const Points& image_mm, const Points& robot_mm,
                                       TransformKind kind, const RegistrationLimits& limits) {
   if (image_mm.size() != robot_mm.size()) {

@@ -104,8 +104,11 @@ Expected<std::optional<MotionRequest>> nextRequest(const Session& s, double time
     r.moves = plan->motions.front().moves;
     r.tre_mm = t.tre_mm;
     const auto& j = t.solution.joints;
-    where = fmt::format("T{} (θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm, expected TRE {:.2f} mm)",
-                        t.id, j.theta_c_rad * kRadToDeg, j.z_c_mm, j.z_s_mm, t.tre_mm);
+    // A registration given as a matrix has no fiducials to estimate the TRE from.
+    const std::string tre = std::isnan(t.tre_mm) ? std::string("TRE unknown (registered by matrix)")
+                                                 : fmt::format("expected TRE {:.2f} mm", t.tre_mm);
+    where = fmt::format("T{} (θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm, {})", t.id,
+                        j.theta_c_rad * kRadToDeg, j.z_c_mm, j.z_s_mm, tre);
   } else {
     kinematics::Joints home = start;
     home.z_s_mm = 0.0;

@@ -131,6 +131,16 @@ std::optional<Rejection> checkShape(const Input& in) {
       return want(0, 1);
     case InputKind::kReorderTargets:
       return std::nullopt;  // checked against the targets
+    case InputKind::kSetRegistration:
+      if (!in.matrix) return Rejection{"bad_arguments", "set_registration needs a 4x4 matrix"};
+      return want(0, 0);
+    case InputKind::kCheckReady:
+      if (in.path != "robot" && in.path != "targeting") {
+        return Rejection{"bad_arguments",
+                         "check_ready asks about \"robot\" or \"targeting\"; got \"" +
+                             in.path.substr(0, 64) + "\""};
+      }
+      return want(0, 0);
     case InputKind::kApprove:
       if (in.digest.size() > kMaxIdLength) {
         return Rejection{"too_long", fmt::format("digest has {} characters; at most {}",
@@ -182,6 +192,10 @@ void evaluate(const Session& s, Target& t) {
     }
   }
   const auto& settings = robot.config.registration;
+  if (reg.image_mm.empty()) {  // registered elsewhere: no fiducials to estimate it from
+    t.tre_mm = std::numeric_limits<double>::quiet_NaN();
+    return;
+  }
   t.tre_mm = registration::expectedTre_mm(registration::describeFiducials(reg.image_mm), t.lps_mm,
                                           settings.fle_mm, reg.kind);
   t.tre_warning = t.tre_mm > settings.max_tre_mm;
@@ -285,7 +299,8 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
                                Phase& to, std::string& note) {
   // Whatever else happens, a pending approval request dies with any change (DESIGN.md safety
   // invariant 1); only an approve consumes it, and new ones are issued below.
-  if (in.kind != InputKind::kQuery && in.kind != InputKind::kApprove && s.pending) {
+  if (in.kind != InputKind::kQuery && in.kind != InputKind::kApprove &&
+      in.kind != InputKind::kCheckReady && s.pending) {
     s.pending.reset();
     e.approval_changed = true;
   }
@@ -339,6 +354,21 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
         image.push_back(found->candidates[k].centroid_lps_mm);
       }
       if (auto bad = adoptRegistration(s, image, true, e)) return bad;
+      note = s.registration_status.message;
+      return std::nullopt;
+    }
+    case InputKind::kSetRegistration: {
+      auto reg =
+          registration::registrationFromMatrix(*in.matrix, s.robot->config.registration.limits);
+      if (!reg) return Rejection{reg.error().reason, reg.error().message};
+      s.registration = std::move(reg).value();
+      s.registration_status = {
+          "registered",
+          fmt::format("set by '{}' as a matrix: scale {:.4f}, no fiducials (TRE unknown)",
+                      in.client_id, s.registration->scale),
+          false};
+      e.registration_changed = true;
+      evaluateAll(s, e);
       note = s.registration_status.message;
       return std::nullopt;
     }
@@ -556,7 +586,40 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
         s.resume_phase = resumeTo(s.phase);
       }
       return std::nullopt;
+    case InputKind::kManual:
+      s.resume_phase = resumeTo(s.phase);
+      e.controller.push_back({ControllerAction::kStop, {}});
+      interruptMotion(s, e, in.time_s, "manual control");
+      note = "manual control: the robot may be moved by hand; resume takes it back";
+      return std::nullopt;
+    case InputKind::kCheckReady: {
+      if (auto busy = detail::checkAtRest(in)) return busy;
+      if (in.controller->state == actuation::ControllerState::kFault) {
+        return Rejection{"controller_fault",
+                         "the controller reports a fault: " + in.controller->fault};
+      }
+      if (in.path == "targeting" && !s.registration) {
+        return Rejection{"not_registered",
+                         "no registration yet: register the image to the robot first"};
+      }
+      note = in.path == "robot" ? "the robot is ready" : "ready for targets";
+      return std::nullopt;
+    }
     case InputKind::kResume: {
+      if (s.phase == Phase::kManual) {
+        // Back from manual control: where the hands left the motors becomes the position.
+        if (auto busy = detail::checkAtRest(in)) return busy;
+        if (in.controller->state == actuation::ControllerState::kFault) {
+          return Rejection{"controller_fault",
+                           "the controller reports a fault: " + in.controller->fault};
+        }
+        if (s.position != in.controller->position) e.motion_changed = true;
+        s.position = in.controller->position;
+        if (s.motion) {
+          s.motion.reset();
+          e.motion_changed = true;
+        }
+      }
       to = s.resume_phase;
       if (to != Phase::kPlanLocked && to != Phase::kAtTarget) return std::nullopt;
       if (auto busy = detail::checkAtRest(in)) return busy;
@@ -657,6 +720,13 @@ json journalRecord(const Input& in, const Session& after) {
   }
   if (in.plan_id != 0) record["plan_id"] = in.plan_id;
   if (!in.digest.empty()) record["digest"] = in.digest;
+  if (in.matrix) {
+    json m = json::array();
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c)
+        m.push_back((*in.matrix)(r, c));
+    record["matrix"] = m;  // row-major
+  }
   if (in.controller) {
     const auto& c = *in.controller;
     record["controller"] = {
@@ -780,6 +850,14 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
     e.input.loaded.description = r.value("description", "");
     e.input.plan_id = integer(r, "plan_id", std::uint64_t{0});
     e.input.digest = r.value("digest", "");
+    if (r.contains("matrix")) {
+      const json& m = r.at("matrix");
+      if (!m.is_array() || m.size() != 16) throw std::invalid_argument("matrix: not 16 numbers");
+      Eigen::Matrix4d matrix;
+      for (int k = 0; k < 16; ++k)
+        matrix(k / 4, k % 4) = m.at(k).get<double>();
+      e.input.matrix = matrix;
+    }
     if (r.contains("controller")) e.input.controller = readingFromJson(r.at("controller"));
     if (r.contains("tissue")) {
       const json& t = r.at("tissue");
@@ -920,13 +998,14 @@ Step reduce(const Session& session, const Input& in) {
 
   const Phase before = s.phase;
   s.phase = to;
-  if (in.kind != InputKind::kQuery) ++s.revision;
+  // Questions change nothing, so there is nothing to journal (and no fsync on their path).
+  const bool question = in.kind == InputKind::kQuery || in.kind == InputKind::kCheckReady;
+  if (!question) ++s.revision;
   s.last_event = toString(in.kind);
   if (command) ++s.accepted;
   e.workflow_changed = true;
   if (before != s.phase && in.kind == InputKind::kLoadVolume) e.volume_changed = true;
-  // A query changes nothing, so there is nothing to journal (and no fsync on its path).
-  if (in.kind != InputKind::kQuery) e.journal.push_back(journalRecord(in, s).dump());
+  if (!question) e.journal.push_back(journalRecord(in, s).dump());
   if (command) {
     reply.accepted = true;
     reply.target_id = new_id;

@@ -87,7 +87,9 @@ std::string procedureReport(const Session& s, const std::vector<std::string>& im
         planned ? fmt::format("{:.3f}", j.z_s_mm) : "—",
         planned ? fmt::format("{} / {} / {}", t.steps.motor[0], t.steps.motor[1], t.steps.motor[2])
                 : "—",
-        t.registered ? fmt::format("{:.2f}{}", t.tre_mm, t.tre_warning ? " ⚠" : "") : "—",
+        !t.registered          ? "—"
+        : std::isnan(t.tre_mm) ? "unknown (matrix)"
+                               : fmt::format("{:.2f}{}", t.tre_mm, t.tre_warning ? " ⚠" : ""),
         std::isfinite(t.predicted_deviation_mm) ? fmt::format("{:.2f}", t.predicted_deviation_mm)
                                                 : "—",
         t.reached ? utc(t.reached_s) : "—");

@@ -29,6 +29,8 @@ const char* toString(Phase phase) {
       return "emergency";
     case Phase::kFault:
       return "fault";
+    case Phase::kManual:
+      return "manual";
   }
   return "unknown";
 }
@@ -71,6 +73,12 @@ const char* toString(InputKind kind) {
       return "request_approval";
     case InputKind::kHome:
       return "home";
+    case InputKind::kSetRegistration:
+      return "set_registration";
+    case InputKind::kManual:
+      return "manual";
+    case InputKind::kCheckReady:
+      return "check_ready";
     case InputKind::kConfigLoaded:
       return "config_loaded";
     case InputKind::kVolumeLoaded:
@@ -107,6 +115,8 @@ bool needsControllerReading(InputKind kind) {
     case InputKind::kResume:
     case InputKind::kResetEmergency:
     case InputKind::kHome:
+    case InputKind::kManual:
+    case InputKind::kCheckReady:
     case InputKind::kSegmentDone:
     case InputKind::kControllerFault:
     case InputKind::kServerRestarted:
@@ -133,6 +143,9 @@ std::vector<Transition> buildTable() {
       {P::kRegistration, I::kLoadVolume, P::kImaging, "another CT"},
       {P::kRegistration, I::kSetFiducials, P::kPlanning, "3 points registered"},
       {P::kRegistration, I::kAutoFiducials, P::kPlanning, "markers found, registered"},
+      {P::kImaging, I::kSetRegistration, P::kPlanning, "registered elsewhere (no CT here)"},
+      {P::kRegistration, I::kSetRegistration, P::kPlanning, "registered elsewhere"},
+      {P::kPlanning, I::kSetRegistration, P::kPlanning, "re-register"},
       {P::kPlanning, I::kLoadVolume, P::kImaging, "another CT"},
       {P::kPlanning, I::kSetFiducials, P::kPlanning, "re-register"},
       {P::kPlanning, I::kAutoFiducials, P::kPlanning, "re-register"},
@@ -167,14 +180,25 @@ std::vector<Transition> buildTable() {
       {P::kFault, I::kHome, P::kFault, "robot homed by hand"},
       {P::kFault, I::kVolumeLoaded, P::kFault, "CT loaded"},
       {P::kFault, I::kVolumeLoadFailed, P::kFault, "load failed"},
+      {P::kManual, I::kResume, P::kManual, "back to the interrupted phase, position taken over"},
+      {P::kManual, I::kHome, P::kManual, "robot homed by hand"},
+      {P::kManual, I::kVolumeLoaded, P::kManual, "CT loaded"},
+      {P::kManual, I::kVolumeLoadFailed, P::kManual, "load failed"},
   };
   for (Phase p : kAllPhases) {
     // A fault is left only by a reset with a position check (or an emergency stop).
-    if (p != P::kStopped && p != P::kEmergency && p != P::kFault) {
+    // Manual control is left by resume (the robot is already halted and in someone's hands).
+    if (p != P::kStopped && p != P::kEmergency && p != P::kFault && p != P::kManual) {
       t.push_back({p, I::kStop, P::kStopped, "stop"});
     }
     if (p != P::kEmergency) t.push_back({p, I::kEmergencyStop, P::kEmergency, "EMERGENCY"});
     t.push_back({p, I::kQuery, p, "query"});
+    // Manual control and readiness questions: not while the robot is in trouble or moving.
+    const bool troubled = p == P::kEmergency || p == P::kFault || p == P::kManual;
+    if (!troubled && p != P::kStartup && p != P::kMoving) {
+      t.push_back({p, I::kManual, P::kManual, "hand the robot over"});
+    }
+    if (!troubled && p != P::kMoving) t.push_back({p, I::kCheckReady, p, "readiness check"});
     if (p == P::kStartup) continue;
     // Only where the robot is in use does a controller fault become the fault phase.
     const bool keeps = p != P::kPlanLocked && p != P::kMoving && p != P::kAtTarget && p != P::kDone;
@@ -208,20 +232,24 @@ std::string mermaidDiagram() {
   std::string out = "stateDiagram-v2\n  [*] --> startup\n";
   std::set<std::string> seen;
   for (const auto& t : transitionTable()) {
-    if (t.input == InputKind::kQuery) continue;  // a self-loop on every phase
+    // Self-loops on (almost) every phase, noted once.
+    if (t.input == InputKind::kQuery || t.input == InputKind::kCheckReady) continue;
     // The server's own inputs that leave a phase as it is: noted once, not drawn per phase.
     const bool server_self_loop =
         (t.input == InputKind::kControllerFault || t.input == InputKind::kServerRestarted) &&
         t.from == t.to;
     if (server_self_loop) continue;
-    const bool resume_back = t.input == InputKind::kResume && t.to == Phase::kStopped;
+    const bool resume_back =
+        t.input == InputKind::kResume && (t.to == Phase::kStopped || t.to == Phase::kManual);
     std::string line = std::string("  ") + toString(t.from) + " --> " +
                        (resume_back ? "resume_target" : toString(t.to)) + ": " + toString(t.input) +
                        " (" + t.why + ")\n";
     if (seen.insert(line).second) out += line;
   }
   out += "  resume_target: the phase stop interrupted\n";
-  out += "  note right of stopped: query is accepted in every phase\n";
+  out +=
+      "  note right of stopped: query is accepted in every phase; check_ready in every phase "
+      "but moving, emergency, fault and manual\n";
   out +=
       "  note right of fault: controller_fault and server_restarted leave the other phases "
       "as they are\n";

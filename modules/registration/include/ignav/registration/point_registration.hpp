@@ -55,6 +55,14 @@ Expected<Registration> registerPoints(const std::vector<Eigen::Vector3d>& image_
                                       const std::vector<Eigen::Vector3d>& robot_mm,
                                       TransformKind kind, const RegistrationLimits& limits);
 
+// A registration computed elsewhere (3D Slicer's, over OpenIGTLink): p_robot = matrix * p_image.
+// The matrix must be a similarity (equal singular values within 1e-4, relative), proper (no
+// mirror), with a bottom row 0 0 0 1 and a scale within the limits; reasons "non_finite",
+// "not_affine", "not_similarity", "mirror", "scale_out_of_range", "out_of_range". The rotation is
+// re-orthonormalised (the wire carries float32). No fiducials: FRE 0 and no points.
+Expected<Registration> registrationFromMatrix(const Eigen::Matrix4d& image_to_robot,
+                                              const RegistrationLimits& limits);
+
 // The fiducial configuration as Fitzpatrick & West describe it: centroid, principal axes and,
 // per axis k, f_k² = mean squared distance of the fiducials from that axis.
 struct FiducialConfiguration {

@@ -34,12 +34,13 @@ enum class Phase {
   kDone,        // every target visited, the stylet retracted
   kStopped,
   kEmergency,
-  kFault  // the controller failed or its position is in doubt
+  kFault,  // the controller failed or its position is in doubt
+  kManual  // the robot is moved by hand (or joystick); commands wait until it is handed back
 };
 constexpr Phase kAllPhases[] = {Phase::kStartup,   Phase::kImaging,    Phase::kRegistration,
                                 Phase::kPlanning,  Phase::kPlanLocked, Phase::kMoving,
                                 Phase::kAtTarget,  Phase::kDone,       Phase::kStopped,
-                                Phase::kEmergency, Phase::kFault};
+                                Phase::kEmergency, Phase::kFault,      Phase::kManual};
 const char* toString(Phase phase);  // "startup", "imaging", ...
 
 // Client commands first, then what the server itself feeds in.
@@ -62,6 +63,9 @@ enum class InputKind {
   kApprove,           // plan id + digest of a pending approval request
   kRequestApproval,   // a fresh request (new plan id and expiry) for the same next motion
   kHome,              // the operator brought the robot to its home: the present position is zero
+  kSetRegistration,   // an image -> robot transform computed elsewhere (3D Slicer), as a matrix
+  kManual,            // hand the robot to manual control (halted first); resume takes it back
+  kCheckReady,        // is the robot (path "robot") or the plan (path "targeting") ready? no change
   kConfigLoaded,      // the server started with a valid robot config
   kVolumeLoaded,      // a load the server ran finished
   kVolumeLoadFailed,  // ... or failed
@@ -87,6 +91,9 @@ constexpr InputKind kAllInputs[] = {InputKind::kLoadVolume,
                                     InputKind::kApprove,
                                     InputKind::kRequestApproval,
                                     InputKind::kHome,
+                                    InputKind::kSetRegistration,
+                                    InputKind::kManual,
+                                    InputKind::kCheckReady,
                                     InputKind::kConfigLoaded,
                                     InputKind::kVolumeLoaded,
                                     InputKind::kVolumeLoadFailed,
@@ -137,6 +144,8 @@ struct Input {
   std::string error;          // kVolumeLoadFailed
   std::uint64_t plan_id = 0;  // kApprove
   std::string digest;         // kApprove
+  // kSetRegistration: p_robot = matrix * p_lps (homogeneous; rotation, translation, scale).
+  std::optional<Eigen::Matrix4d> matrix;
   // kConfigLoaded: who may approve, for how long, the controller's profile. Journaled with the
   // input, so recovery and offline replay judge approvals by the same rules.
   std::optional<ApprovalPolicy> policy;
