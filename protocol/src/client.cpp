@@ -165,6 +165,21 @@ workflow::Reply Client::send(const std::string& command, const CommandArgs& args
   return awaitReply(request_id, command, timeout);
 }
 
+workflow::Reply Client::setRegistration(const Eigen::Matrix4d& image_to_robot,
+                                        std::chrono::milliseconds timeout) {
+  const std::uint64_t request_id = next_request_++;
+  OwnedCommand owned;
+  owned.client_id = client_id_;
+  for (int k = 0; k < 16; ++k)
+    owned.matrix[k] = image_to_robot(k / 4, k % 4);
+  const auto kind = ignav_msg_CMD_SET_REGISTRATION;
+  const Role role = requiredRole(kind);
+  impl_->commands[static_cast<int>(role)]
+      .get(std::string("'set_registration' needs the ") + toString(role) + " role")
+      .write(owned.build(request_id, kind));
+  return awaitReply(request_id, "set_registration", timeout);
+}
+
 workflow::Reply Client::approve(std::uint64_t plan_id, const std::string& digest,
                                 std::chrono::milliseconds timeout, std::uint64_t request_id) {
   if (request_id == 0) request_id = next_request_++;
@@ -257,11 +272,10 @@ std::vector<std::string> Client::poll() {
     for (std::uint32_t i = 0; i < w.allowed_commands._length; ++i) {
       allowed.push_back(str(w.allowed_commands._buffer[i]));
     }
-    state_["workflow"] = {{"session_id", str(w.session_id)},
-                          {"phase", str(w.phase)},
-                          {"allowed_commands", allowed},
-                          {"revision", w.revision},
-                          {"last_event", str(w.last_event)}};
+    state_["workflow"] = {
+        {"session_id", str(w.session_id)}, {"phase", str(w.phase)},
+        {"allowed_commands", allowed},     {"revision", w.revision},
+        {"last_event", str(w.last_event)}, {"safety_notice", str(w.safety_notice)}};
   }));
   note("robot", impl_->robot.take([&](const ignav_msg_RobotState& r) {
     state_["robot"] = {{"name", str(r.name)},
@@ -371,7 +385,8 @@ std::vector<std::string> Client::poll() {
                         {"uptime_s", h.uptime_s},
                         {"commands_accepted", h.commands_accepted},
                         {"commands_rejected", h.commands_rejected},
-                        {"journal", str(h.journal)}};
+                        {"journal", str(h.journal)},
+                        {"igtl_clients", h.igtl_clients}};
   }));
   return changed;
 }

@@ -27,6 +27,9 @@ constexpr KindName kKinds[] = {
     {ignav_msg_CMD_QUERY, workflow::InputKind::kQuery, Role::kViewer},
     {ignav_msg_CMD_REQUEST_APPROVAL, workflow::InputKind::kRequestApproval, Role::kPlanner},
     {ignav_msg_CMD_HOME, workflow::InputKind::kHome, Role::kApprover},
+    {ignav_msg_CMD_SET_REGISTRATION, workflow::InputKind::kSetRegistration, Role::kPlanner},
+    {ignav_msg_CMD_MANUAL, workflow::InputKind::kManual, Role::kPlanner},
+    {ignav_msg_CMD_CHECK_READY, workflow::InputKind::kCheckReady, Role::kViewer},
 };
 
 std::string copy(const char* s) {
@@ -74,6 +77,12 @@ std::optional<workflow::Input> toInput(const ignav_msg_Command& c) {
   }
   for (std::uint32_t i = 0; i < c.ids._length && i < cap; ++i)
     in.ids.push_back(c.ids._buffer[i]);
+  if (in.kind == workflow::InputKind::kSetRegistration) {
+    Eigen::Matrix4d m;
+    for (int k = 0; k < 16; ++k)
+      m(k / 4, k % 4) = c.matrix[k];
+    in.matrix = m;
+  }
   return in;
 }
 
@@ -103,6 +112,7 @@ const ignav_msg_Command& OwnedCommand::build(std::uint64_t request_id, ignav_msg
   msg.path = cstr(path);
   viewSequence(msg.points, points);
   viewSequence(msg.ids, ids);
+  std::copy(matrix.begin(), matrix.end(), msg.matrix);
   return msg;
 }
 

@@ -45,7 +45,10 @@ const ignav_msg_CommandKind kAllKinds[] = {ignav_msg_CMD_LOAD_VOLUME,
                                            ignav_msg_CMD_RESET_EMERGENCY,
                                            ignav_msg_CMD_QUERY,
                                            ignav_msg_CMD_REQUEST_APPROVAL,
-                                           ignav_msg_CMD_HOME};
+                                           ignav_msg_CMD_HOME,
+                                           ignav_msg_CMD_SET_REGISTRATION,
+                                           ignav_msg_CMD_MANUAL,
+                                           ignav_msg_CMD_CHECK_READY};
 
 TEST(Roles, EveryCommandsTopicIsGrantedToItsRoleAndAboveAndNotBelow) {
   const auto granted = publishedByRole();

@@ -19,6 +19,7 @@
 #include <iostream>
 #include <map>
 #include <optional>
+#include <sstream>
 #include <thread>
 
 #include "ignav/protocol/client.hpp"
@@ -46,6 +47,25 @@ Eigen::Vector3d triple(const std::string& text) {
     throw UsageError("'" + text + "' is not X,Y,Z");
   }
   return p;
+}
+
+// "m00,m01,...,m33": a row-major 4x4.
+Eigen::Matrix4d matrix16(const std::string& text) {
+  Eigen::Matrix4d m;
+  std::stringstream in(text);
+  std::string item;
+  int k = 0;
+  while (std::getline(in, item, ',')) {
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (k >= 16 || end == item.c_str() || *end != '\0' || !std::isfinite(v)) {
+      throw UsageError("'" + text + "' is not 16 comma-separated numbers");
+    }
+    m(k / 4, k % 4) = v;
+    ++k;
+  }
+  if (k != 16) throw UsageError("'" + text + "' is not 16 comma-separated numbers");
+  return m;
 }
 
 void printReply(const ignav::workflow::Reply& r, bool as_json) {
@@ -414,9 +434,17 @@ int main(int argc, char** argv) {
   approve->add_option("--plan", approve_plan, "approve exactly this plan id ...");
   approve->add_option("--digest", approve_digest, "... and digest");
   auto* emergency = app.add_subcommand("emergency-stop", "halt the robot now, from any phase");
+  std::string matrix_text;
+  auto* set_registration = app.add_subcommand(
+      "set-registration", "register with a matrix computed elsewhere (image LPS -> robot)");
+  set_registration->add_option("matrix", matrix_text, "16 comma-separated numbers, row-major 4x4")
+      ->required();
+  std::string ready_what;
+  auto* ready = app.add_subcommand("ready", "is the robot (or the plan) ready? changes nothing");
+  ready->add_option("what", ready_what, "robot | targeting")->required();
   std::string simple;
   for (const char* name :
-       {"stop", "resume", "reset-emergency", "home", "request-approval", "query"}) {
+       {"stop", "resume", "reset-emergency", "home", "request-approval", "query", "manual"}) {
     app.add_subcommand(name, std::string("send ") + name)->callback([&simple, name] {
       simple = name;
     });
@@ -493,6 +521,12 @@ int main(int argc, char** argv) {
       }
       return 0;
     }
+    if (*set_registration) {
+      const auto r = client.setRegistration(matrix16(matrix_text));
+      printReply(r, as_json);
+      return r.accepted ? 0 : kExitRejected;
+    }
+    if (*ready) return send("check_ready", {ready_what, {}, {}});
     if (*load)
       return send("load_volume", {load_path == "phantom" ? "phantom:" : load_path, {}, {}});
     if (*fid) {

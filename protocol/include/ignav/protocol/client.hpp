@@ -65,6 +65,9 @@ class Client {
   workflow::Reply send(const std::string& command, const CommandArgs& args = {},
                        std::chrono::milliseconds timeout = std::chrono::seconds(30),
                        std::uint64_t request_id = 0);
+  // set_registration: a registration computed elsewhere, p_robot = image_to_robot * p_lps.
+  workflow::Reply setRegistration(const Eigen::Matrix4d& image_to_robot,
+                                  std::chrono::milliseconds timeout = std::chrono::seconds(30));
   // Approves the pending motion (ApprovalState's plan id and digest) on the approval topic.
   workflow::Reply approve(std::uint64_t plan_id, const std::string& digest,
                           std::chrono::milliseconds timeout = std::chrono::seconds(30),

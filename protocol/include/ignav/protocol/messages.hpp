@@ -2,6 +2,7 @@
 // do not own: the Owned* holders keep that memory alive while a sample is written.
 #pragma once
 
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
@@ -67,6 +68,7 @@ struct OwnedCommand {
   std::string client_id, path;
   std::vector<ignav_msg_Point3> points;
   std::vector<std::uint32_t> ids;
+  std::array<double, 16> matrix{};  // row-major
   ignav_msg_Command msg{};
   const ignav_msg_Command& build(std::uint64_t request_id, ignav_msg_CommandKind kind);
 };
