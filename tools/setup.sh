@@ -16,6 +16,8 @@ packages=(
   libssl-dev
   # benchmarks: the reference DICOM converter and GNU time for peak memory
   dcm2niix time
+  # 3D Slicer as a live client: the OpenIGTLink bridge (docs/OPENIGTLINK.md)
+  libopenigtlink-dev
   # DDS
   cyclonedds-dev cyclonedds-tools
   # tests and benchmarks (tshark: the DDS Security test captures the loopback)

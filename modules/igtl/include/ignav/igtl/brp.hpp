@@ -1,0 +1,114 @@
+// The ProstateBRP workphase protocol (3D Slicer's robot protocol over OpenIGTLink) translated to
+// and from the workflow core. The bridge has no logic of its own: each BRP command becomes
+// workflow inputs, and what the core answers becomes BRP replies. It holds only what the
+// translation needs (which BRP command is waiting for which reply, the last workphase reported).
+// Pure: no sockets, no clock; the server feeds it messages, replies and states
+// (docs/OPENIGTLINK.md).
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ignav/igtl/message.hpp"
+#include "ignav/workflow/session.hpp"
+
+namespace ignav::igtl {
+
+enum class Workphase {
+  kStartUp,
+  kPlanning,
+  kCalibration,
+  kTargeting,
+  kMoveToTarget,
+  kManual,
+  kStop,
+  kEmergency
+};
+const char* toString(Workphase phase);  // "START_UP", "MOVE_TO_TARGET", ...
+std::optional<Workphase> parseWorkphase(const std::string& text);
+
+// Slicer works in RAS, ignav (as DICOM) in LPS: p_ras = kRasFromLps * p_lps (its own inverse).
+Eigen::Matrix4d rasFromLps();
+
+// The client id (and role) of every input the bridge sends. DDS clients may not use it.
+inline constexpr const char* kBridgeClientId = "openigtlink";
+
+struct BrpOptions {
+  // OpenIGTLink has no authentication: MOVE_TO_TARGET approves the motion only when a site
+  // enables this (and lists kBridgeClientId as an approver); otherwise a DDS approver must.
+  bool allow_motion_approval = false;
+};
+
+struct BrpOutgoing {
+  std::uint64_t client = 0;  // 0: every connected client
+  Message message;
+};
+
+struct BrpOutput {
+  std::vector<BrpOutgoing> messages;
+  std::vector<workflow::Input> inputs;  // for the core, in order; the server stamps time, reading
+};
+
+class BrpBridge {
+ public:
+  // `first_request_id` must not repeat across server restarts (the core answers a repeated
+  // request id from its journal without executing it): the server passes microseconds of wall time.
+  BrpBridge(BrpOptions options, std::uint64_t first_request_id);
+
+  // A client connected: it is told the workphase and, if registered, ImageToRobot.
+  BrpOutput onConnected(std::uint64_t client, const workflow::Session& s) const;
+  void onDisconnected(std::uint64_t client);
+  // A message from a client. `live` is the motors' present position (for GET_TRANSFORM).
+  BrpOutput onMessage(std::uint64_t client, const Message& m, const workflow::Session& s,
+                      const actuation::Steps& live);
+  // The core's reply to one of our inputs (client id kBridgeClientId), with the session after it.
+  BrpOutput onReply(const workflow::Reply& reply, const workflow::Session& s);
+  // After every step: workphase changes, motion results, a new registration.
+  BrpOutput onState(const workflow::Session& s);
+  // While the robot moves: CURRENT_POSITION and NeedleTipToImage at the motors' live position.
+  BrpOutput onPosition(const workflow::Session& s, const actuation::Steps& live) const;
+
+  // The workphase a client would be told now.
+  Workphase workphase(const workflow::Session& s) const;
+  bool waiting() const { return !pending_.empty(); }
+
+ private:
+  enum class Purpose { kCommand, kCalibration, kTarget, kTargetRemoval };
+  struct Pending {
+    std::uint64_t client = 0;
+    Purpose purpose = Purpose::kCommand;
+    Workphase phase = Workphase::kStartUp;  // kCommand
+    std::deque<workflow::InputKind> remaining;
+    std::string why;  // kTargetRemoval: the core's reason the target cannot be reached
+  };
+
+  workflow::Input input(workflow::InputKind kind);
+  // The next input of a command (an approval is filled in from the session's pending request).
+  void dispatch(Pending p, const workflow::Session& s, BrpOutput& out);
+  Message currentStatus(const workflow::Session& s) const;
+  void reportCurrentStatus(std::uint64_t client, const workflow::Session& s, BrpOutput& out);
+
+  BrpOptions options_;
+  std::uint64_t next_request_id_;
+  std::map<std::uint64_t, Pending> pending_;  // by request id
+  std::optional<Workphase> last_accepted_;  // none yet (or a replay: then from the phase)
+  std::optional<std::pair<Workphase, std::uint16_t>> last_reported_;
+  workflow::Phase last_phase_ = workflow::Phase::kStartup;
+  std::optional<Eigen::Matrix4d> last_registration_;
+};
+
+// The needle tip's pose in the image (RAS): translation = the tip at `steps`, rotation = the
+// robot frame's axes. Nothing without a registration.
+std::optional<Eigen::Matrix4d> tipToImageRas(const workflow::Session& s,
+                                             const actuation::Steps& steps);
+// The core's rejection as a BRP STATUS code: panic in an emergency, manual mode, hardware
+// failure, configuration error for bad values, not ready for the rest.
+StatusCode statusCodeFor(const std::string& error_code, workflow::Phase phase);
+
+}  // namespace ignav::igtl

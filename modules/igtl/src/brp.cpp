@@ -1,0 +1,481 @@
+#include "ignav/igtl/brp.hpp"
+
+#include <algorithm>
+#include <initializer_list>
+#include <set>
+
+#include <fmt/format.h>
+
+namespace ignav::igtl {
+namespace {
+
+using workflow::InputKind;
+using workflow::Phase;
+
+constexpr Workphase kAllWorkphases[] = {
+    Workphase::kStartUp,      Workphase::kPlanning, Workphase::kCalibration, Workphase::kTargeting,
+    Workphase::kMoveToTarget, Workphase::kManual,   Workphase::kStop,        Workphase::kEmergency};
+
+// A STRING's device is "CMD_<id>" (a TRANSFORM's "CLB_<id>" / "TGT_<id>"): the id, if it is one.
+std::optional<std::string> idAfter(const std::string& device, const char* prefix) {
+  const std::string p = prefix;
+  if (device.size() <= p.size() || device.compare(0, p.size(), p) != 0) return std::nullopt;
+  return device.substr(p.size());
+}
+
+std::string ackName(const std::string& id) {
+  return ("ACK_" + id).substr(0, kMaxDeviceName);
+}
+
+// The status string and error name fields: printable, bounded.
+std::string errorName(const std::string& error_code) {
+  return error_code.substr(0, kMaxDeviceName);
+}
+
+Eigen::Matrix4d poseRas(const workflow::Session& s, const Eigen::Vector3d& robot_mm) {
+  const auto& reg = *s.registration;
+  const Eigen::Matrix4d f = rasFromLps();
+  Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
+  // Robot axes in the image: rotation^T (image -> robot is scale * rotation), then LPS -> RAS.
+  pose.topLeftCorner<3, 3>() = f.topLeftCorner<3, 3>() * reg.rotation.transpose();
+  pose.topRightCorner<3, 1>() = f.topLeftCorner<3, 3>() * reg.toImage(robot_mm);
+  return pose;
+}
+
+}  // namespace
+
+const char* toString(Workphase phase) {
+  switch (phase) {
+    case Workphase::kStartUp:
+      return "START_UP";
+    case Workphase::kPlanning:
+      return "PLANNING";
+    case Workphase::kCalibration:
+      return "CALIBRATION";
+    case Workphase::kTargeting:
+      return "TARGETING";
+    case Workphase::kMoveToTarget:
+      return "MOVE_TO_TARGET";
+    case Workphase::kManual:
+      return "MANUAL";
+    case Workphase::kStop:
+      return "STOP";
+    case Workphase::kEmergency:
+      return "EMERGENCY";
+  }
+  return "UNKNOWN";
+}
+
+std::optional<Workphase> parseWorkphase(const std::string& text) {
+  for (Workphase w : kAllWorkphases) {
+    if (text == toString(w)) return w;
+  }
+  return std::nullopt;
+}
+
+Eigen::Matrix4d rasFromLps() {
+  return Eigen::Vector4d(-1.0, -1.0, 1.0, 1.0).asDiagonal();
+}
+
+std::optional<Eigen::Matrix4d> tipToImageRas(const workflow::Session& s,
+                                             const actuation::Steps& steps) {
+  if (!s.registration || !s.robot) return std::nullopt;
+  const auto joints = s.robot->transmission.toJoints(steps);
+  return poseRas(s, s.robot->kinematics.forward(joints).tip_mm);
+}
+
+StatusCode statusCodeFor(const std::string& error_code, Phase phase) {
+  if (phase == Phase::kEmergency) return StatusCode::kPanic;
+  if (phase == Phase::kManual) return StatusCode::kManualMode;
+  static const std::set<std::string> hardware = {"controller_fault", "controller_unavailable",
+                                                 "controller_changed"};
+  if (phase == Phase::kFault || hardware.count(error_code)) return StatusCode::kHardwareFailure;
+  // Values the core refused (as opposed to a robot or workflow that is not ready for them).
+  static const std::set<std::string> values = {
+      "bad_arguments",      "non_finite",  "out_of_range",     "oversized",
+      "too_long",           "not_affine",  "not_similarity",   "mirror",
+      "scale_out_of_range", "unreachable", "too_many_targets", "unknown_target",
+      "unreachable_targets"};
+  return values.count(error_code) ? StatusCode::kConfigurationError : StatusCode::kNotReady;
+}
+
+BrpBridge::BrpBridge(BrpOptions options, std::uint64_t first_request_id)
+    : options_(options), next_request_id_(first_request_id) {}
+
+Workphase BrpBridge::workphase(const workflow::Session& s) const {
+  switch (s.phase) {
+    case Phase::kStartup:
+      return Workphase::kStartUp;
+    case Phase::kMoving:
+      return Workphase::kMoveToTarget;
+    case Phase::kStopped:
+      return Workphase::kStop;
+    case Phase::kEmergency:
+      return Workphase::kEmergency;
+    case Phase::kManual:
+      return Workphase::kManual;
+    default:
+      break;
+  }
+  // Otherwise the workphase the navigation software last asked for, if the robot is still where
+  // that left it; else (a DDS client moved the workflow on, or nothing was asked yet, as in a
+  // replay) the one the phase implies.
+  const auto fits = [&](std::initializer_list<Workphase> allowed) {
+    return last_accepted_ &&
+           std::find(allowed.begin(), allowed.end(), *last_accepted_) != allowed.end();
+  };
+  using W = Workphase;
+  switch (s.phase) {
+    case Phase::kImaging:
+    case Phase::kRegistration:
+      return fits({W::kStartUp, W::kPlanning, W::kCalibration}) ? *last_accepted_ : W::kStartUp;
+    case Phase::kPlanning:
+      return fits({W::kStartUp, W::kPlanning, W::kCalibration, W::kTargeting}) ? *last_accepted_
+                                                                               : W::kPlanning;
+    case Phase::kPlanLocked:
+      return fits({W::kStartUp, W::kTargeting, W::kMoveToTarget}) ? *last_accepted_ : W::kTargeting;
+    case Phase::kAtTarget:
+    case Phase::kDone:
+      return fits({W::kStartUp, W::kTargeting, W::kMoveToTarget}) ? *last_accepted_
+                                                                  : W::kMoveToTarget;
+    default:  // a fault keeps the workphase it interrupted
+      return last_accepted_.value_or(W::kStartUp);
+  }
+}
+
+Message BrpBridge::currentStatus(const workflow::Session& s) const {
+  StatusCode code = StatusCode::kOk;
+  std::string error;
+  if (s.phase == Phase::kEmergency) {
+    code = StatusCode::kPanic;
+    error = "emergency";
+  } else if (s.phase == Phase::kManual) {
+    code = StatusCode::kManualMode;
+    error = "manual";
+  } else if (s.phase == Phase::kFault) {
+    code = StatusCode::kHardwareFailure;
+    error = "fault";
+  }
+  return statusMessage("CURRENT_STATUS", code, toString(workphase(s)), error);
+}
+
+// Every client hears of a new workphase; the client whose command left it unchanged is told
+// it again (each command is answered with the workphase).
+void BrpBridge::reportCurrentStatus(std::uint64_t client, const workflow::Session& s,
+                                    BrpOutput& out) {
+  Message status = currentStatus(s);
+  const auto now = std::make_pair(workphase(s), status.status.code);
+  const bool changed = !last_reported_ || *last_reported_ != now;
+  last_reported_ = now;
+  out.messages.push_back({changed ? 0 : client, std::move(status)});
+}
+
+workflow::Input BrpBridge::input(InputKind kind) {
+  workflow::Input in;
+  in.kind = kind;
+  in.client_id = kBridgeClientId;
+  in.role = kBridgeClientId;
+  in.request_id = next_request_id_++;
+  return in;
+}
+
+BrpOutput BrpBridge::onConnected(std::uint64_t client, const workflow::Session& s) const {
+  BrpOutput out;
+  out.messages.push_back({client, currentStatus(s)});
+  if (s.registration) {
+    out.messages.push_back(
+        {client, transformMessage("ImageToRobot", s.registration->imageToRobot() * rasFromLps())});
+  }
+  return out;
+}
+
+void BrpBridge::onDisconnected(std::uint64_t client) {
+  // Its commands still run to their end (the robot must not be left half-way through a
+  // sequence); their answers go nowhere.
+  for (auto& [id, p] : pending_) {
+    if (p.client == client) p.client = ~std::uint64_t{0};
+  }
+}
+
+BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const workflow::Session& s,
+                               const actuation::Steps& live) {
+  BrpOutput out;
+  const auto send = [&](Message msg) { out.messages.push_back({client, std::move(msg)}); };
+  if (m.type == "STRING") {
+    const auto id = idAfter(m.device_name, "CMD_");
+    if (!id) {
+      send(statusMessage(m.device_name, StatusCode::kUnknownInstruction,
+                         "a command is STRING(CMD_<id>, <workphase>)", "unknown_device"));
+      return out;
+    }
+    // The receipt first, whatever becomes of the command.
+    send(stringMessage(ackName(*id), m.text));
+    const auto phase = parseWorkphase(m.text);
+    if (!phase) {
+      send(currentStatus(s));
+      send(statusMessage(m.text.substr(0, kMaxDeviceName), StatusCode::kUnknownInstruction,
+                         fmt::format("'{}' is not a workphase", m.text.substr(0, 64)),
+                         "unknown_workphase"));
+      return out;
+    }
+    Pending p;
+    p.client = client;
+    p.phase = *phase;
+    // Unlock and lock are sent only where the phase then calls for them (dispatch decides).
+    auto& r = p.remaining;
+    switch (*phase) {
+      case Workphase::kStartUp:
+        // START_UP takes the robot back from a stop or from manual control.
+        if (s.phase == Phase::kStopped || s.phase == Phase::kManual)
+          r.push_back(InputKind::kResume);
+        r.push_back(InputKind::kCheckReady);
+        break;
+      case Workphase::kPlanning:
+      case Workphase::kCalibration:
+      case Workphase::kTargeting:
+        if (s.phase == Phase::kStopped) r.push_back(InputKind::kResume);
+        // Editing targets again: the plan is unlocked (what was reached stays reached).
+        if (*phase != Workphase::kCalibration) r.push_back(InputKind::kUnlockPlan);
+        r.push_back(InputKind::kCheckReady);
+        break;
+      case Workphase::kMoveToTarget:
+        if (s.phase == Phase::kStopped) r.push_back(InputKind::kResume);
+        r.push_back(InputKind::kLockPlan);
+        r.push_back(options_.allow_motion_approval ? InputKind::kApprove
+                                                   : InputKind::kRequestApproval);
+        break;
+      case Workphase::kManual:
+        r.push_back(InputKind::kManual);
+        break;
+      case Workphase::kStop:
+        r.push_back(InputKind::kStop);
+        break;
+      case Workphase::kEmergency:
+        r.push_back(InputKind::kEmergencyStop);
+        break;
+    }
+    dispatch(std::move(p), s, out);
+    return out;
+  }
+  if (m.type == "TRANSFORM") {
+    const auto clb = idAfter(m.device_name, "CLB_");
+    const auto tgt = idAfter(m.device_name, "TGT_");
+    if (!clb && !tgt) {
+      send(statusMessage(m.device_name, StatusCode::kUnknownInstruction,
+                         "a transform is CLB_<id> (registration) or TGT_<id> (target)",
+                         "unknown_device"));
+      return out;
+    }
+    send(transformMessage(ackName(clb ? *clb : *tgt), m.matrix));  // the echo, as received
+    if (clb) {
+      auto in = input(InputKind::kSetRegistration);
+      // Slicer's matrix maps RAS to the robot: p_robot = M p_ras = (M F) p_lps.
+      in.matrix = m.matrix * rasFromLps();
+      pending_[in.request_id] = {client, Purpose::kCalibration, Workphase::kCalibration, {}, {}};
+      out.inputs.push_back(std::move(in));
+    } else {
+      auto in = input(InputKind::kAddTarget);
+      in.points.push_back(rasFromLps().topLeftCorner<3, 3>() * m.matrix.topRightCorner<3, 1>());
+      pending_[in.request_id] = {client, Purpose::kTarget, Workphase::kTargeting, {}, {}};
+      out.inputs.push_back(std::move(in));
+    }
+    return out;
+  }
+  if (m.type == "POINT") {
+    // Slicer's markups: each point a target, echoed as received.
+    Message echo = m;
+    echo.device_name = ackName(m.device_name);
+    send(std::move(echo));
+    for (const auto& point : m.points) {
+      auto in = input(InputKind::kAddTarget);
+      in.points.push_back(rasFromLps().topLeftCorner<3, 3>() * point.position_mm);
+      pending_[in.request_id] = {client, Purpose::kTarget, Workphase::kTargeting, {}, {}};
+      out.inputs.push_back(std::move(in));
+    }
+    return out;
+  }
+  if (m.type == "GET_STATUS") {
+    send(currentStatus(s));
+    return out;
+  }
+  if (m.type == "GET_TRANS") {  // GET_TRANSFORM (type names are 12 characters at most)
+    if (m.device_name == "ImageToRobot") {
+      if (s.registration) {
+        send(transformMessage("ImageToRobot", s.registration->imageToRobot() * rasFromLps()));
+      } else {
+        send(statusMessage("ImageToRobot", StatusCode::kNotReady, "not registered yet",
+                           "not_registered"));
+      }
+      return out;
+    }
+    if (m.device_name == "CURRENT_POSITION" || m.device_name == "NeedleTipToImage" ||
+        m.device_name.empty()) {
+      const std::string name = m.device_name.empty() ? "CURRENT_POSITION" : m.device_name;
+      if (auto pose = tipToImageRas(s, live)) {
+        send(transformMessage(name, *pose));
+      } else {
+        send(statusMessage(name, StatusCode::kNotReady,
+                           "not registered yet: the tip has no image position", "not_registered"));
+      }
+      return out;
+    }
+    send(statusMessage(m.device_name, StatusCode::kNotFound,
+                       "transforms here: CURRENT_POSITION, NeedleTipToImage, ImageToRobot",
+                       "unknown_transform"));
+    return out;
+  }
+  // Stream controls and other queries: nothing of ours streams on request.
+  send(statusMessage(m.device_name, StatusCode::kUnknownInstruction,
+                     fmt::format("{} is not part of the BRP protocol here", m.type),
+                     "unknown_message"));
+  return out;
+}
+
+void BrpBridge::dispatch(Pending p, const workflow::Session& s, BrpOutput& out) {
+  const bool locked =
+      s.phase == Phase::kPlanLocked || s.phase == Phase::kAtTarget || s.phase == Phase::kDone;
+  while ((p.remaining.front() == InputKind::kUnlockPlan && !locked) ||
+         (p.remaining.front() == InputKind::kLockPlan && s.phase != Phase::kPlanning)) {
+    p.remaining.pop_front();  // never the last: a check or an approval follows
+  }
+  const InputKind kind = p.remaining.front();
+  p.remaining.pop_front();
+  auto in = input(kind);
+  switch (kind) {
+    case InputKind::kCheckReady:
+      in.path = p.phase == Workphase::kTargeting ? "targeting" : "robot";
+      break;
+    case InputKind::kApprove:
+      if (!s.pending) {
+        // No request to approve (stopped and resumed, say): ask for one, then approve it.
+        p.remaining.push_front(InputKind::kApprove);
+        in = input(InputKind::kRequestApproval);
+        break;
+      }
+      in.plan_id = s.pending->plan_id;
+      in.digest = s.pending->digest;
+      break;
+    default:
+      break;
+  }
+  pending_[in.request_id] = std::move(p);
+  out.inputs.push_back(std::move(in));
+}
+
+BrpOutput BrpBridge::onReply(const workflow::Reply& reply, const workflow::Session& s) {
+  BrpOutput out;
+  auto it = pending_.find(reply.request_id);
+  if (it == pending_.end()) return out;
+  Pending p = std::move(it->second);
+  pending_.erase(it);
+  const auto send = [&](Message msg) { out.messages.push_back({p.client, std::move(msg)}); };
+  const auto refusal = [&](const char* device) {
+    return statusMessage(device, statusCodeFor(reply.error_code, s.phase), reply.message,
+                         errorName(reply.error_code));
+  };
+  switch (p.purpose) {
+    case Purpose::kCommand: {
+      if (reply.accepted && !p.remaining.empty()) {
+        dispatch(std::move(p), s, out);
+        return out;
+      }
+      if (reply.accepted) last_accepted_ = p.phase;
+      reportCurrentStatus(p.client, s, out);
+      const char* device = toString(p.phase);
+      if (!reply.accepted) {
+        send(refusal(device));
+      } else if (p.phase == Workphase::kMoveToTarget && !options_.allow_motion_approval) {
+        // Released by an approver over DDS; the arrival is reported then.
+        send(statusMessage(device, StatusCode::kNotReady,
+                           fmt::format("waiting for an approver over DDS: {}",
+                                       s.pending ? s.pending->summary : std::string("no request")),
+                           "awaiting_approval"));
+      } else if (p.phase != Workphase::kMoveToTarget) {
+        send(statusMessage(device, StatusCode::kOk, reply.message));
+      }
+      // An approved move is answered when it arrives (onState).
+      return out;
+    }
+    case Purpose::kCalibration:
+      send(reply.accepted ? statusMessage("CALIBRATION", StatusCode::kOk, reply.message)
+                          : refusal("CALIBRATION"));
+      return out;
+    case Purpose::kTarget: {
+      if (!reply.accepted) {
+        send(refusal("TARGET"));
+        return out;
+      }
+      const auto t = std::find_if(s.targets.begin(), s.targets.end(),
+                                  [&](const auto& x) { return x.id == reply.target_id; });
+      if (t == s.targets.end()) return out;  // removed meanwhile by another client
+      if (t->status() == "planned") {
+        send(statusMessage("TARGET", StatusCode::kOk, t->message));
+        const auto tip = s.robot->kinematics.forward(t->solution.joints).tip_mm;
+        send(transformMessage("REACHABLE_TARGET", poseRas(s, tip)));
+        return out;
+      }
+      // The core judged it out of reach: it leaves the plan, and the reason goes back.
+      auto in = input(InputKind::kRemoveTarget);
+      in.ids.push_back(t->id);
+      pending_[in.request_id] = {
+          p.client, Purpose::kTargetRemoval, Workphase::kTargeting, {}, t->message};
+      out.inputs.push_back(std::move(in));
+      return out;
+    }
+    case Purpose::kTargetRemoval:
+      send(statusMessage("TARGET", StatusCode::kConfigurationError, p.why, "unreachable"));
+      return out;
+  }
+  return out;
+}
+
+BrpOutput BrpBridge::onState(const workflow::Session& s) {
+  BrpOutput out;
+  const Phase before = last_phase_;
+  last_phase_ = s.phase;
+  if (before == Phase::kMoving && s.phase != Phase::kMoving) {
+    const auto& last = s.motions.empty() ? workflow::MotionRecord{} : s.motions.back();
+    if (s.phase == Phase::kAtTarget || s.phase == Phase::kDone) {
+      out.messages.push_back(
+          {0, statusMessage("MOVE_TO_TARGET", StatusCode::kOk,
+                            last.target_id == 0
+                                ? std::string("stylet retracted")
+                                : fmt::format("arrived at target {}", last.target_id))});
+    } else {
+      const std::string why = s.phase == Phase::kFault ? s.fault : last.outcome;
+      out.messages.push_back(
+          {0, statusMessage("MOVE_TO_TARGET", statusCodeFor("", s.phase),
+                            fmt::format("motion interrupted: {}", why.empty() ? "stop" : why),
+                            s.phase == Phase::kStopped ? "stopped" : workflow::toString(s.phase))});
+    }
+  }
+  // Changes no command of ours asked for (a DDS client, the controller) are told to everyone.
+  if (pending_.empty()) {
+    Message status = currentStatus(s);
+    const auto now = std::make_pair(workphase(s), status.status.code);
+    if (last_reported_ && *last_reported_ != now) {
+      last_reported_ = now;
+      out.messages.insert(out.messages.begin(), {0, std::move(status)});
+    } else if (!last_reported_) {
+      last_reported_ = now;
+    }
+  }
+  std::optional<Eigen::Matrix4d> registration;
+  if (s.registration) registration = s.registration->imageToRobot() * rasFromLps();
+  if (registration != last_registration_) {
+    last_registration_ = registration;
+    if (registration) out.messages.push_back({0, transformMessage("ImageToRobot", *registration)});
+  }
+  return out;
+}
+
+BrpOutput BrpBridge::onPosition(const workflow::Session& s, const actuation::Steps& live) const {
+  BrpOutput out;
+  if (auto pose = tipToImageRas(s, live)) {
+    out.messages.push_back({0, transformMessage("CURRENT_POSITION", *pose)});
+    out.messages.push_back({0, transformMessage("NeedleTipToImage", *pose)});
+  }
+  return out;
+}
+
+}  // namespace ignav::igtl

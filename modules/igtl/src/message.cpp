@@ -1,0 +1,280 @@
+#include "ignav/igtl/message.hpp"
+
+#include <cstring>
+
+#include <fmt/format.h>
+#include <igtlMessageHeader.h>
+#include <igtlPointMessage.h>
+#include <igtlStatusMessage.h>
+#include <igtlStringMessage.h>
+#include <igtlTransformMessage.h>
+
+namespace ignav::igtl {
+namespace {
+
+// Fixed sizes of the bodies we read (OpenIGTLink v2 specification).
+constexpr std::size_t kTransformBody = 48;  // 12 float32
+constexpr std::size_t kStatusFixed = 30;    // code, subcode, error name
+constexpr std::size_t kStringFixed = 4;     // encoding, length
+constexpr std::size_t kPointElement = 136;  // name, group, rgba, xyz, radius, owner
+constexpr std::uint16_t kUsAscii = 3;       // IANA MIBenum of US-ASCII
+
+std::uint16_t readU16(const char* p) {
+  return static_cast<std::uint16_t>((static_cast<unsigned char>(p[0]) << 8) |
+                                    static_cast<unsigned char>(p[1]));
+}
+
+std::string wire(::igtl::MessageBase* m) {
+  m->Pack();
+  return std::string(static_cast<const char*>(m->GetPackPointer()),
+                     static_cast<std::size_t>(m->GetPackSize()));
+}
+
+Error bad(const std::string& what) {
+  return makeError(ErrorCode::kInvalidArgument, what);
+}
+
+// Unpacks `body` into `m` (of the header's type), checking the CRC.
+template <class M>
+Expected<typename M::Pointer> unpack(const ::igtl::MessageHeader::Pointer& header,
+                                     const std::string& body, const std::string& name) {
+  auto m = M::New();
+  m->SetMessageHeader(header);
+  m->AllocatePack();
+  if (!body.empty()) std::memcpy(m->GetPackBodyPointer(), body.data(), body.size());
+  if (!(m->Unpack(1) & ::igtl::MessageHeader::UNPACK_BODY)) {
+    return makeError(ErrorCode::kFormat, name + ": CRC mismatch or malformed body");
+  }
+  return m;
+}
+
+Expected<Message> decodeBody(const ::igtl::MessageHeader::Pointer& header,
+                             const std::string& body) {
+  Message out;
+  out.type = header->GetDeviceType();
+  out.device_name = header->GetDeviceName();
+  const std::string name = fmt::format("{} message '{}'", out.type, out.device_name);
+  const auto format = [&](const std::string& what) {
+    return makeError(ErrorCode::kFormat, name + ": " + what);
+  };
+  if (out.type == "STRING") {
+    if (body.size() < kStringFixed) return format("body shorter than 4 bytes");
+    const std::size_t length = readU16(body.data() + 2);
+    if (length > body.size() - kStringFixed) {
+      return format(fmt::format("string length {} exceeds its body ({} bytes)", length,
+                                body.size() - kStringFixed));
+    }
+    auto m = unpack<::igtl::StringMessage>(header, body, name);
+    if (!m) return m.error();
+    out.text.assign(body.data() + kStringFixed, length);  // not NUL-terminated on the wire
+  } else if (out.type == "STATUS") {
+    if (body.size() < kStatusFixed + 1 || body.back() != '\0') {
+      return format("body must hold code, subcode, error name and a NUL-terminated string");
+    }
+    auto m = unpack<::igtl::StatusMessage>(header, body, name);
+    if (!m) return m.error();
+    out.status.code = static_cast<std::uint16_t>((*m)->GetCode());
+    out.status.subcode = (*m)->GetSubCode();
+    out.status.error_name.assign(body.data() + 10, strnlen(body.data() + 10, 20));
+    out.status.status_string = body.data() + kStatusFixed;
+  } else if (out.type == "TRANSFORM") {
+    if (body.size() != kTransformBody) {
+      return format(
+          fmt::format("body has {} bytes; a transform has {}", body.size(), kTransformBody));
+    }
+    auto m = unpack<::igtl::TransformMessage>(header, body, name);
+    if (!m) return m.error();
+    ::igtl::Matrix4x4 matrix;
+    (*m)->GetMatrix(matrix);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c)
+        out.matrix(r, c) = matrix[r][c];
+    out.matrix.row(3) << 0, 0, 0, 1;
+    if (!out.matrix.allFinite()) return format("the matrix has a non-finite element");
+  } else if (out.type == "POINT") {
+    if (body.empty() || body.size() % kPointElement != 0) {
+      return format(fmt::format("body has {} bytes; points come in {}-byte elements", body.size(),
+                                kPointElement));
+    }
+    auto m = unpack<::igtl::PointMessage>(header, body, name);
+    if (!m) return m.error();
+    for (int i = 0; i < (*m)->GetNumberOfPointElement(); ++i) {
+      ::igtl::PointElement::Pointer e;
+      (*m)->GetPointElement(i, e);
+      float xyz[3];
+      e->GetPosition(xyz);
+      Point p;
+      p.name = e->GetName();
+      p.group = e->GetGroupName();
+      p.position_mm = Eigen::Vector3d(xyz[0], xyz[1], xyz[2]);
+      if (!p.position_mm.allFinite()) {
+        return format(fmt::format("point {} has a non-finite coordinate", i + 1));
+      }
+      out.points.push_back(p);
+    }
+  } else if (out.type.rfind("GET_", 0) == 0 || out.type.rfind("STT_", 0) == 0 ||
+             out.type.rfind("STP_", 0) == 0) {
+    // Queries and stream controls carry no body we read.
+  } else {
+    return makeError(ErrorCode::kUnsupported, name + ": message type not handled here");
+  }
+  return out;
+}
+
+}  // namespace
+
+Message stringMessage(std::string device, std::string text) {
+  Message m;
+  m.type = "STRING";
+  m.device_name = std::move(device);
+  m.text = std::move(text);
+  return m;
+}
+
+Message statusMessage(std::string device, StatusCode code, std::string status_string,
+                      std::string error_name) {
+  Message m;
+  m.type = "STATUS";
+  m.device_name = std::move(device);
+  m.status.code = static_cast<std::uint16_t>(code);
+  m.status.status_string = std::move(status_string);
+  m.status.error_name = std::move(error_name);
+  return m;
+}
+
+Message transformMessage(std::string device, const Eigen::Matrix4d& matrix) {
+  Message m;
+  m.type = "TRANSFORM";
+  m.device_name = std::move(device);
+  m.matrix = matrix;
+  return m;
+}
+
+Message queryMessage(std::string type, std::string device) {
+  Message m;
+  m.type = std::move(type);
+  m.device_name = std::move(device);
+  return m;
+}
+
+Expected<std::string> encode(const Message& in) {
+  if (in.device_name.size() > kMaxDeviceName) {
+    return bad(fmt::format("device name '{}' has {} characters; OpenIGTLink allows {}",
+                           in.device_name, in.device_name.size(), kMaxDeviceName));
+  }
+  if (in.type == "STRING") {
+    if (in.text.size() > 0xffff) {
+      return bad(
+          fmt::format("STRING '{}': {} bytes; at most 65535", in.device_name, in.text.size()));
+    }
+    auto m = ::igtl::StringMessage::New();
+    m->SetDeviceName(in.device_name.c_str());
+    m->SetEncoding(kUsAscii);
+    m->SetString(in.text.c_str());
+    return wire(m);
+  }
+  if (in.type == "STATUS") {
+    if (in.status.error_name.size() > 20) {
+      return bad(fmt::format("STATUS '{}': error name '{}' over 20 characters", in.device_name,
+                             in.status.error_name));
+    }
+    auto m = ::igtl::StatusMessage::New();
+    m->SetDeviceName(in.device_name.c_str());
+    m->SetCode(in.status.code);
+    m->SetSubCode(in.status.subcode);
+    m->SetErrorName(in.status.error_name.c_str());
+    m->SetStatusString(in.status.status_string.c_str());
+    return wire(m);
+  }
+  if (in.type == "TRANSFORM") {
+    if (!in.matrix.allFinite()) {
+      return bad(fmt::format("TRANSFORM '{}': non-finite matrix", in.device_name));
+    }
+    auto m = ::igtl::TransformMessage::New();
+    m->SetDeviceName(in.device_name.c_str());
+    ::igtl::Matrix4x4 matrix;
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c)
+        matrix[r][c] = static_cast<float>(in.matrix(r, c));
+    m->SetMatrix(matrix);
+    return wire(m);
+  }
+  if (in.type == "POINT") {
+    auto m = ::igtl::PointMessage::New();
+    m->SetDeviceName(in.device_name.c_str());
+    for (const auto& p : in.points) {
+      if (!p.position_mm.allFinite()) {
+        return bad(fmt::format("POINT '{}': non-finite position", in.device_name));
+      }
+      auto e = ::igtl::PointElement::New();
+      e->SetName(p.name.c_str());
+      e->SetGroupName(p.group.c_str());
+      e->SetRGBA(255, 255, 0, 255);
+      e->SetPosition(static_cast<float>(p.position_mm.x()), static_cast<float>(p.position_mm.y()),
+                     static_cast<float>(p.position_mm.z()));
+      e->SetRadius(1.0f);
+      m->AddPointElement(e);
+    }
+    return wire(m);
+  }
+  if (in.type == "GET_STATUS") {
+    auto m = ::igtl::GetStatusMessage::New();
+    m->SetDeviceName(in.device_name.c_str());
+    return wire(m);
+  }
+  if (in.type == "GET_TRANS") {  // GET_TRANSFORM: type names have at most 12 characters
+    auto m = ::igtl::GetTransformMessage::New();
+    m->SetDeviceName(in.device_name.c_str());
+    return wire(m);
+  }
+  return bad("message type '" + in.type + "' is not one we send");
+}
+
+void Decoder::feed(const char* bytes, std::size_t count) {
+  if (skip_ > 0) {
+    const std::size_t dropped = std::min(skip_, count);
+    skip_ -= dropped;
+    bytes += dropped;
+    count -= dropped;
+  }
+  buffer_.append(bytes, count);
+}
+
+std::optional<Expected<Message>> Decoder::next() {
+  if (buffer_.size() < kHeaderBytes) return std::nullopt;
+  auto header = ::igtl::MessageHeader::New();
+  header->InitPack();
+  std::memcpy(header->GetPackPointer(), buffer_.data(), kHeaderBytes);
+  header->Unpack();
+  const std::uint16_t version = readU16(buffer_.data());
+  const std::uint64_t body = header->GetBodySizeToRead();
+  const std::string name =
+      fmt::format("{} message '{}'", header->GetDeviceType(), header->GetDeviceName());
+  const auto refuse = [&](Error e) -> std::optional<Expected<Message>> {
+    // Drop the header and as much of the body as is here; the rest is skipped as it arrives.
+    const std::uint64_t here = std::min<std::uint64_t>(body, buffer_.size() - kHeaderBytes);
+    buffer_.erase(0, kHeaderBytes + here);
+    skip_ = static_cast<std::size_t>(body - here);
+    return Expected<Message>(std::move(e));
+  };
+  if (version != 1) {
+    // Not a stream we can follow (another protocol, or OpenIGTLink 3's extended headers).
+    return refuse(
+        makeError(ErrorCode::kUnsupported,
+                  fmt::format("header version {}; this server speaks version 1 (OpenIGTLink "
+                              "protocol 1 and 2)",
+                              version),
+                  "header_version"));
+  }
+  if (body > max_body_bytes_) {
+    return refuse(makeError(
+        ErrorCode::kInvalidArgument,
+        fmt::format("{}: body of {} bytes; at most {} accepted", name, body, max_body_bytes_)));
+  }
+  if (buffer_.size() < kHeaderBytes + body) return std::nullopt;
+  const std::string body_bytes = buffer_.substr(kHeaderBytes, body);
+  buffer_.erase(0, kHeaderBytes + body);
+  return Expected<Message>(decodeBody(header, body_bytes));
+}
+
+}  // namespace ignav::igtl

@@ -1,0 +1,180 @@
+// The BRP translation without sockets: the bridge and the real workflow core in a loop (the
+// server's part played by a few lines here). Coordinates are checked against the closed form of
+// RAS <-> LPS; results come from the core's own verdicts.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include "ignav/config/robot_config.hpp"
+#include "ignav/igtl/brp.hpp"
+#include "ignav/workflow/reducer.hpp"
+
+namespace ignav::igtl {
+namespace {
+
+using workflow::InputKind;
+using workflow::Phase;
+
+std::shared_ptr<const config::Robot> paperRobot() {
+  static const auto robot = std::make_shared<const config::Robot>(
+      config::loadRobot(IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml").value());
+  return robot;
+}
+
+// The server's part: inputs through the reducer (stamped with a robot at rest at its position),
+// replies back to the bridge, states after every step; every message to the client collected.
+struct Loop {
+  explicit Loop(bool approval) : bridge({approval}, 1000) {
+    session = workflow::newSession("t", paperRobot(), "robot.yaml");
+    workflow::Input config;
+    config.kind = InputKind::kConfigLoaded;
+    workflow::ApprovalPolicy policy;
+    policy.approvers = {kBridgeClientId};
+    config.policy = policy;
+    run(config);
+    sent.clear();
+    inputs.clear();
+  }
+  void run(workflow::Input in) {
+    in.time_s = 1000.0;
+    actuation::ControllerStatus at_rest;
+    at_rest.state = actuation::ControllerState::kIdle;
+    at_rest.position = session.position;
+    if (workflow::needsControllerReading(in.kind)) in.controller = at_rest;
+    inputs.push_back(in.kind);
+    auto step = workflow::reduce(session, in);
+    session = step.session;
+    for (const auto& r : step.effects.replies)
+      take(bridge.onReply(r, session));
+    take(bridge.onState(session));
+  }
+  void take(BrpOutput out) {
+    for (auto& m : out.messages)
+      sent.push_back(m.message);
+    for (auto& in : out.inputs)
+      run(in);
+  }
+  void receive(const Message& m) { take(bridge.onMessage(7, m, session, session.position)); }
+  void command(const char* phase) { receive(stringMessage("CMD_1", phase)); }
+
+  BrpBridge bridge;
+  workflow::Session session;
+  std::vector<Message> sent;
+  std::vector<InputKind> inputs;
+};
+
+Eigen::Matrix4d calibrationRas() {
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  m.topLeftCorner<3, 3>() = Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitX()).matrix();
+  m.topRightCorner<3, 1>() << 5, -10, -20;
+  return m;
+}
+
+TEST(BrpBridge, EveryCommandIsReceiptedFirstEvenAnUnknownOne) {
+  Loop loop(false);
+  loop.command("FLY_AWAY");
+  ASSERT_EQ(loop.sent.size(), 3u);
+  EXPECT_EQ(loop.sent[0].type, "STRING");
+  EXPECT_EQ(loop.sent[0].device_name, "ACK_1");
+  EXPECT_EQ(loop.sent[0].text, "FLY_AWAY");
+  EXPECT_EQ(loop.sent[1].device_name, "CURRENT_STATUS");
+  EXPECT_EQ(loop.sent[2].status.code, 12);
+  EXPECT_TRUE(loop.inputs.empty());  // nothing reached the core
+}
+
+TEST(BrpBridge, SlicersRasCalibrationBecomesAnLpsRegistration) {
+  Loop loop(false);
+  loop.command("CALIBRATION");
+  loop.sent.clear();
+  loop.receive(transformMessage("CLB_9", calibrationRas()));
+  ASSERT_EQ(loop.session.phase, Phase::kPlanning);
+  // p_robot = M p_ras, and p_ras = (-x, -y, z) of p_lps: checked on a point, by hand.
+  const Eigen::Vector3d lps(30, -40, 55);
+  const Eigen::Vector3d ras(-30, 40, 55);
+  const Eigen::Vector3d expected = (calibrationRas() * ras.homogeneous()).head<3>();
+  EXPECT_LT((loop.session.registration->toRobot(lps) - expected).norm(), 1e-9);
+  // The echo is the received matrix; then the result; then the registration for Slicer.
+  ASSERT_EQ(loop.sent.size(), 3u);
+  EXPECT_EQ(loop.sent[0].device_name, "ACK_9");
+  EXPECT_EQ(loop.sent[0].matrix, calibrationRas());
+  EXPECT_EQ(loop.sent[1].device_name, "CALIBRATION");
+  EXPECT_EQ(loop.sent[1].status.code, 1);
+  EXPECT_EQ(loop.sent[2].device_name, "ImageToRobot");
+  EXPECT_LT((loop.sent[2].matrix - calibrationRas()).cwiseAbs().maxCoeff(), 1e-12);
+}
+
+TEST(BrpBridge, TargetsArriveInLpsAndTheReachablePointIsTheTarget) {
+  Loop loop(false);
+  loop.receive(transformMessage("CLB_1", calibrationRas()));
+  const Eigen::Vector3d robot_mm(-10, 15, -190);
+  Eigen::Matrix4d target = Eigen::Matrix4d::Identity();
+  target.topRightCorner<3, 1>() = (calibrationRas().inverse() * robot_mm.homogeneous()).head<3>();
+  loop.sent.clear();
+  loop.receive(transformMessage("TGT_2", target));
+  ASSERT_EQ(loop.session.targets.size(), 1u);
+  const Eigen::Vector3d ras = target.topRightCorner<3, 1>();
+  EXPECT_EQ(loop.session.targets[0].lps_mm, Eigen::Vector3d(-ras.x(), -ras.y(), ras.z()));
+  ASSERT_EQ(loop.sent.size(), 3u);
+  EXPECT_EQ(loop.sent[1].device_name, "TARGET");
+  EXPECT_EQ(loop.sent[1].status.code, 1);
+  EXPECT_EQ(loop.sent[2].device_name, "REACHABLE_TARGET");
+  EXPECT_LT((loop.sent[2].matrix.topRightCorner<3, 1>() - ras).norm(), 1e-6);
+}
+
+TEST(BrpBridge, MoveToTargetApprovesTheCoresPendingPlanOnlyWhenAllowed) {
+  for (bool allowed : {false, true}) {
+    Loop loop(allowed);
+    loop.receive(transformMessage("CLB_1", calibrationRas()));
+    Eigen::Matrix4d target = Eigen::Matrix4d::Identity();
+    target.topRightCorner<3, 1>() =
+        (calibrationRas().inverse() * Eigen::Vector4d(-10, 15, -190, 1)).head<3>();
+    loop.receive(transformMessage("TGT_2", target));
+    loop.inputs.clear();
+    loop.sent.clear();
+    loop.command("MOVE_TO_TARGET");
+    if (allowed) {
+      EXPECT_EQ(loop.inputs, (std::vector<InputKind>{InputKind::kLockPlan, InputKind::kApprove}));
+      EXPECT_EQ(loop.session.phase, Phase::kMoving);
+      EXPECT_EQ(loop.session.motions.back().approved_by, kBridgeClientId);
+      // Receipt, the new workphase; the result comes on arrival.
+      ASSERT_EQ(loop.sent.size(), 2u);
+      EXPECT_EQ(loop.sent[1].status.status_string, "MOVE_TO_TARGET");
+    } else {
+      EXPECT_EQ(loop.inputs,
+                (std::vector<InputKind>{InputKind::kLockPlan, InputKind::kRequestApproval}));
+      EXPECT_EQ(loop.session.phase, Phase::kPlanLocked);
+      ASSERT_EQ(loop.sent.size(), 3u);
+      EXPECT_EQ(loop.sent[2].device_name, "MOVE_TO_TARGET");
+      EXPECT_EQ(loop.sent[2].status.code, 13);
+      EXPECT_EQ(loop.sent[2].status.error_name, "awaiting_approval");
+    }
+  }
+}
+
+TEST(BrpBridge, RejectionsBecomeTheProtocolsCodes) {
+  EXPECT_EQ(statusCodeFor("wrong_phase", Phase::kEmergency), StatusCode::kPanic);
+  EXPECT_EQ(statusCodeFor("wrong_phase", Phase::kManual), StatusCode::kManualMode);
+  EXPECT_EQ(statusCodeFor("wrong_phase", Phase::kFault), StatusCode::kHardwareFailure);
+  EXPECT_EQ(statusCodeFor("controller_unavailable", Phase::kImaging), StatusCode::kHardwareFailure);
+  EXPECT_EQ(statusCodeFor("not_similarity", Phase::kImaging), StatusCode::kConfigurationError);
+  EXPECT_EQ(statusCodeFor("not_registered", Phase::kImaging), StatusCode::kNotReady);
+  EXPECT_EQ(statusCodeFor("empty_plan", Phase::kPlanning), StatusCode::kNotReady);
+}
+
+TEST(BrpBridge, AWorkphaseChangeNoCommandAskedForIsToldToEveryone) {
+  Loop loop(false);
+  loop.command("START_UP");
+  loop.sent.clear();
+  workflow::Input stop;
+  stop.kind = InputKind::kEmergencyStop;
+  stop.client_id = "operator";
+  stop.request_id = 5;
+  loop.run(stop);  // a DDS client's emergency stop
+  ASSERT_EQ(loop.sent.size(), 1u);
+  EXPECT_EQ(loop.sent[0].device_name, "CURRENT_STATUS");
+  EXPECT_EQ(loop.sent[0].status.status_string, "EMERGENCY");
+  EXPECT_EQ(loop.sent[0].status.code, 3);
+}
+
+}  // namespace
+}  // namespace ignav::igtl
