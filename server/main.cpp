@@ -1,4 +1,5 @@
 // ignav-server --config configs/server.yaml [--domain N] [--session-dir DIR] [--controller C]
+//              [--igtl-port N]
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
@@ -51,6 +52,19 @@ int main(int argc, char** argv) {
   app.add_option("--identity", identity,
                  "DDS Security identity folder (cert.pem, key.pem, permissions.p7s, "
                  "governance.p7s, identity_ca.pem, permissions_ca.pem); overrides the config");
+  std::optional<int> igtl_port;
+  app.add_option("--igtl-port", igtl_port,
+                 "serve OpenIGTLink (3D Slicer, BRP protocol) on this loopback port; 0 = any "
+                 "free port (overrides the config and turns the bridge on)");
+  std::optional<double> igtl_timeout;
+  app.add_option("--igtl-timeout", igtl_timeout,
+                 "seconds after which a dropped or stalled OpenIGTLink client is let go "
+                 "(overrides the config)");
+  bool igtl_off = false, igtl_approval = false;
+  app.add_flag("--no-igtl", igtl_off, "no OpenIGTLink bridge whatever the config says");
+  app.add_flag("--igtl-allow-approval", igtl_approval,
+               "let MOVE_TO_TARGET over OpenIGTLink release motion (unauthenticated: loopback "
+               "sites only; said loudly in the log and the workflow state)");
   bool insecure = false;
   app.add_flag("--insecure", insecure,
                "DDS Security off even if the config names an identity (local development only)");
@@ -71,6 +85,13 @@ int main(int argc, char** argv) {
     if (!dds_config.empty()) options.dds_config = dds_config;
     if (!identity.empty()) options.security.identity = identity;
     if (insecure) options.security.identity.clear();
+    if (igtl_port) {
+      options.openigtlink.enabled = true;
+      options.openigtlink.port = *igtl_port;
+    }
+    if (igtl_approval) options.openigtlink.allow_motion_approval = true;
+    if (igtl_timeout) options.openigtlink.timeout_s = *igtl_timeout;
+    if (igtl_off) options.openigtlink.enabled = false;
     if (controller == "simulated") {
       options.controller.kind = controller;
     } else if (controller.rfind("galil:", 0) == 0) {

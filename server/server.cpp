@@ -1,5 +1,7 @@
 #include "server.hpp"
 
+#include "igtl_listener.hpp"
+
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
@@ -21,6 +23,7 @@
 #include "ignav/actuation/controller.hpp"
 #include "ignav/actuation/galil.hpp"
 #include "ignav/config/robot_config.hpp"
+#include "ignav/igtl/brp.hpp"
 #include "ignav/journal/journal.hpp"
 #include "ignav/protocol/messages.hpp"
 #include "ignav/protocol/security.hpp"
@@ -247,6 +250,7 @@ class Server {
     waitset_.attach(emergency_stops_.handle());
     session_ =
         workflow::newSession(session_dir_.filename().string(), std::move(robot), o.robot_config);
+    if (o.openigtlink.enabled) startIgtl();
   }
 
   // Publishes a recorded session's states one record at a time, at the recorded pace divided by
@@ -255,7 +259,8 @@ class Server {
   int replay(const std::atomic<bool>& stop, const std::vector<std::string>& lines) {
     publishHealth();
     std::cout << "ignav-server replaying " << session_dir_.string()
-              << " domain=" << options_.domain_id << std::endl;
+              << " domain=" << options_.domain_id
+              << (igtl_ ? " igtl_port=" + std::to_string(igtl_port_) : std::string()) << std::endl;
     const fs::path journal_path = session_dir_ / "journal.jsonl";
     auto load_ct = [this](const std::string& source) -> Expected<workflow::LoadedCt> {
       Input reloaded = loader_.load(source, *session_.robot, session_dir_);
@@ -284,6 +289,11 @@ class Server {
       session_ = std::move(replayed->step.session);
       if (replayed->input.controller) last_reading_ = *replayed->input.controller;
       publishEffects(replayed->step.effects);
+      if (bridge_) {
+        sendIgtl(bridge_->onState(session_));
+        if (replayed->input.controller)
+          sendIgtl(bridge_->onPosition(session_, last_reading_.position));
+      }
     }
     spdlog::info("replayed to revision {}, phase {}", session_.revision,
                  workflow::toString(session_.phase));
@@ -322,7 +332,7 @@ class Server {
     publishHealth();  // then once a second
     std::cout << "ignav-server ready domain=" << options_.domain_id
               << " session=" << session_dir_.string() << " security=" << (identity_ ? "on" : "OFF")
-              << std::endl;
+              << (igtl_ ? " igtl_port=" + std::to_string(igtl_port_) : std::string()) << std::endl;
     auto last_health = Clock::now();
     auto last_event = Clock::now() - kBusyPoll;
     while (!stop.load()) {
@@ -341,9 +351,12 @@ class Server {
             if (!failed && !step(withSender(toInput(e), "any", emergency_stops_.handle(), from)))
               failed = true;
           });
+      // OpenIGTLink next: its EMERGENCY is an emergency stop too.
+      if (!failed && !serveIgtl(false, handled)) failed = true;
       handled += approvals_.takeFrom([&](const ignav_msg_Approval& a, dds_instance_handle_t from) {
-        if (!failed && !step(withSender(toInput(a), "approver", approvals_.handle(), from)))
-          failed = true;
+        if (failed) return;
+        if (reservedClientId(a.client_id, a.request_id)) return;
+        if (!step(withSender(toInput(a), "approver", approvals_.handle(), from))) failed = true;
       });
       if (failed) return 3;
       for (auto& in : loader_.finished()) {
@@ -354,6 +367,7 @@ class Server {
         const auto& reader = commands_[static_cast<int>(role)];
         handled += reader.takeFrom([&](const ignav_msg_Command& c, dds_instance_handle_t from) {
           if (failed) return;
+          if (reservedClientId(c.client_id, c.request_id)) return;
           auto in = toInput(c);
           if (!in) {
             sendReply({c.client_id ? c.client_id : "", c.request_id, false, "unknown_command",
@@ -521,6 +535,7 @@ class Server {
     }
     if (!e.journal.empty()) writeReport();
     if (e.load_volume) loader_.start(*e.load_volume, *session_.robot, session_dir_);
+    if (bridge_) sendIgtl(bridge_->onState(session_));
     return true;
   }
 
@@ -543,11 +558,116 @@ class Server {
       emergency_stops_.take(
           [&](const ignav_msg_EmergencyStop& e) { refuse(e.client_id, e.request_id); });
       slice_requests_.take([&](const ignav_msg_SliceRequest& r) { answerSlice(r); });
+      std::size_t handled = 0;
+      serveIgtl(true, handled);
       if (Clock::now() - last_health > std::chrono::seconds(1)) {
         publishHealth();
         last_health = Clock::now();
       }
     }
+  }
+
+  // OpenIGTLink (docs/OPENIGTLINK.md): the listener's thread does the sockets, the bridge
+  // translates, and its inputs go through the reducer like any client's. Never fatal: a bind
+  // failure leaves the server running without it.
+  void startIgtl() {
+    const auto& g = options_.openigtlink;
+    IgtlListenerOptions lo;
+    lo.address = g.address;
+    lo.port = g.port;
+    lo.timeout_s = g.timeout_s;
+    igtl_ = std::make_unique<IgtlListener>(lo, [this] { waitset_.trigger(); });
+    auto port = igtl_->start();
+    if (!port) {
+      spdlog::error("{}; the server runs without OpenIGTLink", port.error().message);
+      igtl_.reset();
+      return;
+    }
+    igtl_port_ = *port;
+    // Request ids never repeat across restarts (the core answers a repeated one from the journal).
+    bridge_.emplace(igtl::BrpOptions{g.allow_motion_approval},
+                    static_cast<std::uint64_t>(wall_s() * 1e6));
+    spdlog::info("OpenIGTLink (BRP workphase protocol) listening on {}:{}", g.address, igtl_port_);
+    if (g.allow_motion_approval) {
+      safety_notice_ = fmt::format(
+          "motion approval over OpenIGTLink is ON ({}:{}): OpenIGTLink is unauthenticated, so "
+          "whoever can connect there can release motion",
+          g.address, igtl_port_);
+      spdlog::warn("!!! {} !!!", safety_notice_);
+    }
+  }
+
+  // Takes what the OpenIGTLink clients sent and runs it; false when a step failed fatally.
+  // Read only (replay): the bridge answers, and every input it makes is refused.
+  bool serveIgtl(bool read_only, std::size_t& handled) {
+    if (!igtl_) return true;
+    for (auto& ev : igtl_->take()) {
+      ++handled;
+      switch (ev.kind) {
+        case IgtlEvent::Kind::kConnected:
+          sendIgtl(bridge_->onConnected(ev.client, session_));
+          publishHealth();
+          break;
+        case IgtlEvent::Kind::kDisconnected:
+          bridge_->onDisconnected(ev.client);
+          spdlog::warn("OpenIGTLink client {} ({}) gone: {}", ev.client, ev.peer, ev.error);
+          publishHealth();
+          break;
+        case IgtlEvent::Kind::kBadMessage:
+          spdlog::warn("OpenIGTLink client {} ({}): {}", ev.client, ev.peer, ev.error);
+          igtl_->send(ev.client,
+                      igtl::statusMessage("BAD_MESSAGE", igtl::StatusCode::kUnknownInstruction,
+                                          ev.error, "bad_message"));
+          break;
+        case IgtlEvent::Kind::kMessage:
+          // Queries may come many times a second: logged only when debugging.
+          spdlog::log(
+              ev.message.type.rfind("GET_", 0) == 0 ? spdlog::level::debug : spdlog::level::info,
+              "OpenIGTLink client {}: {}({}){}", ev.client, ev.message.type, ev.message.device_name,
+              ev.message.text.empty() ? "" : " \"" + ev.message.text.substr(0, 64) + "\"");
+          sendIgtl(bridge_->onMessage(ev.client, ev.message, session_, last_reading_.position));
+          break;
+      }
+      // The inputs of one message run before the next message is looked at.
+      while (!bridge_inputs_.empty()) {
+        Input in = std::move(bridge_inputs_.front());
+        bridge_inputs_.pop_front();
+        if (read_only) {
+          sendReply({in.client_id, in.request_id, false, "read_only",
+                     "this server replays a recorded session and takes no commands", 0,
+                     session_.revision});
+        } else if (!step(std::move(in))) {
+          return false;
+        }
+      }
+    }
+    return true;
+  }
+
+  void sendIgtl(igtl::BrpOutput out) {
+    if (!igtl_) return;
+    for (const auto& m : out.messages) {
+      if (m.client == 0) {
+        igtl_->broadcast(m.message);
+      } else {
+        igtl_->send(m.client, m.message);
+      }
+    }
+    for (auto& in : out.inputs)
+      bridge_inputs_.push_back(std::move(in));
+  }
+
+  // The bridge's client id belongs to the bridge: a DDS client claiming it is refused (it would
+  // otherwise borrow an approval right given to OpenIGTLink).
+  bool reservedClientId(const char* client_id, std::uint64_t request_id) {
+    if (!igtl_ || !client_id || std::string(client_id) != igtl::kBridgeClientId) return false;
+    OwnedReply owned{
+        {client_id, request_id, false, "not_permitted",
+         "client id 'openigtlink' is reserved for the OpenIGTLink bridge", 0, session_.revision},
+        {}};
+    replies_.write(owned.build());
+    spdlog::warn("a DDS client used the reserved client id '{}': refused", client_id);
+    return true;
   }
 
   // The state topics a step changed.
@@ -625,6 +745,11 @@ class Server {
   }
 
   void sendReply(const workflow::Reply& r) {
+    if (bridge_ && r.client_id == igtl::kBridgeClientId) {
+      if (!r.accepted) spdlog::warn("rejected (OpenIGTLink): {}", r.message);
+      sendIgtl(bridge_->onReply(r, session_));
+      return;
+    }
     OwnedReply owned{r, {}};
     replies_.write(owned.build());
     if (!r.accepted) spdlog::warn("rejected: {}", r.message);
@@ -700,6 +825,14 @@ class Server {
     const bool changed =
         r.state != before.state || r.position != before.position || r.fault != before.fault;
     if (changed || now) publishMotion();
+    // Slicer sees the tip move (at most every 50 ms, and where it comes to rest).
+    if (bridge_ && igtl_->clientCount() > 0 && r.position != last_igtl_steps_ &&
+        (r.state != actuation::ControllerState::kMoving ||
+         Clock::now() - last_igtl_position_ >= std::chrono::milliseconds(50))) {
+      last_igtl_position_ = Clock::now();
+      last_igtl_steps_ = r.position;
+      sendIgtl(bridge_->onPosition(session_, r.position));
+    }
     if (session_.phase == workflow::Phase::kMoving && session_.motion &&
         r.state != actuation::ControllerState::kMoving) {
       Input done;
@@ -811,6 +944,7 @@ class Server {
     viewSequence(w.allowed_commands, names);
     w.revision = session_.revision;
     w.last_event = cstr(session_.last_event);
+    w.safety_notice = cstr(safety_notice_);
     workflow_.write(w);
   }
 
@@ -943,6 +1077,7 @@ class Server {
     h.commands_rejected = session_.rejected;
     const std::string journal = journal_failure_.empty() ? "ok" : journal_failure_;
     h.journal = cstr(journal);
+    h.igtl_clients = igtl_ ? static_cast<std::uint32_t>(igtl_->clientCount()) : 0;
     health_.write(h);
   }
 
@@ -1181,6 +1316,14 @@ class Server {
   std::pair<std::size_t, std::size_t> last_progress_{0, 0};
   const volume::Volume* hu_range_for_ = nullptr;
   std::pair<double, double> hu_range_{0.0, 0.0};
+  // The OpenIGTLink bridge (last: its thread stops before the waitset it wakes goes away).
+  std::optional<igtl::BrpBridge> bridge_;
+  std::deque<Input> bridge_inputs_;  // the bridge's inputs, run in order after its message
+  std::string safety_notice_;        // a weakened safeguard, said in WorkflowState
+  Clock::time_point last_igtl_position_;
+  actuation::Steps last_igtl_steps_;
+  int igtl_port_ = 0;
+  std::unique_ptr<IgtlListener> igtl_;
 };
 
 std::string resolve(const fs::path& base, const std::string& p) {
@@ -1217,6 +1360,13 @@ std::optional<std::string> checkControllerOptions(const ServerOptions& o) {
     return fmt::format("planning.max_total_rotation_deg: {} is not within (0, 360]",
                        o.max_total_rotation_deg);
   }
+  const auto& g = o.openigtlink;
+  if (g.port < 0 || g.port > 65535) {
+    return fmt::format("openigtlink.port: {} is not a TCP port (0..65535; 0 = any)", g.port);
+  }
+  if (!(g.timeout_s >= 0.5) || g.timeout_s > 3600.0) {
+    return fmt::format("openigtlink.timeout_s: {} s; must be within 0.5..3600", g.timeout_s);
+  }
   if (!(o.approval_expiry_s > 0) || !std::isfinite(o.approval_expiry_s)) {
     return fmt::format("approval.expiry_s: {} must be positive", o.approval_expiry_s);
   }
@@ -1237,10 +1387,11 @@ ServerOptions loadServerOptions(const std::string& path) {
   for (const auto& kv : s) {
     const std::string key = kv.first.Scalar();
     if (key != "robot_config" && key != "dds" && key != "session_root" && key != "controller" &&
-        key != "approval" && key != "planning" && key != "tissue" && key != "security") {
+        key != "approval" && key != "planning" && key != "tissue" && key != "security" &&
+        key != "openigtlink") {
       throw ConfigError(path + ": server." + key +
                         ": unknown key; expected robot_config, dds, session_root, controller, "
-                        "approval, planning, tissue, security");
+                        "approval, planning, tissue, security, openigtlink");
     }
   }
   try {
@@ -1313,6 +1464,27 @@ ServerOptions loadServerOptions(const std::string& path) {
         }
       }
     }
+    if (const YAML::Node g = s["openigtlink"]) {
+      auto& go = o.openigtlink;
+      for (const auto& kv : g) {
+        const std::string key = kv.first.Scalar();
+        if (key == "enabled") {
+          go.enabled = kv.second.as<bool>();
+        } else if (key == "address") {
+          go.address = kv.second.as<std::string>();
+        } else if (key == "port") {
+          go.port = kv.second.as<int>();
+        } else if (key == "timeout_s") {
+          go.timeout_s = kv.second.as<double>();
+        } else if (key == "allow_motion_approval") {
+          go.allow_motion_approval = kv.second.as<bool>();
+        } else {
+          throw ConfigError(path + ": server.openigtlink." + key +
+                            ": unknown key; expected enabled, address, port, timeout_s, "
+                            "allow_motion_approval");
+        }
+      }
+    }
     if (const YAML::Node a = s["approval"]) {
       for (const auto& kv : a) {
         const std::string key = kv.first.Scalar();
@@ -1335,6 +1507,10 @@ ServerOptions loadServerOptions(const std::string& path) {
 
 int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
   ServerOptions options = given;
+  // A site that lets OpenIGTLink release motion makes the bridge an approver (by its reserved id).
+  if (options.openigtlink.enabled && options.openigtlink.allow_motion_approval) {
+    options.approvers.push_back(igtl::kBridgeClientId);
+  }
   auto robot = config::loadRobot(options.robot_config);
   if (!robot) {
     spdlog::error("{}", robot.error().message);

@@ -29,8 +29,20 @@ struct SecurityOptions {
   std::string plugins;   // folder of Cyclone's libdds_security_*.so ("" = Debian's)
 };
 
+// The OpenIGTLink bridge for 3D Slicer (server.yaml `openigtlink:`, docs/OPENIGTLINK.md).
+struct OpenIgtlinkOptions {
+  bool enabled = false;
+  std::string address = "127.0.0.1";  // loopback unless a site opens it
+  int port = 18944;                   // 0: any free port (printed on the ready line)
+  double timeout_s = 5.0;             // a dropped or stalled client is let go after this
+  // OpenIGTLink has no authentication: MOVE_TO_TARGET over it releases motion only if a site
+  // says so here (the server then says so loudly, in its log and in the workflow state).
+  bool allow_motion_approval = false;
+};
+
 struct ServerOptions {
   ControllerOptions controller;
+  OpenIgtlinkOptions openigtlink;
   SecurityOptions security;
   std::vector<std::string> approvers;  // client ids allowed to approve motion
   double approval_expiry_s = 120.0;

@@ -10,6 +10,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -94,6 +95,11 @@ class ServerProcess {
                                   std::to_string(domain_),
                                   "--session-dir",
                                   session_dir_.string()};
+    // OpenIGTLink on a free port (tests run side by side); igtlPort() tells which.
+    if (std::find(extra_args_.begin(), extra_args_.end(), "--igtl-port") == extra_args_.end() &&
+        std::find(extra_args_.begin(), extra_args_.end(), "--no-igtl") == extra_args_.end()) {
+      args.insert(args.end(), {"--igtl-port", "0"});
+    }
     args.insert(args.end(), extra_args_.begin(), extra_args_.end());
     if (!program_.argv.empty()) args = program_.argv;
     std::vector<char*> argv;
@@ -126,7 +132,14 @@ class ServerProcess {
       }
     }
     ::close(out[0]);
+    ready_line_ = line;
     ASSERT_NE(line.find(ready), std::string::npos) << line << serverLog();
+  }
+
+  // The OpenIGTLink port from the readiness line (0: none).
+  int igtlPort() const {
+    const auto at = ready_line_.find("igtl_port=");
+    return at == std::string::npos ? 0 : std::atoi(ready_line_.c_str() + at + 10);
   }
 
   // SIGTERM and the exit code (0 for a clean shutdown).
@@ -180,6 +193,7 @@ class ServerProcess {
  private:
   std::uint32_t domain_;
   std::vector<std::string> extra_args_;
+  std::string ready_line_;
   std::vector<std::string> env_;
   Program program_;
   std::filesystem::path session_dir_;

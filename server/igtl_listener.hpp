@@ -1,0 +1,60 @@
+// OpenIGTLink connections for the BRP bridge: an Asio thread accepts clients, reassembles their
+// messages and queues them for the server's event thread, which answers through send(). Transport
+// only: what the messages mean is modules/igtl's business (brp.hpp). A socket error costs that
+// one connection, never the server.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ignav/core/expected.hpp"
+#include "ignav/igtl/message.hpp"
+
+namespace ignav::server {
+
+struct IgtlListenerOptions {
+  std::string address = "127.0.0.1";  // loopback unless a site opens it
+  int port = 18944;                   // 0: any free port (tests)
+  // A client is dropped when its socket fails, when TCP keep-alive probes go unanswered, or when
+  // something we send it stays unread for this long (a client that stopped reading).
+  double timeout_s = 5.0;
+  std::size_t max_clients = 16;
+  std::size_t max_outbox_bytes = 4 * 1024 * 1024;
+};
+
+struct IgtlEvent {
+  enum class Kind { kConnected, kMessage, kBadMessage, kDisconnected };
+  Kind kind = Kind::kMessage;
+  std::uint64_t client = 0;
+  std::string peer;       // "127.0.0.1:53122"
+  igtl::Message message;  // kMessage
+  std::string error;      // kBadMessage: what was wrong; kDisconnected: why
+};
+
+class IgtlListener {
+ public:
+  // `wake` is called (from the Asio thread) whenever events are waiting.
+  IgtlListener(IgtlListenerOptions options, std::function<void()> wake);
+  ~IgtlListener();
+  IgtlListener(const IgtlListener&) = delete;
+  IgtlListener& operator=(const IgtlListener&) = delete;
+
+  // Binds and starts the thread; returns the port listened on. Errors name the address.
+  Expected<int> start();
+  std::vector<IgtlEvent> take();  // thread-safe
+  // Queues a message (thread-safe); unknown or gone clients are ignored.
+  void send(std::uint64_t client, const igtl::Message& message);
+  void broadcast(const igtl::Message& message);
+  std::size_t clientCount() const { return client_count_.load(); }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::atomic<std::size_t> client_count_{0};
+};
+
+}  // namespace ignav::server
