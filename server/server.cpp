@@ -826,9 +826,10 @@ class Server {
         r.state != before.state || r.position != before.position || r.fault != before.fault;
     if (changed || now) publishMotion();
     // Slicer sees the tip move (at most every 50 ms, and where it comes to rest).
+    const bool moving = r.state == actuation::ControllerState::kMoving;
     if (bridge_ && igtl_->clientCount() > 0 && r.position != last_igtl_steps_ &&
-        (r.state != actuation::ControllerState::kMoving ||
-         Clock::now() - last_igtl_position_ >= std::chrono::milliseconds(50))) {
+        (moving || before.state == actuation::ControllerState::kMoving) &&
+        (!moving || Clock::now() - last_igtl_position_ >= std::chrono::milliseconds(50))) {
       last_igtl_position_ = Clock::now();
       last_igtl_steps_ = r.position;
       sendIgtl(bridge_->onPosition(session_, r.position));

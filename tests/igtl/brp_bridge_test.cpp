@@ -176,5 +176,29 @@ TEST(BrpBridge, AWorkphaseChangeNoCommandAskedForIsToldToEveryone) {
   EXPECT_EQ(loop.sent[0].status.code, 3);
 }
 
+TEST(BrpBridge, PointsAreTargetsAndTooManyInOneMessageAreRefusedWhole) {
+  Loop loop(false);
+  loop.receive(transformMessage("CLB_1", calibrationRas()));
+  const Eigen::Vector3d ras =
+      (calibrationRas().inverse() * Eigen::Vector4d(-10, 15, -190, 1)).head<3>();
+  Message points;
+  points.type = "POINT";
+  points.device_name = "F";
+  points.points = {{"F-1", "TARGET", ras}, {"F-2", "TARGET", ras + Eigen::Vector3d(1, 0, 0)}};
+  loop.sent.clear();
+  loop.receive(points);
+  ASSERT_EQ(loop.session.targets.size(), 2u);
+  EXPECT_EQ(loop.session.targets[0].lps_mm, Eigen::Vector3d(-ras.x(), -ras.y(), ras.z()));
+  EXPECT_EQ(loop.sent.front().type, "POINT");
+  EXPECT_EQ(loop.sent.front().device_name, "ACK_F");
+  points.points.resize(workflow::kMaxTargets + 1, {"P", "TARGET", ras});
+  loop.sent.clear();
+  loop.receive(points);
+  EXPECT_EQ(loop.session.targets.size(), 2u);
+  ASSERT_EQ(loop.sent.size(), 2u);
+  EXPECT_EQ(loop.sent[1].status.code, 10);
+  EXPECT_EQ(loop.sent[1].status.error_name, "oversized");
+}
+
 }  // namespace
 }  // namespace ignav::igtl

@@ -195,6 +195,9 @@ TEST(IgtlCodec, EncodingRefusesWhatTheWireCannotCarry) {
   auto long_name = encode(stringMessage("A_DEVICE_NAME_OVER_20_CHARACTERS", "x"));
   ASSERT_FALSE(long_name.ok());
   EXPECT_NE(long_name.error().message.find("A_DEVICE_NAME_OVER_20"), std::string::npos);
+  // libOpenIGTLink reads a 20-character error name without a terminator: at most 19 go out.
+  EXPECT_TRUE(encode(statusMessage("X", StatusCode::kOk, "", std::string(19, 'e'))).ok());
+  EXPECT_FALSE(encode(statusMessage("X", StatusCode::kOk, "", std::string(20, 'e'))).ok());
   Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
   m(0, 3) = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(encode(transformMessage("X", m)).ok());

@@ -29,7 +29,7 @@ std::string ackName(const std::string& id) {
 
 // The status string and error name fields: printable, bounded.
 std::string errorName(const std::string& error_code) {
-  return error_code.substr(0, kMaxDeviceName);
+  return error_code.substr(0, kMaxErrorName);
 }
 
 Eigen::Matrix4d poseRas(const workflow::Session& s, const Eigen::Vector3d& robot_mm) {
@@ -185,6 +185,9 @@ BrpOutput BrpBridge::onConnected(std::uint64_t client, const workflow::Session& 
   if (s.registration) {
     out.messages.push_back(
         {client, transformMessage("ImageToRobot", s.registration->imageToRobot() * rasFromLps())});
+    // Where the tip is (the last verified position; the stream follows it while it moves).
+    out.messages.push_back(
+        {client, transformMessage("NeedleTipToImage", *tipToImageRas(s, s.position))});
   }
   return out;
 }
@@ -286,6 +289,13 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
     Message echo = m;
     echo.device_name = ackName(m.device_name);
     send(std::move(echo));
+    if (m.points.size() > workflow::kMaxTargets) {
+      send(statusMessage("TARGET", StatusCode::kConfigurationError,
+                         fmt::format("{} points in one message; at most {}", m.points.size(),
+                                     workflow::kMaxTargets),
+                         "oversized"));
+      return out;
+    }
     for (const auto& point : m.points) {
       auto in = input(InputKind::kAddTarget);
       in.points.push_back(rasFromLps().topLeftCorner<3, 3>() * point.position_mm);

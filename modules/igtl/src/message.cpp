@@ -174,9 +174,9 @@ Expected<std::string> encode(const Message& in) {
     return wire(m);
   }
   if (in.type == "STATUS") {
-    if (in.status.error_name.size() > 20) {
-      return bad(fmt::format("STATUS '{}': error name '{}' over 20 characters", in.device_name,
-                             in.status.error_name));
+    if (in.status.error_name.size() > kMaxErrorName) {
+      return bad(fmt::format("STATUS '{}': error name '{}' over {} characters", in.device_name,
+                             in.status.error_name, kMaxErrorName));
     }
     auto m = ::igtl::StatusMessage::New();
     m->SetDeviceName(in.device_name.c_str());

@@ -61,7 +61,7 @@ class BrpBridge {
   // request id from its journal without executing it): the server passes microseconds of wall time.
   BrpBridge(BrpOptions options, std::uint64_t first_request_id);
 
-  // A client connected: it is told the workphase and, if registered, ImageToRobot.
+  // A client connected: it is told the workphase and, if registered, ImageToRobot and the tip.
   BrpOutput onConnected(std::uint64_t client, const workflow::Session& s) const;
   void onDisconnected(std::uint64_t client);
   // A message from a client. `live` is the motors' present position (for GET_TRANSFORM).
@@ -97,7 +97,7 @@ class BrpBridge {
   BrpOptions options_;
   std::uint64_t next_request_id_;
   std::map<std::uint64_t, Pending> pending_;  // by request id
-  std::optional<Workphase> last_accepted_;  // none yet (or a replay: then from the phase)
+  std::optional<Workphase> last_accepted_;    // none yet (or a replay: then from the phase)
   std::optional<std::pair<Workphase, std::uint16_t>> last_reported_;
   workflow::Phase last_phase_ = workflow::Phase::kStartup;
   std::optional<Eigen::Matrix4d> last_registration_;

@@ -31,7 +31,7 @@ enum class StatusCode : std::uint16_t {
 struct Status {
   std::uint16_t code = 1;
   std::int64_t subcode = 0;
-  std::string error_name;     // at most 20 characters on the wire
+  std::string error_name;     // at most 19 characters (kMaxErrorName)
   std::string status_string;  // free text
 };
 
@@ -83,5 +83,9 @@ class Decoder {
 // Header size of every OpenIGTLink message (version 1 and 2).
 constexpr std::size_t kHeaderBytes = 58;
 constexpr std::size_t kMaxDeviceName = 20;
+// The STATUS error name field holds 20 bytes, but libOpenIGTLink (and so 3D Slicer) reads it back
+// as a C string without a terminator of its own: a 20-character name would run into whatever
+// follows. So at most 19.
+constexpr std::size_t kMaxErrorName = 19;
 
 }  // namespace ignav::igtl
