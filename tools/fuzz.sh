@@ -10,7 +10,7 @@ seconds="${1:-30}"
 shift || true
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(fuzz_dicom fuzz_nrrd fuzz_metaimage fuzz_robot_config fuzz_journal
-  fuzz_command)
+  fuzz_command fuzz_igtl)
 
 cmake --preset fuzz >/dev/null
 cmake --build build-fuzz -j "$(nproc)" --target fuzzers ignav-plan

@@ -12,9 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "ignav/config/robot_config.hpp"
+#include "fuzz_session.hpp"
 #include "ignav/protocol/messages.hpp"
-#include "ignav/registration/robot_phantom.hpp"
 #include "ignav/workflow/reducer.hpp"
 
 namespace {
@@ -24,47 +23,9 @@ using workflow::Input;
 using workflow::InputKind;
 using workflow::Session;
 
-std::shared_ptr<const config::Robot> robot() {
-  static const auto r = std::make_shared<const config::Robot>(
-      config::loadRobot(IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml").value());
-  return r;
-}
-
 // Registered on the phantom's markers, planning: where most commands mean something.
 const Session& planningSession() {
-  static const Session s = [] {
-    Session session = workflow::newSession("fuzz", robot(), "robot.yaml");
-    std::uint64_t request = 0;
-    auto feed = [&](Input in) {
-      in.time_s = 1000.0;
-      session = workflow::reduce(session, in).session;
-    };
-    Input config;
-    config.kind = InputKind::kConfigLoaded;
-    config.policy = workflow::ApprovalPolicy{};
-    config.policy->approvers = {"op"};
-    feed(config);
-    Input load;
-    load.kind = InputKind::kLoadVolume;
-    load.client_id = "op";
-    load.request_id = ++request;
-    load.path = "phantom:";
-    feed(load);
-    Input loaded;
-    loaded.kind = InputKind::kVolumeLoaded;
-    loaded.loaded.volume = std::make_shared<volume::Volume>();
-    feed(loaded);
-    Input fiducials;
-    fiducials.kind = InputKind::kSetFiducials;
-    fiducials.client_id = "op";
-    fiducials.request_id = ++request;
-    fiducials.points =
-        registration::makeRobotPhantom(robot()->kinematics, robot()->config.registration.scan)
-            .value()
-            .spec.fiducials_lps_mm;
-    feed(fiducials);
-    return session;
-  }();
+  static const Session s = fuzz::planningSession({"op"});
   return s;
 }
 

@@ -1,0 +1,174 @@
+// What an OpenIGTLink client can send: a byte stream (well-formed BRP messages with fuzzed
+// fields, corrupted ones, raw garbage) split at fuzzed points, through the Decoder and the BRP
+// bridge, with the bridge's inputs through the real reducer as the server runs them, from a
+// registered planning session. Checked on every message: the decoder holds no more than a body
+// limit and a chunk; every STRING(CMD_<id>) is receipted first with ACK_<id>; everything the
+// bridge answers can be encoded; nothing moves except by an approval of the pending plan
+// (DESIGN.md safety invariants 1 and 5).
+#include <fuzzer/FuzzedDataProvider.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "fuzz_session.hpp"
+#include "ignav/igtl/brp.hpp"
+#include "ignav/workflow/reducer.hpp"
+
+namespace {
+
+using namespace ignav;
+using workflow::Input;
+using workflow::InputKind;
+using workflow::Session;
+
+constexpr std::size_t kBodyLimit = 4096;
+
+// Registered, planning; the bridge may approve (the riskiest setting).
+const Session& planningSession() {
+  static const Session s = fuzz::planningSession({igtl::kBridgeClientId});
+  return s;
+}
+
+double fuzzedNumber(FuzzedDataProvider& in) {
+  switch (in.ConsumeIntegralInRange<int>(0, 5)) {
+    case 0:
+      return std::numeric_limits<double>::quiet_NaN();
+    case 1:
+      return std::numeric_limits<double>::infinity();
+    case 2:
+      return in.ConsumeFloatingPointInRange<double>(-1.0, 1.0);  // rotation-like
+    case 3:
+      return in.ConsumeFloatingPointInRange<double>(-200.0, 200.0);
+    default:
+      return in.ConsumeFloatingPoint<double>();
+  }
+}
+
+// One message on the wire: mostly well formed (our encoder, fuzzed fields), sometimes damaged.
+std::string fuzzedMessage(FuzzedDataProvider& in) {
+  static const char* kPhases[] = {"START_UP",       "PLANNING", "CALIBRATION", "TARGETING",
+                                  "MOVE_TO_TARGET", "MANUAL",   "STOP",        "EMERGENCY"};
+  static const char* kPrefixes[] = {"CMD_", "CLB_", "TGT_", "ACK_", ""};
+  igtl::Message m;
+  const int kind = in.ConsumeIntegralInRange<int>(0, 5);
+  m.device_name = std::string(kPrefixes[in.ConsumeIntegralInRange<int>(0, 4)]) +
+                  in.ConsumeRandomLengthString(8);
+  if (m.device_name.size() > igtl::kMaxDeviceName) m.device_name.resize(igtl::kMaxDeviceName);
+  switch (kind) {
+    case 0:
+      m.type = "STRING";
+      m.text = in.ConsumeBool() ? kPhases[in.ConsumeIntegralInRange<int>(0, 7)]
+                                : in.ConsumeRandomLengthString(64);
+      break;
+    case 1:
+    case 2:
+      m.type = "TRANSFORM";
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c)
+          m.matrix(r, c) = in.ConsumeBool() ? m.matrix(r, c) : fuzzedNumber(in);
+      break;
+    case 3:
+      m.type = "POINT";
+      for (std::size_t i = in.ConsumeIntegralInRange<std::size_t>(0, 4); i > 0; --i) {
+        m.points.push_back({in.ConsumeRandomLengthString(8), "TARGET",
+                            Eigen::Vector3d(fuzzedNumber(in), fuzzedNumber(in), fuzzedNumber(in))});
+      }
+      break;
+    case 4:
+      m.type = "GET_STATUS";
+      break;
+    default:
+      m.type = "GET_TRANS";
+      break;
+  }
+  auto bytes = igtl::encode(m);
+  std::string wire = bytes ? *bytes : in.ConsumeRandomLengthString(100);
+  if (!wire.empty() && in.ConsumeIntegralInRange<int>(0, 7) == 0) {
+    wire[in.ConsumeIntegralInRange<std::size_t>(0, wire.size() - 1)] ^=
+        static_cast<char>(1 + in.ConsumeIntegralInRange<int>(0, 254));
+  }
+  return wire;
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  FuzzedDataProvider in(data, size);
+  Session session = planningSession();
+  igtl::BrpBridge bridge({true}, 1);
+  igtl::Decoder decoder(kBodyLimit);
+  std::vector<igtl::BrpOutgoing> sent;
+  std::vector<Input> queue;
+
+  // The server's part: inputs through the reducer, replies back to the bridge.
+  const auto take = [&](igtl::BrpOutput out) {
+    for (auto& m : out.messages)
+      sent.push_back(std::move(m));
+    for (auto& i : out.inputs)
+      queue.push_back(std::move(i));
+  };
+  const auto run = [&] {
+    while (!queue.empty()) {
+      Input i = std::move(queue.front());
+      queue.erase(queue.begin());
+      i.time_s = 1000.0;
+      if (workflow::needsControllerReading(i.kind)) {
+        actuation::ControllerStatus idle;
+        idle.state = actuation::ControllerState::kIdle;
+        idle.position = session.position;
+        i.controller = idle;
+      }
+      const auto pending_before = session.pending;
+      const auto step = workflow::reduce(session, i);
+      for (const auto& c : step.effects.controller) {
+        if (c.action != workflow::ControllerAction::kMove) continue;
+        // Only an approval of exactly the pending plan releases a move.
+        if (i.kind != InputKind::kApprove || !pending_before ||
+            pending_before->plan_id != i.plan_id || pending_before->digest != i.digest) {
+          std::abort();
+        }
+      }
+      session = step.session;
+      for (const auto& r : step.effects.replies)
+        take(bridge.onReply(r, session));
+      take(bridge.onState(session));
+    }
+  };
+
+  for (int n = 0; n < 24 && in.remaining_bytes() > 0; ++n) {
+    const std::string wire =
+        in.ConsumeBool() ? fuzzedMessage(in) : in.ConsumeRandomLengthString(80);
+    // Split anywhere.
+    for (std::size_t at = 0; at < wire.size();) {
+      const std::size_t chunk =
+          std::min(wire.size() - at, in.ConsumeIntegralInRange<std::size_t>(1, 200));
+      decoder.feed(wire.data() + at, chunk);
+      at += chunk;
+      while (auto next = decoder.next()) {
+        if (!next->ok()) {
+          if (next->error().reason == "header_version") return 0;  // the connection would end
+          continue;
+        }
+        const igtl::Message& m = next->value();
+        sent.clear();
+        take(bridge.onMessage(1, m, session, session.position));
+        const bool command =
+            m.type == "STRING" && m.device_name.rfind("CMD_", 0) == 0 && m.device_name.size() > 4;
+        if (command && (sent.empty() || sent.front().message.device_name !=
+                                            ("ACK_" + m.device_name.substr(4)).substr(0, 20))) {
+          std::abort();  // the receipt comes first, always
+        }
+        run();
+        for (const auto& out : sent) {
+          if (!igtl::encode(out.message)) std::abort();  // everything we answer can be sent
+        }
+      }
+      if (decoder.buffered() > kBodyLimit + igtl::kHeaderBytes + 200) std::abort();
+    }
+  }
+  return 0;
+}
