@@ -16,8 +16,10 @@ configs/security/make-test-pki.sh "$out/pki"
 echo "== the server, the built-in phantom and the scripted client (configs/demo/plan.yaml)"
 session="$out/session"
 server_log="$out/server.log"
+# OpenIGTLink on a free port (IGNAV_IGTL_PORT=18944 for a 3D Slicer with IGNAV_DEMO_KEEP=1).
 build/server/ignav-server --config configs/server.yaml --session-dir "$session" \
-  --identity "$out/pki/service" > "$out/server.ready" 2> "$server_log" &
+  --identity "$out/pki/service" --igtl-port "${IGNAV_IGTL_PORT:-0}" \
+  > "$out/server.ready" 2> "$server_log" &
 server_pid=$!
 trap 'kill $server_pid 2>/dev/null || true' EXIT
 for _ in $(seq 100); do grep -q "ready" "$out/server.ready" 2>/dev/null && break; sleep 0.1; done
@@ -44,6 +46,15 @@ $ctl status
 echo
 $ctl targets ls | tee "$session/summary.txt"
 $ctl motion | tee -a "$session/summary.txt"
+echo
+echo "== what 3D Slicer sees over OpenIGTLink (docs/OPENIGTLINK.md): workphase, registration, tip"
+igtl_port=$(sed -n 's/.*igtl_port=\([0-9]*\).*/\1/p' "$out/server.ready")
+if [ -n "$igtl_port" ]; then
+  build/tools/ignav-igtl/ignav-igtl --port "$igtl_port" get-status get:ImageToRobot \
+    get:NeedleTipToImage | tee "$session/openigtlink.jsonl"
+else
+  echo "(no OpenIGTLink bridge: see $server_log)"
+fi
 # What a browser shows at the end of the session, as a picture in the session folder.
 node tools/ignav-web/screenshot.mjs --url "$web_url" --out "$session/web_viewer.png" \
   --chromium "$(command -v chromium)" || echo "(no screenshot of the web viewer)"

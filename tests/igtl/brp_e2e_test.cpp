@@ -154,6 +154,14 @@ class Navigation {
     ADD_FAILURE() << "no CURRENT_POSITION while moving";
   }
   void expectOpening() { expectCurrentStatus("START_UP"); }
+  // From the greeting to a robot on its way to the reachable target.
+  void underWay() {
+    ASSERT_NO_FATAL_FAILURE(expectOpening());
+    ASSERT_NO_FATAL_FAILURE(calibrated());
+    ASSERT_NO_FATAL_FAILURE(target());
+    ASSERT_NO_FATAL_FAILURE(moveStarted());
+    ASSERT_NO_FATAL_FAILURE(waitForMotion());
+  }
 
  private:
   std::string next_id() { return fmt::format("{:04d}", ++id_); }
@@ -241,11 +249,7 @@ TEST(BrpE2E, CalibrationError) {
 TEST(BrpE2E, EmergencyStopDuringOperation) {
   ServerProcess server(163, withApproval({"--controller-speed", "2000"}));
   Navigation nav(server.igtlPort());
-  ASSERT_NO_FATAL_FAILURE(nav.expectOpening());
-  ASSERT_NO_FATAL_FAILURE(nav.calibrated());
-  ASSERT_NO_FATAL_FAILURE(nav.target());
-  ASSERT_NO_FATAL_FAILURE(nav.moveStarted());
-  ASSERT_NO_FATAL_FAILURE(nav.waitForMotion());
+  ASSERT_NO_FATAL_FAILURE(nav.underWay());
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("EMERGENCY", "EMERGENCY", 3, 1));
   ASSERT_NO_FATAL_FAILURE(nav.expectStatus("MOVE_TO_TARGET", 3, "emergency"));
   auto viewer = server.client("viewer");
@@ -260,11 +264,7 @@ TEST(BrpE2E, HardwareErrorDuringOperation) {
       164, withApproval({"--controller", "galil:127.0.0.1:" + std::to_string(dmc.port()),
                          "--controller-speed", "2000"}));
   Navigation nav(server.igtlPort());
-  ASSERT_NO_FATAL_FAILURE(nav.expectOpening());
-  ASSERT_NO_FATAL_FAILURE(nav.calibrated());
-  ASSERT_NO_FATAL_FAILURE(nav.target());
-  ASSERT_NO_FATAL_FAILURE(nav.moveStarted());
-  ASSERT_NO_FATAL_FAILURE(nav.waitForMotion());
+  ASSERT_NO_FATAL_FAILURE(nav.underWay());
   dmc.kill();  // the controller vanishes mid-move
   ASSERT_NO_FATAL_FAILURE(nav.expectCurrentStatus("MOVE_TO_TARGET", 18));
   ASSERT_NO_FATAL_FAILURE(nav.expectStatus("MOVE_TO_TARGET", 18, "fault"));
@@ -310,18 +310,14 @@ TEST(BrpE2E, StartUpError) {
   ServerProcess server(167, {"--controller", "galil:127.0.0.1:" + std::to_string(closed_port)});
   Navigation nav(server.igtlPort());
   ASSERT_NO_FATAL_FAILURE(nav.expectOpening());
-  ASSERT_NO_FATAL_FAILURE(nav.commandExpect("START_UP", "START_UP", 1, 18, "controller_unavailab"));
+  ASSERT_NO_FATAL_FAILURE(nav.commandExpect("START_UP", "START_UP", 1, 18, "controller_unavaila"));
   EXPECT_TRUE(server.alive());
 }
 
 TEST(BrpE2E, StopDuringOperation) {
   ServerProcess server(168, withApproval({"--controller-speed", "2000"}));
   Navigation nav(server.igtlPort());
-  ASSERT_NO_FATAL_FAILURE(nav.expectOpening());
-  ASSERT_NO_FATAL_FAILURE(nav.calibrated());
-  ASSERT_NO_FATAL_FAILURE(nav.target());
-  ASSERT_NO_FATAL_FAILURE(nav.moveStarted());
-  ASSERT_NO_FATAL_FAILURE(nav.waitForMotion());
+  ASSERT_NO_FATAL_FAILURE(nav.underWay());
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("STOP", "STOP", 1, 1));
   ASSERT_NO_FATAL_FAILURE(nav.expectStatus("MOVE_TO_TARGET", 13, "stopped"));
   // Moving on again once the motors have come to rest: the rest of the way to the target.
@@ -410,10 +406,11 @@ TEST(BrpE2E, ARecordedSessionReplaysToSlicer) {
   ASSERT_NO_FATAL_FAILURE(nav.expectCurrentStatus("MOVE_TO_TARGET"));
   const auto reg = nav.expectTransform("ImageToRobot");
   EXPECT_LT((reg.matrix - calibration()).cwiseAbs().maxCoeff(), 1e-5);
-  nav.client().sendGetTransform("CURRENT_POSITION");
-  const auto tip = nav.expectTransform("CURRENT_POSITION");
+  const auto tip = nav.expectTransform("NeedleTipToImage");
   const Eigen::Vector3d target = targetRas(kReachableRobot_mm).topRightCorner<3, 1>();
   EXPECT_LT((tip.matrix.topRightCorner<3, 1>() - target).norm(), 0.05);
+  nav.client().sendGetTransform("CURRENT_POSITION");
+  EXPECT_EQ(nav.expectTransform("CURRENT_POSITION").matrix, tip.matrix);
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("EMERGENCY", "MOVE_TO_TARGET", 1, 13, "read_only"));
 }
 
@@ -492,6 +489,32 @@ TEST(BrpE2E, MalformedMessagesAreAnsweredAndChangeNothing) {
   auto viewer = server.client("viewer");
   EXPECT_EQ(field(viewer->state(), "workflow", "phase"), "imaging");
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("START_UP", "START_UP", 1, 1));
+}
+
+// The scripted client a site uses without Slicer (tools/ignav-igtl): its transcript is the
+// protocol's exact sequence.
+TEST(BrpE2E, TheScriptedClientToolSpeaksTheProtocol) {
+  ServerProcess server(175);
+  const std::string cmd = std::string(IGNAV_IGTL_EXE) + " --port " +
+                          std::to_string(server.igtlPort()) + " cmd:START_UP get-status 2>&1";
+  FILE* pipe = ::popen(cmd.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::vector<json> lines;
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, pipe))
+    lines.push_back(json::parse(buf));
+  ASSERT_EQ(::pclose(pipe), 0);
+  std::vector<std::string> seen;
+  for (const auto& l : lines) {
+    std::string what = (l.value("sent", false) ? ">" : "<") + l["device"].get<std::string>();
+    if (l.contains("text")) what += " " + l["text"].get<std::string>();
+    if (l.contains("code")) what += " " + std::to_string(l["code"].get<int>());
+    seen.push_back(what);
+  }
+  const std::vector<std::string> expected = {
+      "<CURRENT_STATUS 1", ">CMD_0001 START_UP", "<ACK_0001 START_UP", "<CURRENT_STATUS 1",
+      "<START_UP 1",       ">CURRENT_STATUS",    "<CURRENT_STATUS 1"};
+  EXPECT_EQ(seen, expected);
 }
 
 }  // namespace
