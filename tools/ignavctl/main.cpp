@@ -163,6 +163,9 @@ void printStatus(const json& s) {
             << "registration " << get("registration", "status") << " "
             << get("registration", "message") << "\n"
             << "targets      " << s["targets"].size() << "\n";
+  const std::string notice =
+      s.contains("workflow") ? s["workflow"].value("safety_notice", std::string()) : "";
+  if (!notice.empty()) std::cout << "SAFETY       " << notice << "\n";
 }
 
 Eigen::Vector3d jsonPoint(const json& p) {

@@ -91,6 +91,10 @@ export class Panels {
     byId("phase").dataset.phase = workflow?.phase ?? "";
     byId("allowed").textContent = workflow ? workflow.allowed_commands.join(", ") : "";
     byId("last-event").textContent = workflow?.last_event ?? "";
+    // A safeguard the site weakened (motion approval over OpenIGTLink): said where it is seen.
+    const notice = byId("safety-notice");
+    notice.textContent = workflow?.safety_notice ?? "";
+    notice.hidden = !workflow?.safety_notice;
     for (const button of document.querySelectorAll<HTMLButtonElement>("button[data-command]")) {
       button.disabled = !allowed.has(button.dataset.command ?? "");
     }

@@ -10,6 +10,7 @@ export interface WorkflowState {
   allowed_commands: string[];
   revision: number;
   last_event: string;
+  safety_notice?: string; // "" unless a safeguard is weakened (docs/OPENIGTLINK.md)
 }
 
 export interface RobotState {
@@ -112,6 +113,7 @@ export interface HealthState {
   commands_accepted: number;
   commands_rejected: number;
   journal: string;
+  igtl_clients?: number; // OpenIGTLink clients connected now
 }
 
 // Every topic is absent until the server first publishes it.
