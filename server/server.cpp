@@ -657,10 +657,11 @@ class Server {
       bridge_inputs_.push_back(std::move(in));
   }
 
-  // The bridge's client id belongs to the bridge: a DDS client claiming it is refused (it would
-  // otherwise borrow an approval right given to OpenIGTLink).
+  // The bridge's client id belongs to the bridge, whether it runs or not: a DDS client claiming
+  // it is refused (it would otherwise borrow an approval right given to OpenIGTLink, which a
+  // session keeps in its journaled policy across restarts).
   bool reservedClientId(const char* client_id, std::uint64_t request_id) {
-    if (!igtl_ || !client_id || std::string(client_id) != igtl::kBridgeClientId) return false;
+    if (!client_id || std::string(client_id) != igtl::kBridgeClientId) return false;
     OwnedReply owned{
         {client_id, request_id, false, "not_permitted",
          "client id 'openigtlink' is reserved for the OpenIGTLink bridge", 0, session_.revision},
