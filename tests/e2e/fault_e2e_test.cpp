@@ -143,6 +143,12 @@ TEST(FaultE2E, AJournalThatCannotBeWrittenRefusesEveryChangeAndLosesNothing) {
   EXPECT_EQ(server.stop(), 0);
   server.start();
   auto again = server.client("operator");
+  // Each state topic arrives on its own (the workflow may come before the targets and health).
+  again->waitFor(
+      [](const json& s) {
+        return s.contains("health") && s.contains("targets") && s["targets"].size() == 1;
+      },
+      10s);
   EXPECT_EQ(revisionOf(*again), revision + 1);  // + the restart's own record
   EXPECT_EQ(again->state()["targets"].size(), 1u);
   EXPECT_EQ(field(again->state(), "health", "journal"), "ok");
