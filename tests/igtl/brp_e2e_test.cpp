@@ -154,6 +154,14 @@ class Navigation {
     ADD_FAILURE() << "no CURRENT_POSITION while moving";
   }
   void expectOpening() { expectCurrentStatus("START_UP"); }
+  // From the greeting to the robot's arrival at the reachable target.
+  void arrived() {
+    ASSERT_NO_FATAL_FAILURE(expectOpening());
+    ASSERT_NO_FATAL_FAILURE(calibrated());
+    ASSERT_NO_FATAL_FAILURE(target());
+    ASSERT_NO_FATAL_FAILURE(moveStarted());
+    ASSERT_NO_FATAL_FAILURE(expectStatus("MOVE_TO_TARGET", 1, nullptr, "arrived at target 1", 30s));
+  }
   // From the greeting to a robot on its way to the reachable target.
   void underWay() {
     ASSERT_NO_FATAL_FAILURE(expectOpening());
@@ -177,12 +185,7 @@ std::vector<std::string> withApproval(std::vector<std::string> args = {}) {
 TEST(BrpE2E, NormalOperation) {
   ServerProcess server(160, withApproval({"--controller-speed", "40000"}));
   Navigation nav(server.igtlPort());
-  ASSERT_NO_FATAL_FAILURE(nav.expectOpening());
-  ASSERT_NO_FATAL_FAILURE(nav.calibrated());
-  ASSERT_NO_FATAL_FAILURE(nav.target());
-  ASSERT_NO_FATAL_FAILURE(nav.moveStarted());
-  ASSERT_NO_FATAL_FAILURE(
-      nav.expectStatus("MOVE_TO_TARGET", 1, nullptr, "arrived at target 1", 30s));
+  ASSERT_NO_FATAL_FAILURE(nav.arrived());
   // The tip was streamed on its way, and it came to rest on the target.
   const auto streamed = nav.client().takeStreamed();
   std::vector<Received> positions, tips;
@@ -386,12 +389,7 @@ TEST(BrpE2E, ARecordedSessionReplaysToSlicer) {
   ServerProcess live(171, withApproval({"--controller-speed", "40000"}));
   {
     Navigation nav(live.igtlPort());
-    ASSERT_NO_FATAL_FAILURE(nav.expectOpening());
-    ASSERT_NO_FATAL_FAILURE(nav.calibrated());
-    ASSERT_NO_FATAL_FAILURE(nav.target());
-    ASSERT_NO_FATAL_FAILURE(nav.moveStarted());
-    ASSERT_NO_FATAL_FAILURE(
-        nav.expectStatus("MOVE_TO_TARGET", 1, nullptr, "arrived at target 1", 30s));
+    ASSERT_NO_FATAL_FAILURE(nav.arrived());
   }
   ASSERT_EQ(live.stop(), 0);
   const std::string session = live.sessionDir().string();
