@@ -1,11 +1,14 @@
 // The BRP communication test suite's ten scenarios (ProstateBRP's OpenIGTLink workphase
 // protocol), against a real ignav-server over real OpenIGTLink on loopback, the navigation side
 // written with libOpenIGTLink. Each scenario checks the exact messages, in order; echoes are
-// compared with an independently held copy of what was sent. DDS domains 160-175.
+// compared with an independently held copy of what was sent. DDS domains 160-176.
 #include <gtest/gtest.h>
 #include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <sys/socket.h>
 
+#include <cerrno>
+#include <cstring>
 #include <thread>
 
 #include <fmt/format.h>
@@ -466,6 +469,41 @@ TEST(BrpE2E, DroppedAndStalledClientsAreNoticedWithinTheTimeout) {
   Navigation next(server.igtlPort());
   ASSERT_NO_FATAL_FAILURE(next.expectOpening());
   EXPECT_TRUE(server.alive());
+}
+
+// A client whose host vanished without a word (cable pulled, its machine crashed): no FIN, no
+// RST, and the server has nothing to send it, so only the server's keep-alive probes can find
+// out. The client's socket is closed in TCP repair mode, which makes the kernel forget it
+// silently (CAP_NET_ADMIN); the first probe then meets no connection. Without keep-alive the
+// server would count the client forever.
+TEST(BrpE2E, AClientWhoseHostVanishedSilentlyIsLetGoByKeepAlive) {
+  const double timeout_s = 2.0;  // keep-alive: first probe after 1 s idle
+  ServerProcess server(176, {"--igtl-timeout", "2"});
+  auto viewer = server.client("viewer");
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons(static_cast<std::uint16_t>(server.igtlPort()));
+  ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  viewer->waitFor([](const json& s) { return s["health"]["igtl_clients"] == 1; }, 5s);
+  const int on = 1;
+  if (::setsockopt(fd, IPPROTO_TCP, TCP_REPAIR, &on, sizeof on) != 0) {
+    ::close(fd);
+    GTEST_SKIP() << "TCP_REPAIR needs CAP_NET_ADMIN: " << std::strerror(errno);
+  }
+  const auto vanished = std::chrono::steady_clock::now();
+  ::close(fd);  // in repair mode: nothing goes on the wire
+  viewer->waitFor([](const json& s) { return s["health"]["igtl_clients"] == 0; }, 15s);
+  const double after_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - vanished).count();
+  EXPECT_LT(after_s, timeout_s + 1.0) << "let go only after " << after_s << " s";
+  // Found by a probe (the reset), not by a close the client never sent.
+  const std::string log = server.serverLog();
+  EXPECT_EQ(log.find("closed by the client"), std::string::npos) << log;
+  EXPECT_NE(log.find("dropped: Connection reset by peer"), std::string::npos) << log;
+  Navigation next(server.igtlPort());
+  ASSERT_NO_FATAL_FAILURE(next.expectOpening());
 }
 
 // Garbage on the port costs the sender its message, not the server its state.
