@@ -6,6 +6,7 @@
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <sys/socket.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
@@ -422,6 +423,25 @@ std::size_t igtlClients(protocol::Client& c) {
   return s["health"]["igtl_clients"].get<std::size_t>();
 }
 
+// A bare TCP connection to the bridge (no OpenIGTLink client), for what a library would not do:
+// a receive buffer set before the handshake, a close that sends nothing. -1 on failure.
+int connectLoopback(int port, int receive_buffer_bytes = 0) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return -1;
+  if (receive_buffer_bytes > 0) {
+    ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receive_buffer_bytes, sizeof receive_buffer_bytes);
+  }
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
 // A client that vanishes, and one that stops reading, are let go within the timeout; the
 // others are served on.
 TEST(BrpE2E, DroppedAndStalledClientsAreNoticedWithinTheTimeout) {
@@ -436,14 +456,8 @@ TEST(BrpE2E, DroppedAndStalledClientsAreNoticedWithinTheTimeout) {
   EXPECT_EQ(igtlClients(*viewer), 0u);
 
   // A client that asks and asks but reads nothing, with a small receive buffer.
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  const int small = 4096;
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = htons(static_cast<std::uint16_t>(server.igtlPort()));
-  ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  const int fd = connectLoopback(server.igtlPort(), 4096);
+  ASSERT_GE(fd, 0) << std::strerror(errno);
   auto query = igtl::GetStatusMessage::New();
   query->SetDeviceName("CURRENT_STATUS");
   query->Pack();
@@ -480,12 +494,8 @@ TEST(BrpE2E, AClientWhoseHostVanishedSilentlyIsLetGoByKeepAlive) {
   const double timeout_s = 2.0;  // keep-alive: first probe after 1 s idle
   ServerProcess server(176, {"--igtl-timeout", "2"});
   auto viewer = server.client("viewer");
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = htons(static_cast<std::uint16_t>(server.igtlPort()));
-  ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  const int fd = connectLoopback(server.igtlPort());
+  ASSERT_GE(fd, 0) << std::strerror(errno);
   viewer->waitFor([](const json& s) { return s["health"]["igtl_clients"] == 1; }, 5s);
   const int on = 1;
   if (::setsockopt(fd, IPPROTO_TCP, TCP_REPAIR, &on, sizeof on) != 0) {
