@@ -132,8 +132,9 @@ struct IgtlListener::Impl {
     boost::system::error_code ec;
     c->socket.shutdown(tcp::socket::shutdown_both, ec);
     c->socket.close(ec);
-    client_count = connections.size();
+    // Why first, then the count that Health publishes: whoever sees the client gone can read why.
     spdlog::info("OpenIGTLink: client {} ({}) dropped: {}", c->id, c->peer, why);
+    client_count = connections.size();
     push({IgtlEvent::Kind::kDisconnected, c->id, c->peer, {}, why});
   }
 
