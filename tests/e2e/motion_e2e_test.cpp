@@ -105,7 +105,7 @@ TEST(MotionE2E, ApprovedMotionArrivesAtTheTargetsStepsAndNothingElseMoves) {
   EXPECT_NE(journalText(server).find("\"request_id\":" + std::to_string(r.request_id)),
             std::string::npos);
   op->waitFor([](const json& s) { return phaseIs(s, "at_target"); }, 30s);
-  op->waitFor([](const json& s) { return s["motion"]["state"] == "idle"; }, 5s);
+  op->waitFor([](const json& s) { return stateText(s, "motion", "state") == "idle"; }, 5s);
   const json& t = op->state()["targets"][std::to_string(id)];
   EXPECT_EQ(t["status"], "reached");
   // configs/server.yaml picks agar: every target carries the model's predicted cannula drift.
@@ -144,7 +144,7 @@ TEST(MotionE2E, ApprovedMotionArrivesAtTheTargetsStepsAndNothingElseMoves) {
       5s);
   ASSERT_TRUE(approveShown(*op).accepted);
   op->waitFor([](const json& s) { return phaseIs(s, "done"); }, 30s);
-  op->waitFor([](const json& s) { return s["motion"]["state"] == "idle"; }, 5s);
+  op->waitFor([](const json& s) { return stateText(s, "motion", "state") == "idle"; }, 5s);
   EXPECT_LT(std::abs(op->state()["motion"]["joints"][2].get<double>()),
             1.0 / paperRobot().transmission.styletStepsPerMm());
 }
@@ -164,7 +164,7 @@ TEST(MotionE2E, EmergencyStopMidMoveHaltsTheRobotWhereItIs) {
   const auto r = op->emergencyStop();
   ASSERT_TRUE(r.accepted) << r.message;
   op->waitFor([](const json& s) { return phaseIs(s, "emergency"); }, 5s);
-  op->waitFor([](const json& s) { return s["motion"]["state"] == "idle"; }, 5s);
+  op->waitFor([](const json& s) { return stateText(s, "motion", "state") == "idle"; }, 5s);
   const auto halted = steps(op->state()["motion"]["steps"]);
   EXPECT_NE(halted, goal);
   std::this_thread::sleep_for(200ms);
@@ -197,7 +197,7 @@ TEST(MotionE2E, ControllerFaultMidMoveOverGalilBecomesTheFaultPhase) {
   EXPECT_EQ(op->state()["motion"]["controller"], "galil 127.0.0.1:" + std::to_string(dmc.port()));
   ASSERT_TRUE(approveShown(*op).accepted);
   op->waitFor([](const json& s) { return phaseIs(s, "fault"); }, 30s);
-  op->waitFor([](const json& s) { return !s["motion"]["fault"].get<std::string>().empty(); }, 5s);
+  op->waitFor([](const json& s) { return !stateText(s, "motion", "fault").empty(); }, 5s);
   const std::string fault = op->state()["motion"]["fault"];
   EXPECT_NE(fault.find("forward limit switch at 5000 steps"), std::string::npos) << fault;
   EXPECT_EQ(op->state()["approval"]["status"], "none");
@@ -230,7 +230,7 @@ TEST(MotionE2E, ServerKilledMidMoveComesBackInFaultAndFinishesAfterThePositionCh
 
   auto op = server.client("operator");
   op->waitFor([](const json& s) { return phaseIs(s, "fault") && s.contains("motion"); }, 20s);
-  op->waitFor([](const json& s) { return s["motion"]["state"] == "idle"; }, 10s);
+  op->waitFor([](const json& s) { return stateText(s, "motion", "state") == "idle"; }, 10s);
   EXPECT_NE(op->state()["motion"]["fault"].get<std::string>().find("restarted during plan"),
             std::string::npos)
       << op->state()["motion"].dump();
@@ -240,12 +240,12 @@ TEST(MotionE2E, ServerKilledMidMoveComesBackInFaultAndFinishesAfterThePositionCh
   const auto reset = op->send("reset_emergency");
   ASSERT_TRUE(reset.accepted) << reset.message;
   ASSERT_TRUE(op->send("resume").accepted);
-  op->waitFor([](const json& s) { return s["approval"]["status"] == "pending"; }, 5s);
+  op->waitFor([](const json& s) { return stateText(s, "approval", "status") == "pending"; }, 5s);
   EXPECT_EQ(steps(op->state()["approval"]["from_steps"]), where);
   EXPECT_NE(op->state()["approval"]["plan_id"], old_approval["plan_id"]);
   ASSERT_TRUE(approveShown(*op).accepted);
   op->waitFor([](const json& s) { return phaseIs(s, "at_target"); }, 60s);
-  op->waitFor([](const json& s) { return s["motion"]["state"] == "idle"; }, 5s);
+  op->waitFor([](const json& s) { return stateText(s, "motion", "state") == "idle"; }, 5s);
   const json& t = op->state()["targets"][std::to_string(id)];
   const Eigen::Vector3d robot_mm(t["robot"][0], t["robot"][1], t["robot"][2]);
   EXPECT_EQ(steps(op->state()["motion"]["steps"]), stepsFor(robot_mm));

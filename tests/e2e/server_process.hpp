@@ -12,8 +12,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -29,6 +31,26 @@ namespace ignav::e2e {
 
 inline std::string loopbackXml() {
   return protocol::readConfigFile(IGNAV_SOURCE_DIR "/configs/dds/loopback.xml");
+}
+
+// A state topic's field as a client last saw it: "" (stateText) or none (stateCount) while that
+// topic has not arrived. Each state topic arrives on its own, and operator[] of a const json on a
+// missing key is undefined: an assertion in the sanitizer build, which aborts the test binary and
+// leaves its servers running to disturb later runs.
+inline std::string stateText(const nlohmann::json& s, const char* topic, const char* key) {
+  if (!s.contains(topic) || !s[topic].is_object() || !s[topic].contains(key) ||
+      !s[topic][key].is_string()) {
+    return "";
+  }
+  return s[topic][key].get<std::string>();
+}
+inline std::optional<std::uint64_t> stateCount(const nlohmann::json& s, const char* topic,
+                                               const char* key) {
+  if (!s.contains(topic) || !s[topic].is_object() || !s[topic].contains(key) ||
+      !s[topic][key].is_number_unsigned()) {
+    return std::nullopt;
+  }
+  return s[topic][key].get<std::uint64_t>();
 }
 
 // The registration a client sees, as a 4x4 image -> robot matrix.

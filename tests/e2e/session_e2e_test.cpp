@@ -147,7 +147,7 @@ TEST(SessionE2E, RecordedSessionReplaysOverDdsToTheSameStates) {
     auto c = live.client("operator");
     std::vector<std::uint64_t> acknowledged;
     ASSERT_EQ(driveToDone(live, *c, acknowledged), Drive::kDone);
-    c->waitFor([](const json& s) { return s["motion"]["state"] == "idle"; }, 5s);
+    c->waitFor([](const json& s) { return stateText(s, "motion", "state") == "idle"; }, 5s);
     final_state = c->state();
   }
   ASSERT_EQ(live.stop(), 0);

@@ -24,6 +24,8 @@ namespace ignav::brp_test {
 namespace {
 
 using e2e::ServerProcess;
+using e2e::stateCount;
+using e2e::stateText;
 using nlohmann::json;
 using namespace std::chrono_literals;
 
@@ -50,11 +52,6 @@ Eigen::Matrix4d targetRas(const Eigen::Vector3d& robot_mm) {
   Eigen::Matrix4d t = Eigen::Matrix4d::Identity();
   t.topRightCorner<3, 1>() = (asSent(calibration()).inverse() * robot_mm.homogeneous()).head<3>();
   return t;
-}
-
-std::string field(const json& s, const char* a, const char* b) {
-  if (!s.contains(a) || !s[a].is_object() || !s[a].contains(b) || !s[a][b].is_string()) return "";
-  return s[a][b].get<std::string>();
 }
 
 // A navigation-side session: every call checks the exact messages that come back.
@@ -209,8 +206,9 @@ TEST(BrpE2E, NormalOperation) {
   ASSERT_NO_FATAL_FAILURE(nav.expectCurrentStatus("MOVE_TO_TARGET"));
   // The DDS view agrees: the target is reached, and the approval came from OpenIGTLink, loudly.
   auto viewer = server.client("viewer");
-  viewer->waitFor([](const json& s) { return field(s, "workflow", "phase") == "at_target"; }, 10s);
-  EXPECT_NE(field(viewer->state(), "workflow", "safety_notice").find("OpenIGTLink"),
+  viewer->waitFor([](const json& s) { return stateText(s, "workflow", "phase") == "at_target"; },
+                  10s);
+  EXPECT_NE(stateText(viewer->state(), "workflow", "safety_notice").find("OpenIGTLink"),
             std::string::npos);
 }
 
@@ -226,11 +224,18 @@ TEST(BrpE2E, AccidentalCommandInManualMode) {
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("MOVE_TO_TARGET", "MANUAL", 14, 14, "wrong_phase"));
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("STOP", "MANUAL", 14, 14, "wrong_phase"));
   auto viewer = server.client("viewer");
-  viewer->waitFor([](const json& s) { return field(s, "workflow", "phase") == "manual"; }, 10s);
-  EXPECT_EQ(field(viewer->state(), "approval", "status"), "none");
+  // Each state topic arrives on its own: wait for the approval state too, then judge it.
+  viewer->waitFor(
+      [](const json& s) {
+        return stateText(s, "workflow", "phase") == "manual" &&
+               !stateText(s, "approval", "status").empty();
+      },
+      10s);
+  EXPECT_EQ(stateText(viewer->state(), "approval", "status"), "none");
   // START_UP takes the robot back; the plan is where it was.
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("START_UP", "START_UP", 1, 1));
-  viewer->waitFor([](const json& s) { return field(s, "workflow", "phase") == "planning"; }, 10s);
+  viewer->waitFor([](const json& s) { return stateText(s, "workflow", "phase") == "planning"; },
+                  10s);
 }
 
 TEST(BrpE2E, CalibrationError) {
@@ -260,7 +265,8 @@ TEST(BrpE2E, EmergencyStopDuringOperation) {
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("EMERGENCY", "EMERGENCY", 3, 1));
   ASSERT_NO_FATAL_FAILURE(nav.expectStatus("MOVE_TO_TARGET", 3, "emergency"));
   auto viewer = server.client("viewer");
-  viewer->waitFor([](const json& s) { return field(s, "workflow", "phase") == "emergency"; }, 10s);
+  viewer->waitFor([](const json& s) { return stateText(s, "workflow", "phase") == "emergency"; },
+                  10s);
   // Only an operator over DDS resets an emergency; OpenIGTLink commands meet "panic".
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("START_UP", "EMERGENCY", 3, 3, "wrong_phase"));
 }
@@ -286,7 +292,8 @@ TEST(BrpE2E, MoveWithoutTarget) {
   ASSERT_NO_FATAL_FAILURE(nav.calibrated());
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("MOVE_TO_TARGET", "TARGETING", 1, 13, "empty_plan"));
   auto viewer = server.client("viewer");
-  viewer->waitFor([](const json& s) { return field(s, "workflow", "phase") == "planning"; }, 10s);
+  viewer->waitFor([](const json& s) { return stateText(s, "workflow", "phase") == "planning"; },
+                  10s);
 }
 
 TEST(BrpE2E, OutOfRangeTarget) {
@@ -360,9 +367,9 @@ TEST(BrpE2E, WithoutApprovalRightsAMoveWaitsForADdsApprover) {
   ASSERT_NO_FATAL_FAILURE(nav.expectCurrentStatus("MOVE_TO_TARGET"));
   ASSERT_NO_FATAL_FAILURE(nav.expectStatus("MOVE_TO_TARGET", 13, "awaiting_approval"));
   auto op = server.client("operator");
-  op->waitFor([](const json& s) { return field(s, "approval", "status") == "pending"; }, 10s);
-  EXPECT_EQ(field(op->state(), "workflow", "phase"), "plan_locked");  // nothing moved
-  EXPECT_EQ(field(op->state(), "workflow", "safety_notice"), "");
+  op->waitFor([](const json& s) { return stateText(s, "approval", "status") == "pending"; }, 10s);
+  EXPECT_EQ(stateText(op->state(), "workflow", "phase"), "plan_locked");  // nothing moved
+  EXPECT_EQ(stateText(op->state(), "workflow", "safety_notice"), "");
   // A DDS client cannot borrow the bridge's name.
   auto impostor = server.client("openigtlink");
   const json& a = op->state()["approval"];
@@ -418,9 +425,7 @@ TEST(BrpE2E, ARecordedSessionReplaysToSlicer) {
 
 std::size_t igtlClients(protocol::Client& c) {
   c.poll();
-  const json& s = c.state();
-  if (!s.contains("health") || !s["health"].contains("igtl_clients")) return 99;
-  return s["health"]["igtl_clients"].get<std::size_t>();
+  return stateCount(c.state(), "health", "igtl_clients").value_or(99);
 }
 
 // A bare TCP connection to the bridge (no OpenIGTLink client), for what a library would not do:
@@ -450,9 +455,10 @@ TEST(BrpE2E, DroppedAndStalledClientsAreNoticedWithinTheTimeout) {
   {
     Navigation nav(server.igtlPort());
     ASSERT_NO_FATAL_FAILURE(nav.expectOpening());
-    viewer->waitFor([](const json& s) { return s["health"]["igtl_clients"] == 1; }, 5s);
+    viewer->waitFor([](const json& s) { return stateCount(s, "health", "igtl_clients") == 1u; },
+                    5s);
   }  // gone (its process would close the socket the same way when killed)
-  viewer->waitFor([](const json& s) { return s["health"]["igtl_clients"] == 0; }, 5s);
+  viewer->waitFor([](const json& s) { return stateCount(s, "health", "igtl_clients") == 0u; }, 5s);
   EXPECT_EQ(igtlClients(*viewer), 0u);
 
   // A client that asks and asks but reads nothing, with a small receive buffer.
@@ -470,14 +476,15 @@ TEST(BrpE2E, DroppedAndStalledClientsAreNoticedWithinTheTimeout) {
     if (n <= 0) break;  // the server let it go already
     at += static_cast<std::size_t>(n);
   }
-  viewer->waitFor([](const json& s) { return s["health"]["igtl_clients"] == 1; }, 5s);
+  viewer->waitFor([](const json& s) { return stateCount(s, "health", "igtl_clients") == 1u; }, 5s);
   // Let go within the 1 s timeout (and the watchdog's 0.1 s tick), with room for a slow machine.
-  viewer->waitFor([](const json& s) { return s["health"]["igtl_clients"] == 0; }, 10s);
+  viewer->waitFor([](const json& s) { return stateCount(s, "health", "igtl_clients") == 0u; }, 10s);
   const double after_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
   EXPECT_EQ(igtlClients(*viewer), 0u);
   EXPECT_LT(after_s, 5.0);
-  EXPECT_NE(server.serverLog().find("nothing we sent was read"), std::string::npos);
+  EXPECT_NE(server.serverLog().find("nothing we sent was read"), std::string::npos)
+      << server.serverLog();
   ::close(fd);
   // Still serving.
   Navigation next(server.igtlPort());
@@ -496,7 +503,7 @@ TEST(BrpE2E, AClientWhoseHostVanishedSilentlyIsLetGoByKeepAlive) {
   auto viewer = server.client("viewer");
   const int fd = connectLoopback(server.igtlPort());
   ASSERT_GE(fd, 0) << std::strerror(errno);
-  viewer->waitFor([](const json& s) { return s["health"]["igtl_clients"] == 1; }, 5s);
+  viewer->waitFor([](const json& s) { return stateCount(s, "health", "igtl_clients") == 1u; }, 5s);
   const int on = 1;
   if (::setsockopt(fd, IPPROTO_TCP, TCP_REPAIR, &on, sizeof on) != 0) {
     ::close(fd);
@@ -504,7 +511,7 @@ TEST(BrpE2E, AClientWhoseHostVanishedSilentlyIsLetGoByKeepAlive) {
   }
   const auto vanished = std::chrono::steady_clock::now();
   ::close(fd);  // in repair mode: nothing goes on the wire
-  viewer->waitFor([](const json& s) { return s["health"]["igtl_clients"] == 0; }, 15s);
+  viewer->waitFor([](const json& s) { return stateCount(s, "health", "igtl_clients") == 0u; }, 15s);
   const double after_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - vanished).count();
   EXPECT_LT(after_s, timeout_s + 1.0) << "let go only after " << after_s << " s";
@@ -533,7 +540,7 @@ TEST(BrpE2E, MalformedMessagesAreAnsweredAndChangeNothing) {
   auto ack = nav.expectTransform("ACK_0002");
   ASSERT_NO_FATAL_FAILURE(nav.expectStatus("CALIBRATION", 10, "not_similarity"));
   auto viewer = server.client("viewer");
-  EXPECT_EQ(field(viewer->state(), "workflow", "phase"), "imaging");
+  EXPECT_EQ(stateText(viewer->state(), "workflow", "phase"), "imaging");
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("START_UP", "START_UP", 1, 1));
 }
 

@@ -194,7 +194,8 @@ TEST(Gateway, BrowserDrivesTheServerAndSeesItsVerdicts) {
   // An emergency stop from a tab reaches the server.
   const json stop = tab3.request({{"op", "emergency_stop"}});
   EXPECT_EQ(stop["accepted"], true) << stop;
-  tab2.waitState([](const json& s) { return s["workflow"]["phase"] == "emergency"; });
+  tab2.waitState(
+      [](const json& s) { return e2e::stateText(s, "workflow", "phase") == "emergency"; });
 }
 
 TEST(Gateway, ServesTheAppAndNothingElse) {
