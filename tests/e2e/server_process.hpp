@@ -1,5 +1,6 @@
 // A real ignav-server process for end-to-end tests: started on its own DDS domain (loopback
-// config), ready when it prints its readiness line, stopped with SIGTERM.
+// config), ready when it prints its readiness line, stopped with SIGTERM, killed with the test
+// process if that dies first.
 #pragma once
 
 #include <fcntl.h>
@@ -124,6 +125,9 @@ class ServerProcess {
     }
     args.insert(args.end(), extra_args_.begin(), extra_args_.end());
     if (!program_.argv.empty()) args = program_.argv;
+    // The server dies with this test process: one that crashed must not leave servers in their
+    // domains to answer the next run's clients (util-linux's setpriv sets PR_SET_PDEATHSIG).
+    args.insert(args.begin(), {"/usr/bin/setpriv", "--pdeathsig", "KILL", "--"});
     std::vector<char*> argv;
     for (auto& a : args)
       argv.push_back(a.data());
