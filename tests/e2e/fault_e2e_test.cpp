@@ -23,15 +23,6 @@ using nlohmann::json;
 using protocol::Client;
 using namespace std::chrono_literals;
 
-std::string field(const json& s, const char* a, const char* b) {
-  if (!s.contains(a) || !s[a].is_object() || !s[a].contains(b) || !s[a][b].is_string()) return "";
-  return s[a][b].get<std::string>();
-}
-
-bool phaseIs(const json& s, const char* phase) {
-  return field(s, "workflow", "phase") == phase;
-}
-
 std::uint64_t revisionOf(Client& c) {
   c.poll();
   return c.state()["workflow"]["revision"].get<std::uint64_t>();
@@ -40,9 +31,10 @@ std::uint64_t revisionOf(Client& c) {
 // Loads the phantom, registers on its markers, adds a target given in the robot frame.
 void plannedTarget(Client& c, const Eigen::Vector3d& robot_mm) {
   ASSERT_TRUE(c.send("load_volume", {"phantom:", {}, {}}).accepted);
-  c.waitFor([](const json& s) { return field(s, "volume", "status") == "loaded"; }, 60s);
+  c.waitFor([](const json& s) { return stateText(s, "volume", "status") == "loaded"; }, 60s);
   ASSERT_TRUE(c.send("auto_fiducials").accepted);
-  c.waitFor([](const json& s) { return field(s, "registration", "status") == "registered"; }, 10s);
+  c.waitFor([](const json& s) { return stateText(s, "registration", "status") == "registered"; },
+            10s);
   const auto added = c.send("add_target", {"", {lpsOf(c.state(), robot_mm)}, {}});
   ASSERT_TRUE(added.accepted) << added.message;
 }
@@ -50,7 +42,7 @@ void plannedTarget(Client& c, const Eigen::Vector3d& robot_mm) {
 void lockAndWaitForApproval(Client& c) {
   const auto locked = c.send("lock_plan");
   ASSERT_TRUE(locked.accepted) << locked.message;
-  c.waitFor([](const json& s) { return field(s, "approval", "status") == "pending"; }, 10s);
+  c.waitFor([](const json& s) { return stateText(s, "approval", "status") == "pending"; }, 10s);
 }
 
 workflow::Reply approveShown(Client& c) {
@@ -79,7 +71,7 @@ void startApprovedMove(Client& op) {
   plannedTarget(op, {-10, 15, -190});
   lockAndWaitForApproval(op);
   ASSERT_TRUE(approveShown(op).accepted);
-  op.waitFor([](const json& s) { return field(s, "motion", "state") == "moving"; }, 10s);
+  op.waitFor([](const json& s) { return stateText(s, "motion", "state") == "moving"; }, 10s);
 }
 
 // A fault is recorded, not recorded again and again: the failed halt of a controller that is gone
@@ -125,10 +117,11 @@ TEST(FaultE2E, AJournalThatCannotBeWrittenRefusesEveryChangeAndLosesNothing) {
   EXPECT_TRUE(op->send("query").accepted);
   op->waitFor(
       [](const json& s) {
-        return field(s, "health", "journal") != "ok" && !field(s, "health", "journal").empty();
+        return stateText(s, "health", "journal") != "ok" &&
+               !stateText(s, "health", "journal").empty();
       },
       5s);
-  EXPECT_NE(field(op->state(), "health", "journal").find("File too large"), std::string::npos);
+  EXPECT_NE(stateText(op->state(), "health", "journal").find("File too large"), std::string::npos);
   protocol::SliceArgs slice;
   slice.size_px = 64;
   EXPECT_TRUE(op->slice(slice).ok);
@@ -151,7 +144,7 @@ TEST(FaultE2E, AJournalThatCannotBeWrittenRefusesEveryChangeAndLosesNothing) {
       10s);
   EXPECT_EQ(revisionOf(*again), revision + 1);  // + the restart's own record
   EXPECT_EQ(again->state()["targets"].size(), 1u);
-  EXPECT_EQ(field(again->state(), "health", "journal"), "ok");
+  EXPECT_EQ(stateText(again->state(), "health", "journal"), "ok");
   r = again->send("add_target", {"", {lpsOf(again->state(), {-5, 10, -180})}, {}});
   EXPECT_TRUE(r.accepted) << r.message;
 }
@@ -164,10 +157,10 @@ TEST(FaultE2E, AControllerThatHangsMidMoveBecomesAFaultAndTheServerStaysResponsi
   dmc.stall();
   // The driver's 1 s command timeout turns the silence into a fault.
   op->waitFor([](const json& s) { return phaseIs(s, "fault"); }, 10s);
-  op->waitFor([](const json& s) { return !field(s, "motion", "fault").empty(); }, 5s);
-  const std::string fault = field(op->state(), "motion", "fault");
+  op->waitFor([](const json& s) { return !stateText(s, "motion", "fault").empty(); }, 5s);
+  const std::string fault = stateText(op->state(), "motion", "fault");
   EXPECT_NE(fault.find("did not answer"), std::string::npos) << fault;
-  EXPECT_EQ(field(op->state(), "approval", "status"), "none");
+  EXPECT_EQ(stateText(op->state(), "approval", "status"), "none");
   expectJournalSettles(server);
   // Still answering, and an emergency stop is taken at once even with the controller silent.
   EXPECT_TRUE(op->send("query", {}, 5s).accepted);
@@ -184,7 +177,7 @@ TEST(FaultE2E, AControllerThatVanishesMidMoveBecomesAFaultNotACrash) {
   ASSERT_NO_FATAL_FAILURE(startApprovedMove(*op));
   dmc.kill();
   op->waitFor([](const json& s) { return phaseIs(s, "fault"); }, 10s);
-  op->waitFor([](const json& s) { return !field(s, "motion", "fault").empty(); }, 5s);
+  op->waitFor([](const json& s) { return !stateText(s, "motion", "fault").empty(); }, 5s);
   expectJournalSettles(server);
   EXPECT_TRUE(server.alive());
   EXPECT_TRUE(op->send("query", {}, 5s).accepted);
@@ -212,9 +205,9 @@ TEST(FaultE2E, AClientThatVanishesHoldingAPendingApprovalMovesNothing) {
   std::this_thread::sleep_for(300ms);
   op->poll();
   // Nothing moved, and the request is still the same one, for anyone allowed to approve it.
-  EXPECT_EQ(field(op->state(), "motion", "state"), "idle");
+  EXPECT_EQ(stateText(op->state(), "motion", "state"), "idle");
   EXPECT_EQ(op->state()["approval"]["plan_id"], pending["plan_id"]);
-  EXPECT_EQ(field(op->state(), "approval", "status"), "pending");
+  EXPECT_EQ(stateText(op->state(), "approval", "status"), "pending");
   const auto approved = approveShown(*op);
   ASSERT_TRUE(approved.accepted) << approved.message;
   op->waitFor([](const json& s) { return phaseIs(s, "at_target"); }, 30s);
@@ -228,7 +221,7 @@ TEST(FaultE2E, AnEmergencyStopFromASenderThatExitsAtOnceIsStillTaken) {
   ServerProcess server(104);
   auto op = server.client("operator");
   ASSERT_TRUE(op->send("load_volume", {"phantom:", {}, {}}).accepted);
-  op->waitFor([](const json& s) { return field(s, "volume", "status") == "loaded"; }, 60s);
+  op->waitFor([](const json& s) { return stateText(s, "volume", "status") == "loaded"; }, 60s);
   // Another console keeps the server's loop busy with large slices, so that the sender is gone
   // before the loop comes round to take its stop.
   std::atomic<bool> busy{true};
@@ -300,8 +293,9 @@ TEST(FaultE2E, KilledUnderLoadLosesNoAcknowledgedChange) {
     clients.emplace_back([&, i] {
       try {
         auto c = server.client("load-" + std::to_string(i));
-        c->waitFor([](const json& s) { return field(s, "registration", "status") == "registered"; },
-                   10s);
+        c->waitFor(
+            [](const json& s) { return stateText(s, "registration", "status") == "registered"; },
+            10s);
         const Eigen::Matrix4d robot_to_lps = imageToRobot(c->state()).inverse();
         auto lps = [&](double x, double y, double z) {
           return Eigen::Vector3d((robot_to_lps * Eigen::Vector4d(x, y, z, 1)).head<3>());

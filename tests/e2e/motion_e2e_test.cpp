@@ -36,10 +36,6 @@ std::array<std::int64_t, 3> steps(const json& j) {
   return {j[0].get<std::int64_t>(), j[1].get<std::int64_t>(), j[2].get<std::int64_t>()};
 }
 
-bool phaseIs(const json& s, const char* phase) {
-  return s.contains("workflow") && s["workflow"]["phase"] == phase;
-}
-
 // Load the phantom, register on its markers, click one target given in the robot frame, lock.
 std::uint32_t lockedPlanTo(Client& c, const Eigen::Vector3d& robot_mm) {
   EXPECT_TRUE(c.send("load_volume", {"phantom:", {}, {}}).accepted);

@@ -78,16 +78,6 @@ std::unique_ptr<Client> secureClient(const ServerProcess& server, const std::str
   return c;
 }
 
-// s[a][b] as a string, "" while the state has not arrived.
-std::string field(const json& s, const char* a, const char* b) {
-  if (!s.contains(a) || !s[a].is_object() || !s[a].contains(b) || !s[a][b].is_string()) return "";
-  return s[a][b].get<std::string>();
-}
-
-bool phaseIs(const json& s, const char* phase) {
-  return field(s, "workflow", "phase") == phase;
-}
-
 // Each journal record as JSON.
 std::vector<json> journal(const ServerProcess& server) {
   std::vector<json> out;
@@ -134,15 +124,16 @@ TEST(SecurityE2E, TheWholeWorkflowWorksForTheProperRolesAndTheJournalNamesWhoAct
   auto planner = secureClient(server, "planner", "console-1");
 
   ASSERT_TRUE(planner->send("load_volume", {"phantom:", {}, {}}).accepted);
-  planner->waitFor([](const json& s) { return field(s, "volume", "status") == "loaded"; }, 60s);
+  planner->waitFor([](const json& s) { return stateText(s, "volume", "status") == "loaded"; }, 60s);
   ASSERT_TRUE(planner->send("auto_fiducials").accepted);
-  planner->waitFor([](const json& s) { return field(s, "registration", "status") == "registered"; },
-                   10s);
+  planner->waitFor(
+      [](const json& s) { return stateText(s, "registration", "status") == "registered"; }, 10s);
   const auto added =
       planner->send("add_target", {"", {lpsOf(planner->state(), {8, 12, -175})}, {}});
   ASSERT_TRUE(added.accepted) << added.message;
   ASSERT_TRUE(planner->send("lock_plan").accepted);
-  planner->waitFor([](const json& s) { return field(s, "approval", "status") == "pending"; }, 10s);
+  planner->waitFor([](const json& s) { return stateText(s, "approval", "status") == "pending"; },
+                   10s);
 
   // A viewer (another process) sees the state and gets slices.
   const fs::path png = server.sessionDir().string() + "_viewer.png";
@@ -373,7 +364,8 @@ std::string capturedSession(std::uint32_t domain, bool secure, const std::string
     }
     const auto r = planner->send("load_volume", {series.string(), {}, {}});
     EXPECT_TRUE(r.accepted) << r.message;
-    planner->waitFor([](const json& s) { return field(s, "volume", "status") == "loaded"; }, 30s);
+    planner->waitFor([](const json& s) { return stateText(s, "volume", "status") == "loaded"; },
+                     30s);
     EXPECT_NE(planner->state()["volume"].dump().find(marker), std::string::npos)
         << "the marker must be in the volume state for this test to mean anything";
     EXPECT_TRUE(planner->slice({}).ok);

@@ -36,22 +36,24 @@ inline std::string loopbackXml() {
 
 // A state topic's field as a client last saw it: "" (stateText) or none (stateCount) while that
 // topic has not arrived. Each state topic arrives on its own, and operator[] of a const json on a
-// missing key is undefined: an assertion in the sanitizer build, which aborts the test binary and
-// leaves its servers running to disturb later runs.
+// missing key is undefined: an assertion in the sanitizer build, which aborts the test binary.
+inline const nlohmann::json* stateField(const nlohmann::json& s, const char* topic,
+                                        const char* key) {
+  if (!s.contains(topic) || !s[topic].is_object() || !s[topic].contains(key)) return nullptr;
+  return &s[topic][key];
+}
 inline std::string stateText(const nlohmann::json& s, const char* topic, const char* key) {
-  if (!s.contains(topic) || !s[topic].is_object() || !s[topic].contains(key) ||
-      !s[topic][key].is_string()) {
-    return "";
-  }
-  return s[topic][key].get<std::string>();
+  const auto* f = stateField(s, topic, key);
+  return f && f->is_string() ? f->get<std::string>() : "";
 }
 inline std::optional<std::uint64_t> stateCount(const nlohmann::json& s, const char* topic,
                                                const char* key) {
-  if (!s.contains(topic) || !s[topic].is_object() || !s[topic].contains(key) ||
-      !s[topic][key].is_number_unsigned()) {
-    return std::nullopt;
-  }
-  return s[topic][key].get<std::uint64_t>();
+  const auto* f = stateField(s, topic, key);
+  if (!f || !f->is_number_unsigned()) return std::nullopt;
+  return f->get<std::uint64_t>();
+}
+inline bool phaseIs(const nlohmann::json& s, const char* phase) {
+  return stateText(s, "workflow", "phase") == phase;
 }
 
 // The registration a client sees, as a 4x4 image -> robot matrix.

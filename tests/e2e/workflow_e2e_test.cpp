@@ -101,7 +101,7 @@ TEST(WorkflowE2E, FullPlanningWorkflow) {
   EXPECT_EQ(lock.error_code, "unreachable_targets");
   ASSERT_TRUE(c->send("remove_target", {"", {}, {r.target_id}}).accepted);
   ASSERT_TRUE(c->send("lock_plan").accepted);
-  c->waitFor([](const json& s) { return stateText(s, "workflow", "phase") == "plan_locked"; }, 5s);
+  c->waitFor([](const json& s) { return phaseIs(s, "plan_locked"); }, 5s);
   EXPECT_FALSE(c->send("add_target", {"", {click}, {}}).accepted);  // locked
   ASSERT_TRUE(c->send("unlock_plan").accepted);
 

@@ -23,6 +23,7 @@
 namespace ignav::brp_test {
 namespace {
 
+using e2e::phaseIs;
 using e2e::ServerProcess;
 using e2e::stateCount;
 using e2e::stateText;
@@ -206,8 +207,7 @@ TEST(BrpE2E, NormalOperation) {
   ASSERT_NO_FATAL_FAILURE(nav.expectCurrentStatus("MOVE_TO_TARGET"));
   // The DDS view agrees: the target is reached, and the approval came from OpenIGTLink, loudly.
   auto viewer = server.client("viewer");
-  viewer->waitFor([](const json& s) { return stateText(s, "workflow", "phase") == "at_target"; },
-                  10s);
+  viewer->waitFor([](const json& s) { return phaseIs(s, "at_target"); }, 10s);
   EXPECT_NE(stateText(viewer->state(), "workflow", "safety_notice").find("OpenIGTLink"),
             std::string::npos);
 }
@@ -227,15 +227,13 @@ TEST(BrpE2E, AccidentalCommandInManualMode) {
   // Each state topic arrives on its own: wait for the approval state too, then judge it.
   viewer->waitFor(
       [](const json& s) {
-        return stateText(s, "workflow", "phase") == "manual" &&
-               !stateText(s, "approval", "status").empty();
+        return phaseIs(s, "manual") && !stateText(s, "approval", "status").empty();
       },
       10s);
   EXPECT_EQ(stateText(viewer->state(), "approval", "status"), "none");
   // START_UP takes the robot back; the plan is where it was.
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("START_UP", "START_UP", 1, 1));
-  viewer->waitFor([](const json& s) { return stateText(s, "workflow", "phase") == "planning"; },
-                  10s);
+  viewer->waitFor([](const json& s) { return phaseIs(s, "planning"); }, 10s);
 }
 
 TEST(BrpE2E, CalibrationError) {
@@ -265,8 +263,7 @@ TEST(BrpE2E, EmergencyStopDuringOperation) {
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("EMERGENCY", "EMERGENCY", 3, 1));
   ASSERT_NO_FATAL_FAILURE(nav.expectStatus("MOVE_TO_TARGET", 3, "emergency"));
   auto viewer = server.client("viewer");
-  viewer->waitFor([](const json& s) { return stateText(s, "workflow", "phase") == "emergency"; },
-                  10s);
+  viewer->waitFor([](const json& s) { return phaseIs(s, "emergency"); }, 10s);
   // Only an operator over DDS resets an emergency; OpenIGTLink commands meet "panic".
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("START_UP", "EMERGENCY", 3, 3, "wrong_phase"));
 }
@@ -292,8 +289,7 @@ TEST(BrpE2E, MoveWithoutTarget) {
   ASSERT_NO_FATAL_FAILURE(nav.calibrated());
   ASSERT_NO_FATAL_FAILURE(nav.commandExpect("MOVE_TO_TARGET", "TARGETING", 1, 13, "empty_plan"));
   auto viewer = server.client("viewer");
-  viewer->waitFor([](const json& s) { return stateText(s, "workflow", "phase") == "planning"; },
-                  10s);
+  viewer->waitFor([](const json& s) { return phaseIs(s, "planning"); }, 10s);
 }
 
 TEST(BrpE2E, OutOfRangeTarget) {

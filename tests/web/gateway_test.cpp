@@ -194,8 +194,7 @@ TEST(Gateway, BrowserDrivesTheServerAndSeesItsVerdicts) {
   // An emergency stop from a tab reaches the server.
   const json stop = tab3.request({{"op", "emergency_stop"}});
   EXPECT_EQ(stop["accepted"], true) << stop;
-  tab2.waitState(
-      [](const json& s) { return e2e::stateText(s, "workflow", "phase") == "emergency"; });
+  tab2.waitState([](const json& s) { return e2e::phaseIs(s, "emergency"); });
 }
 
 TEST(Gateway, ServesTheAppAndNothingElse) {
