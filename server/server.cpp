@@ -1051,8 +1051,10 @@ class Server {
       m.deviation_predicted = std::isfinite(t.predicted_deviation_mm);
       m.predicted_deviation_mm = m.deviation_predicted ? t.predicted_deviation_mm : 0.0;
       m.status = cstr(status);
+      m.outside_volume = t.outside_volume;
+      m.path_warning = cstr(t.path_warning);
       std::vector<ignav_msg_Point3> path;
-      if (m.reachable) path = toMsgs(needlePathLps(t.solution.joints));
+      if (m.reachable) path = toMsgs(workflow::needlePathLps(session_, t.solution.joints));
       viewSequence(m.path_lps, path);
       target_.write(m);
       return;
@@ -1080,6 +1082,7 @@ class Server {
     const std::string journal = journal_failure_.empty() ? "ok" : journal_failure_;
     h.journal = cstr(journal);
     h.igtl_clients = igtl_ ? static_cast<std::uint32_t>(igtl_->clientCount()) : 0;
+    h.server_time_unix_s = wall_s();
     health_.write(h);
   }
 
@@ -1117,24 +1120,6 @@ class Server {
     if (ec) spdlog::warn("{}: not updated: {}", report.string(), ec.message());
   }
 
-  // The needle's planned path to joints `j` in LPS: the tip retracted at home, the cannula's
-  // translation, then the stylet's arc sampled as it deploys (a pre-curved stylet follows its
-  // own tip).
-  std::vector<Eigen::Vector3d> needlePathLps(const kinematics::Joints& j) const {
-    const auto& kin = session_.robot->kinematics;
-    const auto& reg = *session_.registration;
-    std::vector<Eigen::Vector3d> out;
-    kinematics::Joints k{j.theta_c_rad, 0.0, 0.0};
-    out.push_back(reg.toImage(kin.forward(k).tip_mm));
-    k.z_c_mm = j.z_c_mm;
-    constexpr int kArcSamples = 24;
-    for (int i = 0; i <= kArcSamples; ++i) {
-      k.z_s_mm = j.z_s_mm * i / kArcSamples;
-      out.push_back(reg.toImage(kin.forward(k).tip_mm));
-    }
-    return out;
-  }
-
   // Slices for the report through each target (at lock) or through the target just reached,
   // with the tip where the verified steps put it. After the replies: for people, not on the
   // command's path. At most kReportTargets targets get slices at lock.
@@ -1151,7 +1136,8 @@ class Server {
       if (!all_targets && t.id != reached_id) continue;
       if (all_targets && ++drawn > kReportTargets) break;
       volume::Overlays overlays = overlaysFor();
-      overlays.paths.push_back({needlePathLps(t.solution.joints), {0, 255, 255}, 1});
+      overlays.paths.push_back(
+          {workflow::needlePathLps(session_, t.solution.joints), {0, 255, 255}, 1});
       if (t.reached) {
         const auto& robot = *session_.robot;
         const Eigen::Vector3d tip =

@@ -334,6 +334,8 @@ std::vector<std::string> Client::poll() {
         {"order", t.order},
         {"predicted_deviation_mm", t.deviation_predicted ? json(t.predicted_deviation_mm) : json()},
         {"status", str(t.status)},
+        {"outside_volume", t.outside_volume},
+        {"path_warning", str(t.path_warning)},
         {"path_lps", points(t.path_lps)}};
   }));
   note("approval", impl_->approval.take([&](const ignav_msg_ApprovalState& a) {
@@ -386,7 +388,8 @@ std::vector<std::string> Client::poll() {
                         {"commands_accepted", h.commands_accepted},
                         {"commands_rejected", h.commands_rejected},
                         {"journal", str(h.journal)},
-                        {"igtl_clients", h.igtl_clients}};
+                        {"igtl_clients", h.igtl_clients},
+                        {"server_time_unix_s", h.server_time_unix_s}};
   }));
   return changed;
 }

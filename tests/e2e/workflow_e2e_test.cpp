@@ -6,6 +6,7 @@
 #include <cmath>
 #include <fstream>
 
+#include <fmt/format.h>
 #include <Eigen/Geometry>
 #include <opencv2/imgcodecs.hpp>
 #include <thread>
@@ -177,6 +178,23 @@ TEST(WorkflowE2E, EveryRejectionNamesTheProblemAndChangesNothing) {
   loadPhantomAndRegister(*c);
   expectRejected("add_target", {"", {{0, std::nan(""), 0}}, {}}, "non_finite", "points[0]");
   expectRejected("remove_target", {"", {}, {999}}, "unknown_target", "no target 999");
+  {
+    // Outside the phantom's imaged box: the server's phantom grid is centred on LPS (0, 0, 0) and
+    // tilted 12° about (1, 1, 0); its box reaches half of dims x spacing from the centre.
+    const auto robot = paperRobot();
+    const auto spec =
+        registration::makeRobotPhantom(robot.kinematics, robot.config.registration.scan)
+            .value()
+            .spec;
+    const Eigen::Matrix3d tilt =
+        Eigen::AngleAxisd(12.0 * M_PI / 180.0, Eigen::Vector3d(1, 1, 0).normalized()).matrix();
+    const Eigen::Vector3d half = 0.5 * spec.spacing_mm.cwiseProduct(Eigen::Vector3d(
+                                           spec.dims[0], spec.dims[1], spec.dims[2]));
+    const Eigen::Vector3d click(-134, -114, -18), local = tilt.transpose() * click;
+    const double outside_mm = (local - local.cwiseMax(-half).cwiseMin(half)).norm();
+    expectRejected("add_target", {"", {click}, {}}, "outside_volume",
+                   fmt::format("lies {:.1f} mm outside the loaded CT", outside_mm));
+  }
   expectRejected("add_target", {"", std::vector<Eigen::Vector3d>(101, {0, 0, 0}), {}}, "oversized",
                  "at most 100");
   expectRejected("set_fiducials", {"", {{0, 0, 0}, {10, 0, 0}, {20, 0, 0}}, {}}, "collinear",
@@ -185,6 +203,7 @@ TEST(WorkflowE2E, EveryRejectionNamesTheProblemAndChangesNothing) {
                  "takes 3 point(s)");
   expectRejected("reorder_targets", {"", {}, {1, 2}}, "bad_order", "exactly once");
   expectRejected("lock_plan", {}, "empty_plan", "no targets");
+
   // The server is still there and still serves.
   EXPECT_TRUE(c->send("query").accepted);
 }

@@ -9,6 +9,7 @@
 #include "ignav/config/robot_config.hpp"
 #include "ignav/registration/robot_phantom.hpp"
 #include "ignav/workflow/reducer.hpp"
+#include "support/phantom_ct.hpp"
 
 namespace ignav::fuzz {
 
@@ -42,7 +43,7 @@ inline workflow::Session planningSession(std::vector<std::string> approvers) {
   feed(load);
   Input loaded;
   loaded.kind = InputKind::kVolumeLoaded;
-  loaded.loaded.volume = std::make_shared<volume::Volume>();
+  loaded.loaded.volume = test::phantomCtGrid(*robot);
   feed(loaded);
   Input fiducials;
   fiducials.kind = InputKind::kSetFiducials;

@@ -8,6 +8,7 @@
 #include "ignav/config/robot_config.hpp"
 #include "ignav/igtl/brp.hpp"
 #include "ignav/workflow/reducer.hpp"
+#include "support/phantom_ct.hpp"
 
 namespace ignav::igtl {
 namespace {
@@ -119,6 +120,38 @@ TEST(BrpBridge, TargetsArriveInLpsAndTheReachablePointIsTheTarget) {
   EXPECT_EQ(loop.sent[1].status.code, 1);
   EXPECT_EQ(loop.sent[2].device_name, "REACHABLE_TARGET");
   EXPECT_LT((loop.sent[2].matrix.topRightCorner<3, 1>() - ras).norm(), 1e-6);
+}
+
+// Issue 26: a target outside the CT loaded here is refused over OpenIGTLink too, with the core's
+// reason (the phantom's imaged box is +-51.2, +-51.2, +-70 mm LPS).
+TEST(BrpBridge, ATargetOutsideTheLoadedCtIsRefusedWithTheReason) {
+  Loop loop(false);
+  workflow::Input load;
+  load.kind = InputKind::kLoadVolume;
+  load.client_id = "planner";
+  load.request_id = 1;
+  load.path = "phantom:";
+  loop.run(load);
+  workflow::Input loaded;
+  loaded.kind = InputKind::kVolumeLoaded;
+  loaded.loaded.volume = test::phantomCtGrid(*paperRobot());
+  loaded.loaded.source = "phantom:";
+  loop.run(loaded);
+  loop.receive(transformMessage("CLB_1", calibrationRas()));
+  ASSERT_EQ(loop.session.phase, Phase::kPlanning);
+  Eigen::Matrix4d target = Eigen::Matrix4d::Identity();
+  target.topRightCorner<3, 1>() << 134, 114, -18;  // RAS of LPS (-134, -114, -18)
+  loop.sent.clear();
+  loop.receive(transformMessage("TGT_2", target));
+  EXPECT_TRUE(loop.session.targets.empty());
+  const auto refusal = std::find_if(loop.sent.begin(), loop.sent.end(), [](const Message& m) {
+    return m.device_name == "TARGET" && m.type == "STATUS";
+  });
+  ASSERT_NE(refusal, loop.sent.end());
+  EXPECT_EQ(refusal->status.code, static_cast<int>(StatusCode::kConfigurationError));
+  EXPECT_EQ(refusal->status.error_name, "outside_volume");
+  EXPECT_NE(refusal->status.status_string.find("103.9 mm outside the loaded CT"), std::string::npos)
+      << refusal->status.status_string;
 }
 
 TEST(BrpBridge, MoveToTargetApprovesTheCoresPendingPlanOnlyWhenAllowed) {

@@ -218,5 +218,23 @@ TEST(Reslice, RejectsBadSpecs) {
   expectInvalid(sp, "orthogonal");
 }
 
+// The imaged box is every voxel with its half-voxel margin. Points placed along the rotated,
+// anisotropic grid's own axes lie at closed-form distances from it.
+TEST(Geometry, OutsideByIsTheDistanceToTheImagedBox) {
+  const LinearVolume lv = linearVolume();
+  const Geometry& g = lv.volume.geometry;
+  const Eigen::Vector3d& sp = g.spacing_mm;
+  const auto at = [&](double i, double j, double k) { return g.toLps({i, j, k}); };
+  EXPECT_EQ(g.outsideBy_mm(at(3, 4, 5)), 0.0);
+  EXPECT_EQ(g.outsideBy_mm(at(-0.49, 19.49, 15.49)), 0.0);  // inside the outermost voxels' margin
+  EXPECT_NEAR(g.outsideBy_mm(at(-2.5, 4, 5)), 2.0 * sp[0], 1e-9);  // two voxels before i = -0.5
+  EXPECT_NEAR(g.outsideBy_mm(at(3, 20.5, 5)), 1.0 * sp[1], 1e-9);  // one voxel past j = 19.5
+  // Past an edge (i and k at once): Pythagoras.
+  EXPECT_NEAR(g.outsideBy_mm(at(25.5, 4, -3.5)), std::hypot(2.0 * sp[0], 3.0 * sp[2]), 1e-9);
+  // Past a corner: all three.
+  EXPECT_NEAR(g.outsideBy_mm(at(-1.5, -1.5, 17.5)),
+              std::sqrt(sp[0] * sp[0] + sp[1] * sp[1] + 4.0 * sp[2] * sp[2]), 1e-9);
+}
+
 }  // namespace
 }  // namespace ignav::volume

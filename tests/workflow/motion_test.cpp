@@ -14,6 +14,7 @@
 #include "ignav/config/robot_config.hpp"
 #include "ignav/registration/robot_phantom.hpp"
 #include "ignav/workflow/reducer.hpp"
+#include "support/phantom_ct.hpp"
 
 namespace ignav::workflow {
 namespace {
@@ -56,7 +57,7 @@ class Bench {
     load.path = "phantom:";
     feed(load);
     Input loaded = internal(InputKind::kVolumeLoaded);
-    loaded.loaded.volume = std::make_shared<volume::Volume>();
+    loaded.loaded.volume = test::phantomCtGrid(*paperRobot());
     feed(loaded);
     auto rp = registration::makeRobotPhantom(paperRobot()->kinematics,
                                              paperRobot()->config.registration.scan);
@@ -403,7 +404,7 @@ TEST(Approval, ARestartNeverReArmsAnApproval) {
       newSession("bench", paperRobot(), "robot.yaml"), b.journal,
       [](const std::string&) -> Expected<LoadedCt> {
         LoadedCt ct;
-        ct.volume = std::make_shared<volume::Volume>();
+        ct.volume = test::phantomCtGrid(*paperRobot());
         return ct;
       },
       "journal.jsonl");
@@ -813,7 +814,7 @@ TEST(Manual, HaltsRefusesMotionAndResumeAdoptsThePosition) {
       newSession("bench", paperRobot(), "robot.yaml"), b.journal,
       [](const std::string&) -> Expected<LoadedCt> {
         LoadedCt ct;
-        ct.volume = std::make_shared<volume::Volume>();
+        ct.volume = test::phantomCtGrid(*paperRobot());
         return ct;
       },
       "journal");

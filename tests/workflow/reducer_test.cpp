@@ -10,6 +10,7 @@
 #include "ignav/config/robot_config.hpp"
 #include "ignav/registration/robot_phantom.hpp"
 #include "ignav/workflow/reducer.hpp"
+#include "support/phantom_ct.hpp"
 
 namespace ignav::workflow {
 namespace {
@@ -54,7 +55,8 @@ Session planningSession() {
   s = reduce(s, internal(InputKind::kConfigLoaded)).session;
   s = reduce(s, command(InputKind::kLoadVolume, 1)).session;
   Input loaded = internal(InputKind::kVolumeLoaded);
-  loaded.loaded.volume = std::make_shared<volume::Volume>();
+  loaded.loaded.volume = test::phantomCtGrid(*paperRobot());
+  loaded.loaded.source = "phantom:";
   s = reduce(s, loaded).session;
   s = reduce(s, command(InputKind::kSetFiducials, 2, clickedFeatures())).session;
   EXPECT_EQ(s.phase, Phase::kPlanning);
@@ -199,9 +201,11 @@ TEST(Workflow, CoordinatesBeyondAKilometreAreRefused) {
   EXPECT_EQ(step.effects.replies.at(0).error_code, "out_of_range");
   EXPECT_NE(step.effects.replies[0].message.find("points[0]"), std::string::npos);
   EXPECT_TRUE(step.effects.journal.empty());
-  EXPECT_TRUE(reduce(s, command(InputKind::kAddTarget, 8, {{999999, 0, 0}}))
-                  .effects.replies.at(0)
-                  .accepted);  // far, unreachable, but a place
+  // Within the limit, a point is judged like any other: this one lies outside the CT.
+  EXPECT_EQ(reduce(s, command(InputKind::kAddTarget, 8, {{999999, 0, 0}}))
+                .effects.replies.at(0)
+                .error_code,
+            "outside_volume");
 }
 
 // Found by fuzz_journal: integer fields holding floats out of range were converted anyway
@@ -248,7 +252,7 @@ TEST(Workflow, JournalRecordsReplayToTheSameSession) {
   run(internal(InputKind::kConfigLoaded));
   run(command(InputKind::kLoadVolume, 1));
   Input loaded = internal(InputKind::kVolumeLoaded);
-  loaded.loaded.volume = std::make_shared<volume::Volume>();
+  loaded.loaded.volume = test::phantomCtGrid(*paperRobot());
   run(loaded);
   run(command(InputKind::kSetFiducials, 2, clickedFeatures()));
   run(command(InputKind::kAddTarget, 3, {{1.0 / 3.0, 19.1, -22.7}}));
@@ -272,6 +276,103 @@ TEST(Workflow, JournalRecordsReplayToTheSameSession) {
   EXPECT_EQ(replayed.targets[0].solution.joints.z_s_mm, live.targets[0].solution.joints.z_s_mm);
   EXPECT_FALSE(parseJournalRecord("{\"v\":2}").ok());
   EXPECT_FALSE(parseJournalRecord("not json").ok());
+}
+
+// Issue 26: a target must lie in tissue the CT shows. The phantom grid is 128 x 128 x 112 voxels
+// of 0.8 x 0.8 x 1.25 mm centred on LPS (0, 0, 0): the imaged box is +-51.2, +-51.2, +-70 mm.
+TEST(Targets, PointsOutsideTheCtAreRefusedAndChangeNothing) {
+  Session s = planningSession();
+  s = reduce(s, command(InputKind::kAddTarget, 60, {{0.0, 0.0, -20.0}})).session;
+  ASSERT_EQ(s.targets.size(), 1u);
+  EXPECT_FALSE(s.targets[0].outside_volume);
+  const struct {
+    Eigen::Vector3d lps_mm;
+    const char* outside_by;
+  } outside[] = {{{0.0, 0.0, 75.0}, "5.0 mm"},      // past the top slice
+                 {{51.3, 0.0, 0.0}, "0.1 mm"},      // just past a face
+                 {{60.0, 0.0, -80.0}, "13.3 mm"}};  // past an edge: hypot(8.8, 10)
+  for (const auto& o : outside) {
+    const auto add = reduce(s, command(InputKind::kAddTarget, 61, {o.lps_mm}));
+    const auto& reply = add.effects.replies.at(0);
+    EXPECT_EQ(reply.error_code, "outside_volume") << o.lps_mm.transpose();
+    EXPECT_NE(reply.message.find(o.outside_by), std::string::npos) << reply.message;
+    EXPECT_NE(reply.message.find("phantom:"), std::string::npos) << reply.message;  // which CT
+    EXPECT_EQ(add.session.targets.size(), 1u);
+    EXPECT_EQ(add.session.revision, s.revision);
+    EXPECT_TRUE(add.effects.journal.empty());
+    const auto move = reduce(s, command(InputKind::kMoveTarget, 62, {o.lps_mm}, {1}));
+    EXPECT_EQ(move.effects.replies.at(0).error_code, "outside_volume");
+    EXPECT_EQ(move.session.targets[0].lps_mm, s.targets[0].lps_mm);
+    EXPECT_EQ(move.session.revision, s.revision);
+  }
+  // Just inside a face is a target like any other.
+  const auto inside = reduce(s, command(InputKind::kAddTarget, 63, {{51.1, 0.0, 0.0}}));
+  EXPECT_TRUE(inside.effects.replies.at(0).accepted) << inside.effects.replies.at(0).message;
+}
+
+TEST(Targets, ACtThatMissesATargetLoadedLaterBlocksTheLock) {
+  Session s = planningSession();
+  const Eigen::Vector3d click = s.registration->toImage({8.0, 12.0, -175.0});
+  s = reduce(s, command(InputKind::kAddTarget, 70, {click})).session;
+  ASSERT_EQ(s.targets.at(0).status(), "planned");
+  // Another CT, its grid 200 mm to the left of the phantom's: the target is not in it.
+  s = reduce(s, command(InputKind::kLoadVolume, 71)).session;
+  auto shifted = std::make_shared<volume::Volume>(*test::phantomCtGrid(*paperRobot()));
+  shifted->geometry.origin_lps_mm.x() += 200.0;
+  Input loaded = internal(InputKind::kVolumeLoaded);
+  loaded.loaded.volume = shifted;
+  auto step = reduce(s, loaded);
+  s = step.session;
+  EXPECT_TRUE(s.targets.at(0).outside_volume);
+  EXPECT_EQ(s.targets.at(0).status(), "outside_volume");
+  EXPECT_NE(std::find(step.effects.targets_changed.begin(), step.effects.targets_changed.end(),
+                      s.targets[0].id),
+            step.effects.targets_changed.end());
+  s = reduce(s, command(InputKind::kSetFiducials, 72, clickedFeatures())).session;
+  ASSERT_EQ(s.phase, Phase::kPlanning);
+  EXPECT_EQ(s.targets.at(0).status(), "outside_volume");  // registered, still not imaged
+  const auto lock = reduce(s, command(InputKind::kLockPlan, 73));
+  EXPECT_EQ(lock.effects.replies.at(0).error_code, "outside_volume");
+  EXPECT_NE(lock.effects.replies.at(0).message.find("target 1"), std::string::npos);
+  EXPECT_EQ(lock.session.phase, Phase::kPlanning);
+  EXPECT_FALSE(lock.session.pending.has_value());
+}
+
+// The path check: with the whole phantom grid the path to a reachable target stays inside it; with
+// a CT that images only a 20 mm cube around the target, most of the path runs outside. The longest
+// chord of a 20 mm cube is 20·sqrt(3) mm, so at least (path length - 34.7) mm lies outside, and
+// the path is at least as long as the straight line from the tip at home to the target.
+TEST(Targets, APathLeavingTheCtIsAWarningNotARefusal) {
+  Session s = planningSession();
+  const Eigen::Vector3d click = s.registration->toImage({8.0, 12.0, -175.0});
+  s = reduce(s, command(InputKind::kAddTarget, 80, {click})).session;
+  ASSERT_EQ(s.targets.at(0).status(), "planned");
+  EXPECT_EQ(s.targets[0].path_outside_ct_mm, 0.0);
+  EXPECT_TRUE(s.targets[0].path_warning.empty()) << s.targets[0].path_warning;
+
+  s = reduce(s, command(InputKind::kLoadVolume, 81)).session;
+  auto cube = std::make_shared<volume::Volume>();
+  cube->geometry.dims = {20, 20, 20};
+  cube->geometry.spacing_mm = Eigen::Vector3d::Ones();
+  cube->geometry.origin_lps_mm = click - Eigen::Vector3d::Constant(9.5);  // centred on the target
+  Input loaded = internal(InputKind::kVolumeLoaded);
+  loaded.loaded.volume = cube;
+  s = reduce(s, loaded).session;
+  const auto added = reduce(s, command(InputKind::kSetFiducials, 82, clickedFeatures()));
+  s = added.session;
+  ASSERT_EQ(s.phase, Phase::kPlanning);
+  const Target& t = s.targets.at(0);
+  EXPECT_EQ(t.status(), "planned");
+  ASSERT_FALSE(t.path_warning.empty());
+  EXPECT_NE(t.message.find("warning: the planned path runs"), std::string::npos) << t.message;
+  const auto path = needlePathLps(s, t.solution.joints);
+  const double chord_mm = (path.back() - path.front()).norm();
+  EXPECT_NEAR((path.back() - click).norm(), 0.0, 1e-6);  // the path ends at the target
+  EXPECT_GE(t.path_outside_ct_mm, chord_mm - 20.0 * std::sqrt(3.0) - 0.5);
+  EXPECT_LT(t.path_outside_ct_mm, chord_mm + 40.0);  // the arc is at most the stylet's 40 mm
+  // A warning, not a refusal: the plan locks.
+  const auto lock = reduce(s, command(InputKind::kLockPlan, 83));
+  EXPECT_TRUE(lock.effects.replies.at(0).accepted) << lock.effects.replies.at(0).message;
 }
 
 TEST(Workflow, ReportTabulatesTheTargets) {

@@ -104,7 +104,8 @@ void printTargets(const json& state) {
                 t["status"].get<std::string>().c_str(), t["joints"][0].get<double>() * 180.0 / M_PI,
                 t["joints"][1].get<double>(), t["joints"][2].get<double>(),
                 t["tre_mm"].get<double>());
-    if (t["status"] != "planned") std::printf("     %s\n", t["message"].get<std::string>().c_str());
+    if (t["status"] != "planned" || !t.value("path_warning", "").empty())
+      std::printf("     %s\n", t["message"].get<std::string>().c_str());
   }
 }
 

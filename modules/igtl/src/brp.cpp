@@ -92,10 +92,11 @@ StatusCode statusCodeFor(const std::string& error_code, Phase phase) {
   if (phase == Phase::kFault || hardware.count(error_code)) return StatusCode::kHardwareFailure;
   // Values the core refused (as opposed to a robot or workflow that is not ready for them).
   static const std::set<std::string> values = {
-      "bad_arguments",      "non_finite",  "out_of_range",     "oversized",
-      "too_long",           "not_affine",  "not_similarity",   "mirror",
-      "scale_out_of_range", "unreachable", "too_many_targets", "unknown_target",
-      "unreachable_targets"};
+      "bad_arguments",       "non_finite",       "out_of_range",
+      "oversized",           "too_long",         "not_affine",
+      "not_similarity",      "mirror",           "scale_out_of_range",
+      "unreachable",         "too_many_targets", "unknown_target",
+      "unreachable_targets", "outside_volume"};
   return values.count(error_code) ? StatusCode::kConfigurationError : StatusCode::kNotReady;
 }
 

@@ -41,9 +41,8 @@ std::string decimals(const double* v, int n) {
 
 }  // namespace
 
-Expected<Volume> makePhantom(const PhantomSpec& spec) {
-  Volume vol;
-  Geometry& g = vol.geometry;
+Geometry phantomGeometry(const PhantomSpec& spec) {
+  Geometry g;
   g.dims = spec.dims;
   g.spacing_mm = spec.spacing_mm;
   if (spec.oblique) {
@@ -55,6 +54,13 @@ Expected<Volume> makePhantom(const PhantomSpec& spec) {
       0.5 * spec.spacing_mm.cwiseProduct(
                 Eigen::Vector3d(spec.dims[0] - 1, spec.dims[1] - 1, spec.dims[2] - 1));
   g.origin_lps_mm = -(g.direction * half_extent);
+  return g;
+}
+
+Expected<Volume> makePhantom(const PhantomSpec& spec) {
+  Volume vol;
+  vol.geometry = phantomGeometry(spec);
+  const Geometry& g = vol.geometry;
   if (auto ok = g.validate("phantom"); !ok) return ok.error();
   for (const auto& f : spec.fiducials_lps_mm) {
     if (!f.allFinite())

@@ -58,6 +58,19 @@ Eigen::Vector3d Geometry::toIjk(const Eigen::Vector3d& lps_mm) const {
   return (direction.transpose() * (lps_mm - origin_lps_mm)).cwiseQuotient(spacing_mm);
 }
 
+double Geometry::outsideBy_mm(const Eigen::Vector3d& lps_mm) const {
+  // The direction is orthonormal, so the excess along each voxel axis, in mm, is a component of
+  // the distance to the box.
+  const Eigen::Vector3d ijk = toIjk(lps_mm);
+  double squared = 0.0;
+  for (int a = 0; a < 3; ++a) {
+    const double low = -0.5, high = dims[static_cast<std::size_t>(a)] - 0.5;
+    const double excess = ijk[a] < low ? low - ijk[a] : ijk[a] > high ? ijk[a] - high : 0.0;
+    squared += excess * spacing_mm[a] * excess * spacing_mm[a];
+  }
+  return std::sqrt(squared);
+}
+
 std::size_t Geometry::voxelCount() const {
   return static_cast<std::size_t>(std::max(0, dims[0])) *
          static_cast<std::size_t>(std::max(0, dims[1])) *

@@ -159,6 +159,47 @@ Target* findTarget(Session& s, std::uint32_t id) {
   return nullptr;
 }
 
+// A point to target must lie in tissue the loaded CT shows (issue 26: a CT whose field of view
+// cuts the workspace left reachable targets in tissue nobody had seen). Without a CT here (the
+// registration came from 3D Slicer, which holds the images) there is nothing to check against.
+std::optional<Rejection> checkInsideCt(const Session& s, const Eigen::Vector3d& lps_mm) {
+  if (!s.ct.volume) return std::nullopt;
+  const double outside_mm = s.ct.volume->geometry.outsideBy_mm(lps_mm);
+  if (outside_mm <= 0.0) return std::nullopt;
+  return Rejection{"outside_volume",
+                   fmt::format("({:.1f}, {:.1f}, {:.1f}) mm LPS lies {:.1f} mm outside the loaded "
+                               "CT ({}): only imaged tissue can be targeted",
+                               lps_mm.x(), lps_mm.y(), lps_mm.z(), outside_mm, s.ct.source)};
+}
+
+// How much of the planned path runs outside the loaded CT (t.path_outside_ct_mm), with a warning
+// for a person (t.path_warning). The path's pieces are straight or gently curved, so
+// half-millimetre samples measure the part outside well enough for a warning.
+void checkPath(const Session& s, Target& t) {
+  if (!s.ct.volume || !t.solution.reachable()) return;
+  const auto path = needlePathLps(s, t.solution.joints);
+  const auto& geometry = s.ct.volume->geometry;
+  constexpr double kSample_mm = 0.5;
+  double outside_mm = 0.0, total_mm = 0.0, worst_mm = 0.0;
+  for (std::size_t i = 1; i < path.size(); ++i) {
+    const Eigen::Vector3d step = path[i] - path[i - 1];
+    const double length = step.norm();
+    const int pieces = std::max(1, static_cast<int>(std::ceil(length / kSample_mm)));
+    for (int k = 0; k < pieces; ++k) {
+      const double beyond = geometry.outsideBy_mm(path[i - 1] + step * ((k + 0.5) / pieces));
+      if (beyond > 0.0) outside_mm += length / pieces;
+      worst_mm = std::max(worst_mm, beyond);
+    }
+    total_mm += length;
+  }
+  t.path_outside_ct_mm = outside_mm;
+  if (outside_mm <= 0.0) return;
+  t.path_warning = fmt::format(
+      "the planned path runs {:.1f} mm of its {:.1f} mm outside the loaded CT (up to {:.1f} mm "
+      "from it): that tissue was not imaged",
+      outside_mm, total_mm, worst_mm);
+}
+
 void evaluate(const Session& s, Target& t) {
   Target fresh;
   fresh.id = t.id;
@@ -166,8 +207,11 @@ void evaluate(const Session& s, Target& t) {
   fresh.reached = t.reached;  // where the needle has been stays true whatever the registration
   fresh.reached_s = t.reached_s;
   t = fresh;
+  const auto outside = checkInsideCt(s, t.lps_mm);
+  t.outside_volume = outside.has_value();
+  const std::string outside_note = outside ? "; " + outside->message : std::string();
   if (!s.registration) {
-    t.message = "not registered yet: register the CT to the robot first";
+    t.message = "not registered yet: register the CT to the robot first" + outside_note;
     return;
   }
   const auto& robot = *s.robot;
@@ -182,6 +226,9 @@ void evaluate(const Session& s, Target& t) {
   t.solution = *solution;
   t.message = fmt::format("target {}: {}", t.id, robot.kinematics.describe(t.solution, t.robot_mm));
   if (t.solution.reachable()) t.steps = robot.transmission.toSteps(t.solution.joints).steps;
+  t.message += outside_note;
+  if (!outside) checkPath(s, t);
+  if (!t.path_warning.empty()) t.message += "; warning: " + t.path_warning;
   if (s.tissue && t.solution.reachable()) {
     // A model prediction only: the cannula's sideways drift after zc mm pushed into the tissue.
     const double zc = t.solution.joints.z_c_mm;
@@ -326,6 +373,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       s.ct = in.loaded;
       s.volume_status = {"loaded", in.loaded.source, in.loaded.description};
       e.volume_changed = true;
+      evaluateAll(s, e);  // which targets this CT shows
       if (s.phase == Phase::kStopped || s.phase == Phase::kEmergency) {
         s.resume_phase = Phase::kRegistration;
       }
@@ -379,6 +427,10 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
                                      "takes (planning.max_targets)",
                                      s.policy.limits.max_targets)};
       }
+      if (auto outside = checkInsideCt(s, in.points[0])) {
+        outside->message = "target " + outside->message;
+        return outside;
+      }
       Target t;
       t.id = s.next_target_id++;
       t.lps_mm = in.points[0];
@@ -392,9 +444,14 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
     case InputKind::kMoveTarget: {
       Target* t = findTarget(s, in.ids[0]);
       if (!t) return Rejection{"unknown_target", fmt::format("no target {}", in.ids[0])};
+      if (auto outside = checkInsideCt(s, in.points[0])) {
+        outside->message = fmt::format("target {} cannot move there: {}", t->id, outside->message);
+        return outside;
+      }
       t->lps_mm = in.points[0];
       t->reached = false;  // a new place
       evaluate(s, *t);
+      note = t->message;
       e.targets_changed.push_back(t->id);
       return std::nullopt;
     }
@@ -437,6 +494,16 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
     }
     case InputKind::kLockPlan: {
       if (s.targets.empty()) return Rejection{"empty_plan", "the plan has no targets"};
+      std::string outside;
+      for (const auto& t : s.targets) {
+        if (t.outside_volume && !t.reached) {
+          outside += fmt::format("{}target {}: {}", outside.empty() ? "" : "; ", t.id,
+                                 checkInsideCt(s, t.lps_mm)->message);
+        }
+      }
+      if (!outside.empty()) {
+        return Rejection{"outside_volume", "remove or move these first: " + outside};
+      }
       std::string bad;
       for (const auto& t : s.targets) {
         if (!t.registered || !t.solution.reachable()) {
@@ -924,7 +991,24 @@ Expected<Session> replayJournal(Session session, const std::vector<std::string>&
   return session;
 }
 
+std::vector<Eigen::Vector3d> needlePathLps(const Session& s, const kinematics::Joints& j) {
+  if (!s.registration || !s.robot) return {};
+  const auto& kin = s.robot->kinematics;
+  const auto& reg = *s.registration;
+  std::vector<Eigen::Vector3d> out;
+  kinematics::Joints k{j.theta_c_rad, 0.0, 0.0};
+  out.push_back(reg.toImage(kin.forward(k).tip_mm));
+  k.z_c_mm = j.z_c_mm;
+  constexpr int kArcSamples = 24;
+  for (int i = 0; i <= kArcSamples; ++i) {
+    k.z_s_mm = j.z_s_mm * i / kArcSamples;
+    out.push_back(reg.toImage(kin.forward(k).tip_mm));
+  }
+  return out;
+}
+
 std::string Target::status() const {
+  if (outside_volume && !reached) return "outside_volume";
   if (!registered) return "unregistered";
   if (reached) return "reached";
   return solution.reachable() ? "planned" : "unreachable";

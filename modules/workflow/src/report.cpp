@@ -96,7 +96,7 @@ std::string procedureReport(const Session& s, const std::vector<std::string>& im
   }
   std::string notes;
   for (const auto& t : s.targets) {
-    if (!t.registered || !t.solution.reachable())
+    if (!t.registered || !t.solution.reachable() || t.outside_volume || !t.path_warning.empty())
       notes += "- T" + std::to_string(t.id) + ": " + t.message + "\n";
   }
   if (!notes.empty()) out += "\n" + notes;

@@ -28,6 +28,9 @@ struct PhantomSpec {
   std::uint64_t seed = 1;  // noise and UIDs are deterministic functions of the seed
 };
 
+// The phantom's grid: its voxel geometry alone, centred on LPS (0, 0, 0), without rendering it.
+Geometry phantomGeometry(const PhantomSpec& spec);
+
 // The phantom as a volume (HU, scale 1). Errors for non-positive sizes or a fiducial that is
 // not finite.
 Expected<Volume> makePhantom(const PhantomSpec& spec);

@@ -32,6 +32,10 @@ struct Geometry {
   Eigen::Vector3d toLps(const Eigen::Vector3d& ijk) const;
   Eigen::Vector3d toIjk(const Eigen::Vector3d& lps_mm) const;
   std::size_t voxelCount() const;
+  // How far an LPS point lies outside the imaged box (every voxel with its half-voxel margin, as
+  // DICOM's pixel spacing describes it): 0 inside or on its faces, else the distance in mm to the
+  // nearest point of the box.
+  double outsideBy_mm(const Eigen::Vector3d& lps_mm) const;
   // Dims positive, spacing finite and positive, origin finite, direction orthonormal
   // (columns unit length and mutually perpendicular within 1e-4). `what` names the source.
   Status validate(const std::string& what) const;

@@ -33,6 +33,12 @@ std::string workflowMarkdown();
 Session newSession(std::string session_id, std::shared_ptr<const config::Robot> robot,
                    std::string robot_path);
 
+// The planned needle path in LPS for joints of a registered session: the tip at home (z_c = 0,
+// z_s = 0), the cannula's translation to z_c, then the stylet's arc as it deploys (25 samples).
+// Empty without a registration.
+std::vector<Eigen::Vector3d> needlePathLps(const Session& session,
+                                           const kinematics::Joints& joints);
+
 // The digest an approve must echo: SHA-256 (lower-case hex) over a canonical text of the session
 // id, plan id, target, starting motor position and every step increment the controller would
 // receive, so a client approves exactly what it was shown.

@@ -180,10 +180,19 @@ struct Target {
   // Model prediction (extended bicycle model, the session's tissue): how far the cannula's tip
   // drifts sideways after its zc mm of insertion. NaN without a tissue profile.
   double predicted_deviation_mm = std::numeric_limits<double>::quiet_NaN();
-  bool reached = false;        // the stylet tip was brought here (verified steps)
-  double reached_s = 0.0;      // when (Unix seconds)
-  std::string message;         // person-readable reachability
-  std::string status() const;  // "planned" | "reached" | "unreachable" | "unregistered"
+  bool reached = false;    // the stylet tip was brought here (verified steps)
+  double reached_s = 0.0;  // when (Unix seconds)
+  // A CT is loaded and the target lies outside it: tissue nobody has seen. add_target and
+  // move_target refuse such points; a target becomes one when a CT that misses it is loaded later.
+  bool outside_volume = false;
+  // How much of the planned path (needlePathLps) runs outside the loaded CT, and, for a person,
+  // a warning saying so ("" when none does). A warning only: the cannula may well start outside
+  // the scanned field.
+  double path_outside_ct_mm = 0.0;
+  std::string path_warning;
+  std::string message;  // person-readable reachability
+  // "planned" | "reached" | "unreachable" | "unregistered" | "outside_volume"
+  std::string status() const;
 };
 
 // What one approval releases: the moves to one target (or the final retraction), as the exact
