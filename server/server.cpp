@@ -370,8 +370,13 @@ class Server {
           if (reservedClientId(c.client_id, c.request_id)) return;
           auto in = toInput(c);
           if (!in) {
-            sendReply({c.client_id ? c.client_id : "", c.request_id, false, "unknown_command",
-                       fmt::format("command kind {} is not one of ours", static_cast<int>(c.kind)),
+            const std::string client = c.client_id ? c.client_id : "";
+            spdlog::warn("command kind {} from '{}' (request {}) is not one of ours: refused",
+                         c.kind, client.substr(0, 64), c.request_id);
+            sendReply({client, c.request_id, false, "unknown_command",
+                       fmt::format("command kind {} is not one of ours (docs/PROTOCOL.md lists "
+                                   "the kinds)",
+                                   c.kind),
                        0, session_.revision});
             return;
           }

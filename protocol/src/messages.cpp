@@ -45,14 +45,14 @@ std::optional<ignav_msg_CommandKind> commandKindFromName(const std::string& name
   return std::nullopt;
 }
 
-Role requiredRole(ignav_msg_CommandKind kind) {
+Role requiredRole(std::int32_t kind) {
   for (const auto& k : kKinds) {
     if (k.kind == kind) return k.role;
   }
   return Role::kApprover;  // unknown kinds are refused anyway
 }
 
-const char* commandKindName(ignav_msg_CommandKind kind) {
+const char* commandKindName(std::int32_t kind) {
   for (const auto& k : kKinds) {
     if (k.kind == kind) return workflow::toString(k.input);
   }
@@ -104,7 +104,7 @@ workflow::Input toInput(const ignav_msg_EmergencyStop& e) {
   return in;
 }
 
-const ignav_msg_Command& OwnedCommand::build(std::uint64_t request_id, ignav_msg_CommandKind kind) {
+const ignav_msg_Command& OwnedCommand::build(std::uint64_t request_id, std::int32_t kind) {
   msg = {};
   msg.client_id = cstr(client_id);
   msg.request_id = request_id;

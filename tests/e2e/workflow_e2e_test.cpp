@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
+#include <map>
 
 #include <fmt/format.h>
 #include <Eigen/Geometry>
@@ -12,6 +14,7 @@
 #include <thread>
 
 #include "ignav/config/robot_config.hpp"
+#include "ignav/protocol/messages.hpp"
 #include "ignav/registration/robot_phantom.hpp"
 #include "server_process.hpp"
 
@@ -204,6 +207,42 @@ TEST(WorkflowE2E, EveryRejectionNamesTheProblemAndChangesNothing) {
   expectRejected("reorder_targets", {"", {}, {1, 2}}, "bad_order", "exactly once");
   expectRejected("lock_plan", {}, "empty_plan", "no targets");
 
+  // A kind no CommandKind names (issue 27: such samples used to be dropped unanswered) gets
+  // exactly one reply, unknown_command, and a line in the server's log; nothing changes.
+  {
+    const auto before = revision();
+    protocol::Participant p(server.domain(), loopbackXml());
+    protocol::Writer<ignav_msg_Command> commands(
+        p, &ignav_msg_Command_desc, protocol::topic::kCommandPlanner, protocol::Qos::kRequest);
+    protocol::Reader<ignav_msg_Reply> replies(p, &ignav_msg_Reply_desc, protocol::topic::kReply,
+                                              protocol::Qos::kRequest);
+    for (int i = 0; i < 1000 && (commands.matched() == 0 || replies.matched() == 0); ++i)
+      std::this_thread::sleep_for(10ms);
+    ASSERT_GT(commands.matched(), 0u);
+    const std::int32_t kinds[] = {20, 99, std::numeric_limits<std::int32_t>::max(), -1};
+    protocol::OwnedCommand owned;
+    owned.client_id = "odd-kinds";
+    for (std::size_t k = 0; k < std::size(kinds); ++k)
+      commands.write(owned.build(k + 1, kinds[k]));
+    std::map<std::uint64_t, std::vector<std::string>> answers;  // request id -> error codes
+    for (int i = 0; i < 300 && answers.size() < std::size(kinds); ++i) {
+      replies.take([&](const ignav_msg_Reply& r) {
+        if (std::string(r.client_id) == "odd-kinds") answers[r.request_id].push_back(r.error_code);
+      });
+      std::this_thread::sleep_for(10ms);
+    }
+    std::this_thread::sleep_for(200ms);  // a second reply would have come by now
+    replies.take([&](const ignav_msg_Reply& r) {
+      if (std::string(r.client_id) == "odd-kinds") answers[r.request_id].push_back(r.error_code);
+    });
+    for (std::size_t k = 0; k < std::size(kinds); ++k) {
+      EXPECT_EQ(answers[k + 1], std::vector<std::string>{"unknown_command"}) << kinds[k];
+      EXPECT_NE(server.serverLog().find(fmt::format("command kind {} from 'odd-kinds'", kinds[k])),
+                std::string::npos)
+          << kinds[k];
+    }
+    EXPECT_EQ(revision(), before);
+  }
   // The server is still there and still serves.
   EXPECT_TRUE(c->send("query").accepted);
 }

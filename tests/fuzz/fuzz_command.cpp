@@ -83,9 +83,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                               : in.ConsumeIntegral<std::uint32_t>();
       c.client_id = protocol::cstr(client);
       c.request_id = in.ConsumeIntegral<std::uint64_t>();
-      // Kinds past the last one (Cyclone checks the enum range on the wire; 0..20 stays in the
-      // C enum's value range).
-      c.kind = static_cast<ignav_msg_CommandKind>(in.ConsumeIntegralInRange<int>(0, 20));
+      // Mostly our kinds, sometimes any integer (issue 27: every value gets a reply).
+      c.kind = in.ConsumeBool() ? in.ConsumeIntegralInRange<std::int32_t>(0, 20)
+                                : in.ConsumeIntegral<std::int32_t>();
       c.path = protocol::cstr(path);
       protocol::viewSequence(c.points, points);
       protocol::viewSequence(c.ids, ids);

@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <Eigen/Geometry>
 
+#include <functional>
 #include <iostream>
 #include <random>
 #include <set>
@@ -821,6 +822,132 @@ TEST(Manual, HaltsRefusesMotionAndResumeAdoptsThePosition) {
   ASSERT_TRUE(replayed.ok()) << replayed.error().message;
   EXPECT_EQ(replayed->phase, Phase::kPlanLocked);
   EXPECT_EQ(replayed->position, hands);
+}
+
+// Issue 27: resume leads back to the phase the first interruption left (a move in flight: a fresh
+// request in plan_locked), whatever interruptions followed it: stop, manual, emergency then reset,
+// in every order and nesting up to three deep. An accepted resume always leaves stopped or manual,
+// and a second one is refused; a session can always continue.
+TEST(Resume, EveryInterruptionSequenceReturnsToTheInterruptedPhase) {
+  enum class Cut { kStop, kManual, kEmergency };
+  const auto name = [](Cut c) {
+    return c == Cut::kStop ? "stop" : c == Cut::kManual ? "manual" : "emergency+reset";
+  };
+  const auto load = [](Bench& b) {
+    auto in = b.command(InputKind::kLoadVolume);
+    in.path = "phantom:";
+    ASSERT_TRUE(b.send(in).accepted);
+  };
+  const auto loaded = [](Bench& b) {
+    Input in = Bench::internal(InputKind::kVolumeLoaded);
+    in.loaded.volume = test::phantomCtGrid(*paperRobot());
+    in.loaded.source = "phantom:";
+    b.feed(in);
+  };
+  const auto approveAndRun = [](Bench& b) {
+    ASSERT_TRUE(b.send(b.approvePending()).accepted);
+    b.runMotion();
+  };
+  struct Setup {
+    const char* name;
+    std::function<void(Bench&)> reach;
+    Phase at;        // where the setup leaves the workflow
+    Phase expected;  // where resume leads
+    bool finish_load_while_interrupted = false;
+  };
+  const Setup setups[] = {
+      {"imaging, a load in flight", load, Phase::kImaging, Phase::kImaging},
+      {"imaging, the load finishing meanwhile", load, Phase::kImaging, Phase::kRegistration, true},
+      {"registration", [&](Bench& b) { load(b), loaded(b); }, Phase::kRegistration,
+       Phase::kRegistration},
+      {"planning", [](Bench&) {}, Phase::kPlanning, Phase::kPlanning},
+      {"plan_locked",
+       [](Bench& b) {
+         b.addRobotTarget(kJointsA);
+         ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+       },
+       Phase::kPlanLocked, Phase::kPlanLocked},
+      {"moving",
+       [](Bench& b) {
+         b.addRobotTarget(kJointsB);
+         ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+         ASSERT_TRUE(b.send(b.approvePending()).accepted);
+         b.advance(0.05);
+       },
+       Phase::kMoving, Phase::kPlanLocked},
+      {"at_target",
+       [&](Bench& b) {
+         b.addRobotTarget(kJointsA);
+         b.addRobotTarget(kJointsC);
+         ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+         approveAndRun(b);
+       },
+       Phase::kAtTarget, Phase::kAtTarget},
+      {"done",
+       [&](Bench& b) {
+         b.addRobotTarget(kJointsA);
+         ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+         approveAndRun(b);  // to the target
+         approveAndRun(b);  // the stylet back
+       },
+       Phase::kDone, Phase::kDone},
+  };
+  std::vector<std::vector<Cut>> sequences;
+  for (int length = 1; length <= 3; ++length) {
+    const int count = length == 1 ? 3 : length == 2 ? 9 : 27;
+    for (int code = 0; code < count; ++code) {
+      std::vector<Cut> sequence;
+      for (int i = 0, c = code; i < length; ++i, c /= 3)
+        sequence.push_back(static_cast<Cut>(c % 3));
+      sequences.push_back(sequence);
+    }
+  }
+  int runs = 0, uninterrupted = 0;
+  for (const auto& setup : setups) {
+    for (const auto& sequence : sequences) {
+      std::string what = setup.name;
+      for (Cut c : sequence)
+        what += std::string(" > ") + name(c);
+      SCOPED_TRACE(what);
+      Bench b;
+      setup.reach(b);
+      ASSERT_EQ(b.s.phase, setup.at);
+      for (Cut c : sequence) {
+        b.t += 1.0;  // the robot comes to rest after each halt
+        const InputKind kind = c == Cut::kStop     ? InputKind::kStop
+                               : c == Cut::kManual ? InputKind::kManual
+                                                   : InputKind::kEmergencyStop;
+        const auto r = b.send(b.command(kind));
+        if (!r.accepted) {  // not from here (manual while moving, stop while stopped ...)
+          EXPECT_EQ(r.error_code, "wrong_phase") << r.message;
+          continue;
+        }
+        if (c == Cut::kEmergency) {
+          b.t += 1.0;
+          const auto reset = b.send(b.command(InputKind::kResetEmergency));
+          ASSERT_TRUE(reset.accepted) << reset.message;
+        }
+      }
+      if (b.s.phase == setup.at) {  // nothing interrupted it: manual alone while moving
+        ++uninterrupted;
+        continue;
+      }
+      ASSERT_TRUE(b.s.phase == Phase::kStopped || b.s.phase == Phase::kManual)
+          << toString(b.s.phase);
+      if (setup.finish_load_while_interrupted) loaded(b);
+      b.t += 1.0;
+      const auto resumed = b.send(b.command(InputKind::kResume));
+      ASSERT_TRUE(resumed.accepted) << resumed.message;
+      EXPECT_EQ(b.s.phase, setup.expected) << toString(b.s.phase);
+      if (setup.expected == Phase::kPlanLocked || setup.expected == Phase::kAtTarget) {
+        EXPECT_TRUE(b.s.pending.has_value());  // a fresh request to approve
+      }
+      EXPECT_EQ(b.send(b.command(InputKind::kResume)).error_code, "wrong_phase");
+      ++runs;
+    }
+  }
+  EXPECT_EQ(uninterrupted, 3);  // manual, manual twice, manual thrice: refused while moving
+  EXPECT_EQ(runs, 8 * 39 - 3);
 }
 
 // A readiness question changes nothing: no revision, no journal record, no lost approval.

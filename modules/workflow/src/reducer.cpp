@@ -374,14 +374,15 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       s.volume_status = {"loaded", in.loaded.source, in.loaded.description};
       e.volume_changed = true;
       evaluateAll(s, e);  // which targets this CT shows
-      if (s.phase == Phase::kStopped || s.phase == Phase::kEmergency) {
+      // The load was asked for in imaging: an interruption since then resumes with the CT.
+      if (isInterruption(s.phase) && s.resume_phase == Phase::kImaging) {
         s.resume_phase = Phase::kRegistration;
       }
       return std::nullopt;
     case InputKind::kVolumeLoadFailed:
       s.volume_status = {"failed", s.volume_status.source, in.error};
       e.volume_changed = true;
-      if (s.phase == Phase::kStopped || s.phase == Phase::kEmergency) {
+      if (isInterruption(s.phase) && s.resume_phase == Phase::kRegistration) {
         s.resume_phase = Phase::kImaging;
       }
       return std::nullopt;
@@ -649,12 +650,11 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
     case InputKind::kEmergencyStop:
       e.controller.push_back({ControllerAction::kAbort, {}});  // whatever moves, halt it
       interruptMotion(s, e, in.time_s, "emergency stop");
-      if (s.phase != Phase::kStopped && s.phase != Phase::kFault) {
-        s.resume_phase = resumeTo(s.phase);
-      }
+      // Taken while interrupted (stopped, manual, fault), the first interruption's phase stays.
+      if (!isInterruption(s.phase)) s.resume_phase = resumeTo(s.phase);
       return std::nullopt;
     case InputKind::kManual:
-      s.resume_phase = resumeTo(s.phase);
+      if (!isInterruption(s.phase)) s.resume_phase = resumeTo(s.phase);  // manual after a stop
       e.controller.push_back({ControllerAction::kStop, {}});
       interruptMotion(s, e, in.time_s, "manual control");
       note = "manual control: the robot may be moved by hand; resume takes it back";
@@ -1073,7 +1073,7 @@ Step reduce(const Session& session, const Input& in) {
   Phase to = t->to;
   std::string note;
   if (auto bad = apply(s, in, e, new_id, to, note)) return reject(*bad);
-  if (in.kind != InputKind::kResume && !declared(session.phase, in.kind, to)) {
+  if (!declared(session.phase, in.kind, to)) {
     return reject(
         {"internal", fmt::format("{} would lead from {} to {}, which the table does not "
                                  "declare",

@@ -169,8 +169,6 @@ std::vector<Transition> buildTable() {
       // A load finishing while stopped is kept; the workflow stays stopped.
       {P::kStopped, I::kVolumeLoaded, P::kStopped, "CT loaded"},
       {P::kStopped, I::kVolumeLoadFailed, P::kStopped, "load failed"},
-      {P::kStopped, I::kResume, P::kStopped, "back to the interrupted phase"},
-      {P::kStopped, I::kResume, P::kDone, "nothing left to do"},
       {P::kEmergency, I::kVolumeLoaded, P::kEmergency, "CT loaded"},
       {P::kEmergency, I::kVolumeLoadFailed, P::kEmergency, "load failed"},
       {P::kEmergency, I::kResetEmergency, P::kStopped, "operator reset, position checked"},
@@ -180,11 +178,18 @@ std::vector<Transition> buildTable() {
       {P::kFault, I::kHome, P::kFault, "robot homed by hand"},
       {P::kFault, I::kVolumeLoaded, P::kFault, "CT loaded"},
       {P::kFault, I::kVolumeLoadFailed, P::kFault, "load failed"},
-      {P::kManual, I::kResume, P::kManual, "back to the interrupted phase, position taken over"},
       {P::kManual, I::kHome, P::kManual, "robot homed by hand"},
       {P::kManual, I::kVolumeLoaded, P::kManual, "CT loaded"},
       {P::kManual, I::kVolumeLoadFailed, P::kManual, "load failed"},
   };
+  // resume returns to the phase the first interruption left (a move in flight: plan_locked, to be
+  // approved again), or to done when nothing is left to move. Interruptions taken while
+  // interrupted (manual after stop, emergency in manual) keep that phase (issue 27).
+  for (Phase back : kResumePhases) {
+    t.push_back({P::kStopped, I::kResume, back, "back to the interrupted phase"});
+    t.push_back(
+        {P::kManual, I::kResume, back, "back to the interrupted phase, position taken over"});
+  }
   for (Phase p : kAllPhases) {
     // A fault is left only by a reset with a position check (or an emergency stop).
     // Manual control is left by resume (the robot is already halted and in someone's hands).
@@ -239,14 +244,17 @@ std::string mermaidDiagram() {
         (t.input == InputKind::kControllerFault || t.input == InputKind::kServerRestarted) &&
         t.from == t.to;
     if (server_self_loop) continue;
-    const bool resume_back =
-        t.input == InputKind::kResume && (t.to == Phase::kStopped || t.to == Phase::kManual);
+    // resume's destinations are drawn once, as the phase the interruption left.
+    const bool resume_back = t.input == InputKind::kResume;
     std::string line = std::string("  ") + toString(t.from) + " --> " +
                        (resume_back ? "resume_target" : toString(t.to)) + ": " + toString(t.input) +
                        " (" + t.why + ")\n";
     if (seen.insert(line).second) out += line;
   }
-  out += "  resume_target: the phase stop interrupted\n";
+  std::string destinations;
+  for (Phase p : kResumePhases)
+    destinations += (destinations.empty() ? "" : ", ") + std::string(toString(p));
+  out += "  resume_target: the phase the interruption left (" + destinations + ")\n";
   out +=
       "  note right of stopped: query is accepted in every phase; check_ready in every phase "
       "but moving, emergency, fault and manual\n";

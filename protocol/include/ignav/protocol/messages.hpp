@@ -55,9 +55,11 @@ inline Eigen::Matrix4d fromRowMajor(const double (&in)[16]) {
 
 // The command kinds by name ("load_volume", ...), for clients.
 std::optional<ignav_msg_CommandKind> commandKindFromName(const std::string& name);
-const char* commandKindName(ignav_msg_CommandKind kind);
+// Command.kind is an integer on the wire, so these take any value ("unknown" / approver for a
+// value no CommandKind names).
+const char* commandKindName(std::int32_t kind);
 // The least role that may give a command: it travels on commandTopic(requiredRole(kind)).
-Role requiredRole(ignav_msg_CommandKind kind);
+Role requiredRole(std::int32_t kind);
 
 // A command as the workflow sees it; nullopt when the kind is not one of ours.
 std::optional<workflow::Input> toInput(const ignav_msg_Command& command);
@@ -70,7 +72,7 @@ struct OwnedCommand {
   std::vector<std::uint32_t> ids;
   std::array<double, 16> matrix{};  // row-major
   ignav_msg_Command msg{};
-  const ignav_msg_Command& build(std::uint64_t request_id, ignav_msg_CommandKind kind);
+  const ignav_msg_Command& build(std::uint64_t request_id, std::int32_t kind);  // a CommandKind
 };
 
 struct OwnedReply {

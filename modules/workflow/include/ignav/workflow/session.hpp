@@ -42,6 +42,17 @@ constexpr Phase kAllPhases[] = {Phase::kStartup,   Phase::kImaging,    Phase::kR
                                 Phase::kAtTarget,  Phase::kDone,       Phase::kStopped,
                                 Phase::kEmergency, Phase::kFault,      Phase::kManual};
 const char* toString(Phase phase);  // "startup", "imaging", ...
+// The phases that interrupt the workflow; resume (after reset_emergency for emergency and fault)
+// leaves them for the phase the first interruption left.
+constexpr bool isInterruption(Phase p) {
+  return p == Phase::kStopped || p == Phase::kEmergency || p == Phase::kFault ||
+         p == Phase::kManual;
+}
+// Where resume may lead: every phase but the interruptions and moving (a move in flight is
+// planned again from where the robot stands, plan_locked, and approved again).
+constexpr Phase kResumePhases[] = {Phase::kStartup,  Phase::kImaging,    Phase::kRegistration,
+                                   Phase::kPlanning, Phase::kPlanLocked, Phase::kAtTarget,
+                                   Phase::kDone};
 
 // Client commands first, then what the server itself feeds in.
 enum class InputKind {
@@ -243,7 +254,7 @@ struct RegistrationStatus {
 struct Session {
   std::string session_id;
   Phase phase = Phase::kStartup;
-  Phase resume_phase = Phase::kImaging;  // where kResume returns to from kStopped
+  Phase resume_phase = Phase::kImaging;  // where kResume returns to (one of kResumePhases)
   std::uint64_t revision = 0;
   std::string last_event;
   std::shared_ptr<const config::Robot> robot;
