@@ -1,5 +1,6 @@
-// The web viewer's pure helpers (tools/ignav-web/app/src/geometry.ts and status.ts), bundled
-// on the fly with the app's own esbuild and checked against closed-form cases.
+// The web viewer's pure helpers (tools/ignav-web/app/src/geometry.ts, status.ts, clock.ts,
+// approval.ts and alerts.ts), bundled on the fly with the app's own esbuild and checked against
+// closed-form cases.
 //   node --test tests/web/app_units.test.mjs
 import assert from "node:assert/strict";
 import { createRequire } from "node:module";
@@ -21,6 +22,9 @@ async function load(file) {
 }
 const g = await load("geometry.ts");
 const s = await load("status.ts");
+const clock = await load("clock.ts");
+const ap = await load("approval.ts");
+const alerts = await load("alerts.ts");
 
 const near = (actual, expected, tolerance = 1e-9) =>
   assert.ok(
@@ -119,4 +123,172 @@ test("target colours follow the workflow, the approval and the motion", () => {
 test("formatLps: rounded for people, and what rounds to zero is 0, not -0", () => {
   assert.equal(g.formatLps([-0.001, 1.25, -3.456], 2), "0.00, 1.25, -3.46");
   assert.equal(g.formatLps([-0.04, 0.05, 12]), "0.0, 0.1, 12.0");
+});
+
+test("viewCentre: a view keeps its own pan and follows the shared centre only along its normal", () => {
+  const pan = [10, 20, 30];
+  const shared = [1, 2, 3];
+  near(g.viewCentre(pan, shared, [0, 0, 1]), [10, 20, 3]); // axial: only z follows
+  near(g.viewCentre(pan, shared, [-1, 0, 0]), [1, 20, 30]); // sagittal: only x
+  near(g.viewCentre(pan, shared, [0, 1, 0]), [10, 2, 30]); // coronal: only y
+  // An oblique normal (1, 1, 0)/√2: the offset (2, 0, 5) has √2 along it, i.e. (1, 1, 0).
+  near(g.viewCentre([0, 0, 0], [2, 0, 5], [Math.SQRT1_2, Math.SQRT1_2, 0]), [1, 1, 0], 1e-12);
+  // Scrolling the sagittal view (the shared centre moves along x) moves no other view's plane.
+  const moved = [shared[0] + 0.8, shared[1], shared[2]];
+  near(g.viewCentre(pan, moved, [0, 0, 1]), g.viewCentre(pan, shared, [0, 0, 1]));
+  near(g.viewCentre(pan, moved, [0, 1, 0]), g.viewCentre(pan, shared, [0, 1, 0]));
+  // Centred on one point, every view asks for exactly that point.
+  assert.deepEqual(g.viewCentre([1.1, -2.3, 7.7], [1.1, -2.3, 7.7], [-1, 0, 0]), [1.1, -2.3, 7.7]);
+});
+
+test("clampAlong: scrolling stops at the first and last voxel centres along the normal", () => {
+  // 128 x 128 x 112 voxels of 0.8 x 0.8 x 1.25 mm, centred on the origin: the voxel centres span
+  // x, y in [-50.8, 50.8] and z in [-69.375, 69.375].
+  const ijkToLps = [0.8, 0, 0, -50.8, 0, 0.8, 0, -50.8, 0, 0, 1.25, -69.375, 0, 0, 0, 1];
+  const dims = [128, 128, 112];
+  near(g.clampAlong([3, 4, 100], [0, 0, 1], ijkToLps, dims), [3, 4, 69.375]);
+  near(g.clampAlong([3, 4, -100], [0, 0, 1], ijkToLps, dims), [3, 4, -69.375]);
+  near(g.clampAlong([60, 4, 5], [-1, 0, 0], ijkToLps, dims), [50.8, 4, 5]);
+  near(g.clampAlong([3, -51, 5], [0, 1, 0], ijkToLps, dims), [3, -50.8, 5]);
+  // Inside, nothing moves (and nothing is rounded).
+  assert.deepEqual(g.clampAlong([1.3, -2.7, 9.1], [0, 0, 1], ijkToLps, dims), [1.3, -2.7, 9.1]);
+  // Only the component along the normal is clamped: a point beyond the edge in x stays so when
+  // scrolled along z.
+  near(g.clampAlong([200, 4, 70], [0, 0, 1], ijkToLps, dims), [200, 4, 69.375]);
+  // A volume turned 90° about S: i runs along +P (1 mm), j along -L (2 mm), k along +S (3 mm).
+  const turned = [0, -2, 0, 0, 1, 0, 0, 0, 0, 0, 3, 0, 0, 0, 0, 1];
+  near(g.clampAlong([5, 20, 1], [1, 0, 0], turned, [10, 5, 4]), [0, 20, 1]); // x = -2j in [-8, 0]
+  near(g.clampAlong([5, 20, 1], [0, 1, 0], turned, [10, 5, 4]), [5, 9, 1]); // y = i in [0, 9]
+  near(g.clampAlong([-9, 20, 1], [-1, 0, 0], turned, [10, 5, 4]), [-8, 20, 1]);
+});
+
+test("ServerClock: the largest lower bound on the offset, from the least delayed sample", () => {
+  // The server's clock runs exactly 1000 s ahead of the page's; samples arrive 0.3 s, 0.05 s and
+  // 0.6 s after they were written.
+  const c = new clock.ServerClock();
+  assert.equal(c.now_s(5), null);
+  c.observe(1009.7, 10); // written at server 1009.7 = local 9.7
+  assert.ok(Math.abs(c.now_s(10) - 1009.7) < 1e-9);
+  c.observe(1010.95, 11);
+  c.observe(1011.4, 12);
+  assert.ok(Math.abs(c.now_s(12) - 1011.95) < 1e-9, String(c.now_s(12))); // 0.05 s behind, never ahead
+  // Junk (a server that does not say, a NaN) changes nothing.
+  c.observe(0, 12.5);
+  c.observe(Number.NaN, 12.5);
+  assert.ok(Math.abs(c.now_s(12) - 1011.95) < 1e-9);
+});
+
+test("ServerClock: a late page counts from the server's clock, not from when the request arrived", () => {
+  // A request published 15 s before this page joined (expires_at 1120 s, 120 s after it was
+  // published at server time 1000); the page receives it at local 2 with the health sample of
+  // server time 1014.6 (written 0.4 s before). The server runs 1013 s ahead of the page.
+  const published_s = clock.approvalPublishedAt_s(1120, 120);
+  assert.equal(published_s, 1000);
+  const c = new clock.ServerClock();
+  c.observe(published_s, 2);
+  // From the request alone the page would think 118 s are left at local 4 (the bug of issue 26);
+  assert.equal(1120 - c.now_s(4), 118);
+  // with the health sample it knows 103.4 s are (true: 1120 - 1017 = 103; the 0.4 s of delay).
+  c.observe(1014.6, 2);
+  assert.ok(Math.abs(1120 - c.now_s(4) - 103.4) < 1e-9);
+  assert.ok(Number.isNaN(clock.approvalPublishedAt_s(0, 120))); // a server that does not say
+});
+
+test("ServerClock: the estimate follows the clocks' drift after the window", () => {
+  const c = new clock.ServerClock(30);
+  c.observe(105, 0); // offset 105 exactly
+  c.observe(135.9, 31); // the server's clock has since lost 0.1 s: offset 104.9
+  assert.ok(Math.abs(c.now_s(31) - 135.9) < 1e-9); // the first sample is out of the window
+  const d = new clock.ServerClock(30);
+  d.observe(105, 0);
+  d.observe(114.9, 10); // within the window the larger bound stands
+  assert.ok(Math.abs(d.now_s(10) - 115) < 1e-9);
+  // With nothing newer, the last sample stays however old.
+  assert.ok(Math.abs(d.now_s(1000) - 1105) < 1e-9);
+});
+
+test("approvalView: the countdown, expiry and the approve button", () => {
+  const base = { expires_at_unix_s: 1000, server_now_s: 894.8, connected: true, may_approve: true, in_flight: false };
+  let v = ap.approvalView(base);
+  assert.equal(v.expiry_text, "expires in 106 s"); // 105.2 s left, rounded up
+  assert.deepEqual([v.expired, v.urgent, v.approve_hidden, v.approve_disabled], [false, false, false, false]);
+  v = ap.approvalView({ ...base, server_now_s: 991 });
+  assert.deepEqual([v.expiry_text, v.urgent, v.approve_disabled], ["expires in 9 s", true, false]);
+  for (const now of [1000, 1000.5, 1200]) {
+    v = ap.approvalView({ ...base, server_now_s: now });
+    assert.equal(v.expiry_text, "expired: request approval again", String(now));
+    assert.deepEqual([v.expired, v.approve_hidden, v.approve_disabled], [true, true, true]);
+  }
+  v = ap.approvalView({ ...base, in_flight: true });
+  assert.deepEqual([v.approve_hidden, v.approve_disabled, v.approve_label], [false, true, "Approving…"]);
+  v = ap.approvalView({ ...base, connected: false });
+  assert.deepEqual([v.approve_hidden, v.approve_disabled, v.urgent], [false, true, true]);
+  assert.match(v.expiry_text, /not reachable/);
+  v = ap.approvalView({ ...base, may_approve: false });
+  assert.equal(v.approve_hidden, true);
+  v = ap.approvalView({ ...base, server_now_s: null });
+  assert.deepEqual([v.expired, v.approve_disabled], [false, true]);
+});
+
+test("connectionView and phaseBanner: a banner whenever the page cannot reach the server", () => {
+  const up = alerts.connectionView({ open: true }, true);
+  assert.deepEqual([up.connected, up.banner, up.header], [true, null, "gateway: connected · server: connected"]);
+  for (const [status, server, says] of [
+    [{ open: false, retry_in_ms: 250 }, null, /cannot reach the ignav-web gateway.*retrying in 0\.3 s/],
+    [{ open: false, retry_in_ms: 0 }, null, /gateway: connecting/],
+    [{ open: true }, false, /the gateway cannot reach ignav-server/],
+    [{ open: true }, null, /waiting for the gateway/],
+  ]) {
+    const view = alerts.connectionView(status, server);
+    assert.equal(view.connected, false);
+    assert.match(view.banner, says);
+    assert.match(view.banner, /not even its EMERGENCY STOP: use the robot's hardware emergency stop/);
+  }
+  assert.match(alerts.phaseBanner("emergency", ""), /^EMERGENCY STOP.*Reset emergency/);
+  assert.match(alerts.phaseBanner("fault", "motor 2 following error"), /^ROBOT FAULT: motor 2 following error/);
+  for (const phase of ["planning", "plan_locked", "moving", "stopped", ""]) assert.equal(alerts.phaseBanner(phase, ""), null);
+});
+
+test("targets outside the CT, and paths that leave it", () => {
+  const target = (over = {}) => ({
+    id: 5, lps: [0, 0, 0], robot: [0, 0, 0], registered: true, reachable: true, reach: "reachable",
+    message: "", joints: [0, 0, 0], steps: [0, 0, 0], tre_mm: 0, tre_warning: false, order: 1,
+    predicted_deviation_mm: null, status: "planned", outside_volume: false, path_warning: "", ...over,
+  });
+  // Outside the CT beats every other verdict: it is never imaged, whatever the robot could do.
+  for (const over of [
+    { status: "outside_volume", outside_volume: true },
+    { status: "outside_volume", outside_volume: true, registered: false, reachable: false },
+    { status: "unreachable", reachable: false, outside_volume: true },
+  ]) {
+    const shown = s.targetDisplay(target(over), "planning", undefined, undefined);
+    assert.equal(shown.status, "outside_volume", JSON.stringify(over));
+    assert.equal(shown.label, "outside the CT");
+    assert.equal(shown.colour, s.kStatusColour.outside_volume);
+  }
+  assert.equal(
+    s.targetDisplay(target({ status: "outside_volume", outside_volume: true }), "planning").detail,
+    "outside the loaded CT: lock_plan refuses it",
+  );
+  const named = s.targetDisplay(
+    target({ status: "outside_volume", outside_volume: true, reach: "reachable", message: "4.2 mm beyond the CT (S)" }),
+    "planning",
+  );
+  assert.equal(named.detail, "4.2 mm beyond the CT (S)");
+  // A reachable target whose path leaves the CT: still reachable, and the warning is said.
+  const warning = "the path leaves the CT for 12.5 mm near the entry";
+  const warned = s.targetDisplay(target({ path_warning: warning }), "planning");
+  assert.deepEqual([warned.status, warned.path_warning], ["reachable", warning]);
+  assert.equal(warned.detail, `reachable; ${warning}`);
+  // The server's message already ends with it: said once.
+  const message = `target 5: reachable; warning: ${warning}`;
+  assert.equal(s.targetDisplay(target({ path_warning: warning, message }), "planning").detail, message);
+  // Where the needle has been stays reached, outside the CT or not (the server's rule).
+  assert.equal(s.targetDisplay(target({ status: "reached", outside_volume: true }), "at_target").status, "reached");
+  // Servers before issue 26 send neither field.
+  const old = target();
+  delete old.outside_volume;
+  delete old.path_warning;
+  assert.deepEqual([s.targetDisplay(old, "planning").status, s.targetDisplay(old, "planning").path_warning], ["reachable", ""]);
+  assert.equal(s.kStatusColour.outside_volume !== s.kStatusColour.unreachable, true);
 });

@@ -305,6 +305,36 @@ TEST(Gateway, AViewerGatewayKnowsWhatItMayNotDo) {
   fs::remove_all(pki);
 }
 
+// A killed server stays matched on DDS until its lease runs out (10 s by default): the gateway
+// goes by its Health samples (once a second) and says it is gone after 3 s without one, refuses
+// requests meanwhile instead of letting them time out, and says it is back once it is.
+TEST(Gateway, AKilledServerIsGoneWithinSecondsAndBackWhenRestarted) {
+  e2e::ServerProcess server(115);
+  RunningGateway gateway(115);
+  Browser tab(gateway.port());
+  const json hello = tab.next();
+  waitForServer(tab, hello);
+  tab.waitState([](const json& s) { return s.contains("health"); });
+  EXPECT_EQ(json::parse(httpGet(gateway.port(), "/healthz").body())["server"], true);
+  server.crash();
+  const auto killed = std::chrono::steady_clock::now();
+  for (json m = tab.next(); !(m["type"] == "connection" && m["server"] == false); m = tab.next()) {
+  }
+  const auto silence = std::chrono::steady_clock::now() - killed;
+  // At most 3 s after the last sample, which came at most about 1 s before the kill.
+  EXPECT_LT(silence, 4500ms);
+  EXPECT_EQ(json::parse(httpGet(gateway.port(), "/healthz").body())["server"], false);
+  const auto asked = std::chrono::steady_clock::now();
+  const json refused = tab.request(command("query"));
+  EXPECT_EQ(refused["code"], "no_server") << refused;
+  EXPECT_LT(std::chrono::steady_clock::now() - asked, 1s);  // not the 10 s reply timeout
+  EXPECT_NE(refused["message"].get<std::string>().find("domain 115"), std::string::npos);
+  server.start();
+  for (json m = tab.next(); !(m["type"] == "connection" && m["server"] == true); m = tab.next()) {
+  }
+  EXPECT_EQ(tab.request(command("query"))["accepted"], true);
+}
+
 TEST(Gateway, WithoutAServerRequestsFailClearlyAndTheStateSaysSo) {
   RunningGateway gateway(112);  // nothing on domain 112
   Browser tab(gateway.port());

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <atomic>
 #include <boost/asio.hpp>
 #include <boost/beast.hpp>
@@ -36,7 +37,13 @@ constexpr int kMaxInFlight = 64;
 // and gets the whole state again), so that a stalled tab cannot grow the gateway without end.
 constexpr std::size_t kMaxOutboxBytes = 32u << 20;
 constexpr std::size_t kMaxHttpRequestBytes = 64u << 10;
-constexpr auto kServerCheckPeriod = std::chrono::milliseconds(500);
+// How often the gateway looks whether the server is (still) there; a browser hears of a change
+// this much later at most (a restarted gateway's pages wait for it before asking for slices).
+constexpr auto kServerCheckPeriod = std::chrono::milliseconds(100);
+// The server publishes Health once a second. Silent this long, it is gone even while DDS still
+// lists it as matched: a killed server's endpoints stay matched until its lease runs out (10 s
+// by default), and one whose loop is stuck answers nothing either.
+constexpr auto kServerSilence = std::chrono::seconds(3);
 
 std::string contentType(const fs::path& file) {
   const std::string ext = file.extension().string();
@@ -93,6 +100,10 @@ struct Gateway::Impl {
   std::deque<Job> jobs;
   std::atomic<bool> stopping{false};
 
+  // ---- the DDS thread's ----
+  bool server_alive = false;                     // matched, and not silent (what browsers are told)
+  std::optional<Clock::time_point> last_health;  // when a Health sample last arrived
+
   Impl(GatewayOptions o)
       : options(std::move(o)),
         client(options.domain, options.dds_config_xml, options.client_id,
@@ -133,6 +144,7 @@ struct Gateway::Impl {
 
   // DDS thread.
   void ddsLoop();
+  bool serverSilent() const;
   json answer(const BrowserRequest& request);
   // From the DDS thread to a browser (or all), on the I/O thread.
   void post(std::weak_ptr<WsSession> to, json message, bool completes_request);
@@ -393,6 +405,14 @@ json Gateway::Impl::answer(const BrowserRequest& request) {
         seq, "no_server",
         "no ignav-server is matched on DDS domain " + std::to_string(options.domain));
   }
+  if (!emergency && serverSilent()) {
+    const auto silent_s =
+        std::chrono::duration_cast<std::chrono::seconds>(Clock::now() - *last_health).count();
+    return errorMessage(seq, "no_server",
+                        "ignav-server on DDS domain " + std::to_string(options.domain) +
+                            " has published nothing for " + std::to_string(silent_s) +
+                            " s (its health comes once a second)");
+  }
   const auto timeout = options.reply_timeout;
   try {
     if (const auto* c = std::get_if<CommandRequest>(&request.body)) {
@@ -412,9 +432,14 @@ json Gateway::Impl::answer(const BrowserRequest& request) {
   }
 }
 
+// Heard from once, and not since kServerSilence. (Before its first Health sample a matched server
+// counts as there: its state follows the match at once.)
+bool Gateway::Impl::serverSilent() const {
+  return last_health && Clock::now() - *last_health > kServerSilence;
+}
+
 void Gateway::Impl::ddsLoop() {
   auto next_check = Clock::now();
-  bool matched = false;
   while (!stopping) {
     std::optional<Job> job;
     {
@@ -430,14 +455,21 @@ void Gateway::Impl::ddsLoop() {
     // State after the answer: a browser sees its reply, then what its command changed.
     const auto changed = client.poll();
     if (!changed.empty()) post({}, stateMessage(client.state(), changed), false);
-    if (Clock::now() >= next_check) {
+    const bool heard = std::find(changed.begin(), changed.end(), "health") != changed.end();
+    if (heard) last_health = Clock::now();
+    // At once when a silent server speaks again, else every check period.
+    if (Clock::now() >= next_check || (heard && !server_alive)) {
       next_check = Clock::now() + kServerCheckPeriod;
-      const bool now = client.waitForServer(std::chrono::milliseconds(1));
-      if (now != matched) {
-        matched = now;
-        spdlog::info("ignav-server {} on DDS domain {}", matched ? "matched" : "lost",
+      const bool matched = client.waitForServer(std::chrono::milliseconds(1));
+      const bool silent = serverSilent();
+      if ((matched && !silent) != server_alive) {
+        server_alive = matched && !silent;
+        spdlog::info("ignav-server {} on DDS domain {}",
+                     server_alive ? "matched"
+                     : matched    ? "lost (matched, but no health for 3 s)"
+                                  : "lost (unmatched)",
                      options.domain);
-        post({}, connectionMessage(matched), false);
+        post({}, connectionMessage(server_alive), false);
       }
     }
   }

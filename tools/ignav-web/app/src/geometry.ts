@@ -130,6 +130,29 @@ export function volumeCentre(ijkToLps: Mat4, dims: Vec3): Vec3 {
   return transformPoint(ijkToLps, [(dims[0] - 1) / 2, (dims[1] - 1) / 2, (dims[2] - 1) / 2]);
 }
 
+// Where a view centres its slice: its own pan centre (`pan`, where it was last centred) moved
+// along its unit `normal` into the plane through the shared centre. Scrolling another view moves
+// the shared centre along that view's normal, perpendicular to this one's: its slice stays put.
+export function viewCentre(pan: Vec3, shared: Vec3, normal: Vec3): Vec3 {
+  return add(pan, scale(normal, dot(sub(shared, pan), normal)));
+}
+
+// `point` moved along the unit `normal` as little as needed to lie between the volume's first
+// and last voxel centres along it: scrolling stops at the volume's edge.
+export function clampAlong(point: Vec3, normal: Vec3, ijkToLps: Mat4, dims: Vec3): Vec3 {
+  let lo = Infinity;
+  let hi = -Infinity;
+  for (const i of [0, dims[0] - 1])
+    for (const j of [0, dims[1] - 1])
+      for (const k of [0, dims[2] - 1]) {
+        const t = dot(transformPoint(ijkToLps, [i, j, k]), normal);
+        lo = Math.min(lo, t);
+        hi = Math.max(hi, t);
+      }
+  const t = dot(point, normal);
+  return add(point, scale(normal, Math.min(hi, Math.max(lo, t)) - t));
+}
+
 // The pixel size at which a square image of size_px shows the volume's largest extent whole.
 export function fittingPixelMm(dims: Vec3, spacing_mm: Vec3, size_px: number): number {
   return Math.max(dims[0] * spacing_mm[0], dims[1] * spacing_mm[1], dims[2] * spacing_mm[2]) / size_px;

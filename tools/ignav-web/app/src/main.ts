@@ -1,12 +1,32 @@
 // The web viewer (docs/WEB.md): the server's state as the gateway streams it, three slice views
 // sharing one centre point, and the operator's workflow as clicks: fiducials, then targets,
 // then lock, approve, watch. Every click is a command; the server decides and the reply shows.
-import { add, fittingPixelMm, formatLps, parseLps, scale, spacingAlong, volumeCentre } from "./geometry";
+import { connectionView } from "./alerts";
+import { ServerClock, approvalPublishedAt_s } from "./clock";
+import {
+  add,
+  clampAlong,
+  fittingPixelMm,
+  formatLps,
+  parseLps,
+  scale,
+  spacingAlong,
+  viewCentre,
+  volumeCentre,
+} from "./geometry";
 import { Panels, byId } from "./panels";
 import { GatewaySocket, type SocketStatus } from "./socket";
 import type { Answer, HelloMessage, Request, ServerState, Vec3, ViewName } from "./state";
 import { targetDisplay } from "./status";
-import { type ClickMode, type Overlay, SliceView, type ViewHost, type ViewSettings, kSizePx } from "./views";
+import {
+  type ClickMode,
+  type Overlay,
+  SliceView,
+  type ViewHost,
+  type ViewSettings,
+  kSizePx,
+  kViewNormal,
+} from "./views";
 
 const kZoomStep = 1.25;
 const kPlaneToleranceVoxels = 1.5; // a marker this near the plane is drawn on it
@@ -18,33 +38,54 @@ let state: ServerState = {};
 let hello: HelloMessage | null = null;
 let socketStatus: SocketStatus = { open: false, retry_in_ms: 0 };
 let serverConnected: boolean | null = null;
-let settings: ViewSettings | null = null; // null until a volume is loaded
+let settings: ViewSettings | null = null; // null until a volume is loaded; centre_lps is shared
+// Where each view was last centred in its own plane (see viewCentre): a scroll moves the shared
+// centre along one view's normal and leaves the others' slices where they are.
+let pans: Record<ViewName, Vec3> | null = null;
+let lastScroll: { view: ViewName; step: number } | null = null; // which way, for fetching ahead
 let loadedVolume = ""; // which volume `settings` were made for
 let pendingFiducials: Vec3[] = [];
 let mode: ClickMode = "navigate";
 
+// The server's clock, as far as what it published tells (clock.ts): approvals count down on it.
+const serverClock = new ServerClock();
+const localNow_s = () => performance.now() / 1000;
+
 const panels = new Panels({
   goTo: (lps) => setCentre(lps),
   command: (kind, ids) => void command(kind, { ids }),
-  approve: (plan_id, digest) => void ask("approve", { op: "approve", plan_id, digest }),
+  approve: (plan_id, digest) => ask("approve", { op: "approve", plan_id, digest }),
+  serverNow_s: () => serverClock.now_s(localNow_s()),
 });
+
+// Whether a command from this page can reach the server now.
+const connected = () => connectionView(socketStatus, serverConnected).connected;
 
 const socket = new GatewaySocket(`${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws`, {
   hello(message) {
     hello = message;
-    // A new connection: whatever was asked on the old one is lost.
-    for (const view of views) view.refresh(true);
+    // A new connection: the slices are asked for again once the gateway says the server is there.
     scheduleRender();
   },
   state(topics) {
+    const received_s = localNow_s();
+    if (topics.health?.server_time_unix_s) serverClock.observe(topics.health.server_time_unix_s, received_s);
+    if (topics.approval?.status === "pending") {
+      const { expires_at_unix_s, expires_in_s } = topics.approval;
+      serverClock.observe(approvalPublishedAt_s(expires_at_unix_s, expires_in_s), received_s);
+    }
     state = { ...state, ...topics };
     if (topics.volume) volumeChanged();
-    // The feasible region drawn in the slices follows the registration.
-    if (topics.registration) for (const view of views) view.refresh(true);
+    // The feasible region drawn in the slices follows the registration. (Without the server, the
+    // slices are asked for once it is back.)
+    if (topics.registration && connected()) for (const view of views) view.refresh(true);
     scheduleRender();
   },
-  serverConnection(connected) {
-    serverConnected = connected;
+  serverConnection(server) {
+    const back = server && serverConnected !== true;
+    serverConnected = server;
+    // Whatever was asked while it was away (or on an older connection) is lost: ask again.
+    if (back) for (const view of views) view.refresh(true);
     scheduleRender();
   },
   status(status) {
@@ -56,10 +97,17 @@ const socket = new GatewaySocket(`${location.protocol === "https:" ? "wss" : "ws
 
 // ---- requests ------------------------------------------------------------------------------
 
+// Sends a request and shows its answer. Nothing but an emergency stop (whose button is disabled
+// then anyway) is sent while the page cannot reach the server.
 async function ask(what: string, request: Request): Promise<Answer> {
-  const answer = await socket.request(request);
+  const answer =
+    connected() || request.op === "emergency_stop" ? await socket.request(request) : notConnected();
   panels.reply(what, answer);
   return answer;
+}
+
+function notConnected(): Answer {
+  return { type: "error", seq: -1, code: "not_connected", message: "not sent: the server is not reachable from this page" };
 }
 
 function command(kind: string, args: { points?: Vec3[]; ids?: number[]; path?: string } = {}): Promise<Answer> {
@@ -83,9 +131,12 @@ function volumeChanged(): void {
           level: Number(byId<HTMLInputElement>("level").value),
         }
       : null;
+  pans = settings && centredPans(settings.centre_lps);
   for (const view of views) view.refresh(true);
   showCentre();
 }
+
+const centredPans = (lps: Vec3): Record<ViewName, Vec3> => ({ axial: lps, sagittal: lps, coronal: lps });
 
 function changeSettings(change: Partial<ViewSettings>): void {
   if (!settings) return;
@@ -95,8 +146,46 @@ function changeSettings(change: Partial<ViewSettings>): void {
   scheduleRender();
 }
 
+// Every view centred on `lps` (a click in navigate mode, "go to", a target's row).
 function setCentre(lps: Vec3): void {
+  if (!settings) return;
+  pans = centredPans(lps);
+  lastScroll = null;
   changeSettings({ centre_lps: lps });
+}
+
+// A wheel step on one view: the shared centre moves along that view's normal, at most to the
+// volume's edge, and only that view asks for a slice; the others redraw their crosshair.
+function scroll(name: ViewName, steps: number): void {
+  const next = scrolledCentre(name, steps);
+  if (!settings || !next) return;
+  settings = { ...settings, centre_lps: next };
+  lastScroll = { view: name, step: Math.sign(steps) };
+  views.find((view) => view.name === name)?.refresh();
+  showCentre();
+  scheduleRender();
+}
+
+// The shared centre `steps` wheel steps along a view's normal, at most to the volume's edge.
+function scrolledCentre(name: ViewName, steps: number): Vec3 | null {
+  const volume = state.volume;
+  if (!settings || !volume) return null;
+  const normal = kViewNormal[name];
+  const moved = add(settings.centre_lps, scale(normal, steps * spacingAlongNormal(normal)));
+  return clampAlong(moved, normal, volume.ijk_to_lps, volume.dims);
+}
+
+// What one more step the way the view was scrolled last would show (the view fetches it ahead).
+function prefetchSettings(name: ViewName): ViewSettings | null {
+  if (!settings || !pans || lastScroll?.view !== name) return null;
+  const next = scrolledCentre(name, lastScroll.step);
+  return next && { ...settings, centre_lps: viewCentre(pans[name], next, kViewNormal[name]) };
+}
+
+// A view's settings: the shared ones, centred where that view is (viewCentre).
+function viewSettings(name: ViewName): ViewSettings | null {
+  if (!settings || !pans) return null;
+  return { ...settings, centre_lps: viewCentre(pans[name], settings.centre_lps, kViewNormal[name]) };
 }
 
 function zoom(factor: number): void {
@@ -146,22 +235,22 @@ async function clickedFiducial(lps: Vec3): Promise<void> {
 }
 
 const host: ViewHost = {
-  settings: () => settings,
+  settings: viewSettings,
+  prefetch: prefetchSettings,
   overlay,
   mode: () => mode,
   planeToleranceMm: (normal) => kPlaneToleranceVoxels * spacingAlongNormal(normal),
   send: (request) => socket.request(request),
   clicked(lps) {
     if (mode === "navigate") setCentre(lps);
+    else if (!connected()) panels.reply(mode === "fiducial" ? "fiducial click" : "add_target", notConnected());
     else if (mode === "fiducial") void clickedFiducial(lps);
     else void command("add_target", { points: [lps] });
   },
   targetDragged(id, lps) {
     void command("move_target", { ids: [id], points: [lps] });
   },
-  scrolled(normal, steps) {
-    if (settings) setCentre(add(settings.centre_lps, scale(normal, steps * spacingAlongNormal(normal))));
-  },
+  scrolled: scroll,
   zoomed: zoom,
 };
 
@@ -182,7 +271,7 @@ function scheduleRender(): void {
 function render(): void {
   renderScheduled = false;
   panels.connection(socketStatus, serverConnected);
-  panels.workflow(state.workflow, hello);
+  panels.workflow(state.workflow, hello, state.motion);
   panels.volume(state.volume);
   panels.registration(state.registration, pendingFiducials);
   panels.targets(state.targets, state.workflow, state.approval, state.motion);
@@ -245,7 +334,7 @@ for (const button of document.querySelectorAll<HTMLButtonElement>("button[data-p
 byId("zoom-in").addEventListener("click", () => zoom(1 / kZoomStep));
 byId("zoom-out").addEventListener("click", () => zoom(kZoomStep));
 
-setInterval(() => panels.tick(), 1000);
+setInterval(() => panels.tick(), 250); // the approval's countdown
 
 // For tests and the curious: the state as the page holds it (a copy) and a way to drop the
 // connection as a network failure would.
@@ -254,6 +343,10 @@ Object.defineProperty(window, "ignav", {
     state: (): ServerState => structuredClone(state),
     hello: (): HelloMessage | null => structuredClone(hello),
     dropConnection: () => socket.drop(),
+    // For benchmarks: whether a scrolled view fetches its next slice ahead (on by default).
+    setPrefetching: (on: boolean) => {
+      for (const view of views) view.prefetching = on;
+    },
   }),
 });
 

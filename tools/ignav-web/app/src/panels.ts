@@ -1,6 +1,10 @@
 // The panels around the slice views: connection, workflow, volume, registration, targets,
 // approval, motion and the last reply. Each is rebuilt only when what it shows has changed, so
-// that a stream of motion updates neither flickers the table nor swallows a click on it.
+// that a stream of motion updates neither flickers the table nor swallows a click on it. While
+// the page cannot reach the server, a banner says so and every control that would send a
+// command is disabled, the emergency stop included (alerts.ts).
+import { connectionView, phaseBanner } from "./alerts";
+import { approvalView } from "./approval";
 import { formatLps } from "./geometry";
 import type { SocketStatus } from "./socket";
 import type {
@@ -19,7 +23,8 @@ import { targetDisplay } from "./status";
 export interface PanelActions {
   goTo(lps: Vec3): void;
   command(kind: string, ids: number[]): void;
-  approve(plan_id: number, digest: string): void;
+  approve(plan_id: number, digest: string): Promise<Answer>;
+  serverNow_s(): number | null; // the page's estimate of the server's clock (clock.ts)
 }
 
 const kDegPerRad = 180 / Math.PI;
@@ -55,10 +60,14 @@ function facts(rows: [string, string, string?, string?][]): HTMLElement {
 
 const mm = (x: number, digits = 2) => `${x.toFixed(digits)} mm`;
 
+const approvalKey = (a: ApprovalState) => `${a.plan_id}:${a.digest}`;
+
 export class Panels {
   private readonly keys = new Map<string, string>();
-  private approvalExpiry: { plan_id: number; expires_at_ms: number } | null = null;
   private replies = 0;
+  private connected = false; // commands from this page reach the server
+  private pending: { approval: ApprovalState; may_approve: boolean } | null = null;
+  private approving: string | null = null; // approvalKey of the approval on its way
 
   constructor(private readonly actions: PanelActions) {}
 
@@ -70,22 +79,31 @@ export class Panels {
     return true;
   }
 
+  // Whether the page reaches the server; the other panels follow what this last said.
   connection(status: SocketStatus, server: boolean | null): void {
-    const gateway = status.open
-      ? "gateway: connected"
-      : status.retry_in_ms > 0
-        ? `gateway: disconnected, retrying in ${(status.retry_in_ms / 1000).toFixed(1)} s`
-        : "gateway: connecting…";
-    const serverText = server === null ? "server: ?" : server ? "server: connected" : "server: not connected";
+    const view = connectionView(status, server);
+    this.connected = view.connected;
     const element = byId("connection");
-    element.textContent = `${gateway} · ${serverText}`;
-    element.className = status.open && server ? "ok" : "bad";
+    element.textContent = view.header;
+    element.className = view.connected ? "ok" : "bad";
+    const banner = byId("connection-banner");
+    banner.textContent = view.banner ?? "";
+    banner.hidden = view.banner === null;
+    // Not a button that looks active and does nothing: it says it cannot reach the robot.
+    const estop = byId<HTMLButtonElement>("estop");
+    estop.disabled = !view.connected;
+    estop.classList.toggle("unreachable", !view.connected);
+    estop.textContent = view.connected ? "EMERGENCY STOP" : "E-STOP NOT REACHABLE FROM THIS PAGE";
+    estop.title = view.connected
+      ? "halts the robot from any phase"
+      : "this page cannot reach the server: use the robot's hardware emergency stop or another station";
   }
 
-  // A button is enabled when the workflow allows its command now and the gateway's identity may
-  // send it at all (a viewer's gateway shows the plan but cannot change it).
-  workflow(workflow: WorkflowState | undefined, hello: HelloMessage | null): void {
-    const permitted = new Set(hello?.permitted ?? []);
+  // A button is enabled when the page reaches the server, the workflow allows its command now
+  // and the gateway's identity may send it at all (a viewer's gateway shows the plan but cannot
+  // change it).
+  workflow(workflow: WorkflowState | undefined, hello: HelloMessage | null, motion: MotionState | undefined): void {
+    const permitted = new Set(this.connected ? (hello?.permitted ?? []) : []);
     const allowed = new Set((workflow?.allowed_commands ?? []).filter((c) => permitted.has(c)));
     byId("phase").textContent = workflow?.phase ?? "";
     byId("phase").dataset.phase = workflow?.phase ?? "";
@@ -95,6 +113,10 @@ export class Panels {
     const notice = byId("safety-notice");
     notice.textContent = workflow?.safety_notice ?? "";
     notice.hidden = !workflow?.safety_notice;
+    const halted = phaseBanner(workflow?.phase ?? "", motion?.fault ?? "");
+    const banner = byId("phase-banner");
+    banner.textContent = halted ?? "";
+    banner.hidden = halted === null;
     for (const button of document.querySelectorAll<HTMLButtonElement>("button[data-command]")) {
       button.disabled = !allowed.has(button.dataset.command ?? "");
     }
@@ -152,7 +174,7 @@ export class Panels {
     motion: MotionState | undefined,
   ): void {
     const phase = workflow?.phase ?? "";
-    const allowed = workflow?.allowed_commands ?? [];
+    const allowed = this.connected ? (workflow?.allowed_commands ?? []) : [];
     // Motion matters to the table only as "which target is it moving to".
     const moving = motion ? { state: motion.state, target_id: motion.target_id } : undefined;
     const pending = approval ? { status: approval.status, target_id: approval.target_id } : undefined;
@@ -186,7 +208,11 @@ export class Panels {
         el("td", {}, `T${target.id}`),
         el("td", {}, formatLps(target.lps)),
         el("td", { "data-testid": `target-status-${target.id}`, style: `color: ${shown.colour}` }, shown.label),
-        el("td", { "data-testid": `target-reach-${target.id}`, class: "reason" }, shown.detail),
+        el(
+          "td",
+          { "data-testid": `target-reach-${target.id}`, class: shown.path_warning ? "reason warning" : "reason" },
+          shown.detail,
+        ),
         el("td", {}, known ? (theta_c_rad * kDegPerRad).toFixed(1) : "–"),
         el("td", {}, known ? z_c_mm.toFixed(2) : "–"),
         el("td", {}, known ? z_s_mm.toFixed(2) : "–"),
@@ -210,19 +236,20 @@ export class Panels {
     byId("targets-empty").hidden = rows.length > 0;
   }
 
-  approval(approval: ApprovalState | undefined, hello: HelloMessage | null): void {
-    if (!this.changed("approval", [approval, hello])) return;
+  approval(current: ApprovalState | undefined, hello: HelloMessage | null): void {
+    const waiting = current?.status === "pending" ? current : undefined;
+    // An approval on its way is for the request it was clicked on; any other request is new.
+    if (this.approving !== null && (!waiting || approvalKey(waiting) !== this.approving)) this.approving = null;
+    if (!this.changed("approval", [current, hello])) return this.tick();
     const body = byId("approval-body");
     const approve = byId<HTMLButtonElement>("approve");
-    if (!approval || approval.status !== "pending") {
+    if (!waiting) {
       body.replaceChildren(el("p", { "data-testid": "approval-none" }, "no motion waits for approval"));
-      approve.hidden = true;
-      this.approvalExpiry = null;
-      this.tick();
-      return;
+      this.pending = null;
+      approve.onclick = null;
+      return this.tick();
     }
-    // Counted from arrival rather than from the server's wall clock, which may differ from ours.
-    this.approvalExpiry = { plan_id: approval.plan_id, expires_at_ms: performance.now() + approval.expires_in_s * 1000 };
+    const approval = waiting;
     const identity = [hello?.client_id, hello?.subject].filter((x): x is string => !!x);
     const mayApprove =
       (hello?.permitted ?? []).includes("approve") && identity.some((who) => approval.approvers.includes(who));
@@ -240,18 +267,46 @@ export class Panels {
       el("p", { "data-testid": "approval-expiry", id: "approval-expiry" }),
       mayApprove ? "" : el("p", { class: "note" }, `this viewer acts as ${identity.join(" / ") || "?"}: not an approver`),
     );
-    approve.hidden = !mayApprove;
-    approve.onclick = () => this.actions.approve(approval.plan_id, approval.digest);
+    this.pending = { approval, may_approve: mayApprove };
+    // One approval per click, and no second while the first is on its way (a double click).
+    approve.onclick = () => {
+      if (approve.disabled || this.approving !== null) return;
+      const key = approvalKey(approval);
+      this.approving = key;
+      this.tick();
+      void this.actions.approve(approval.plan_id, approval.digest).then((answer) => {
+        // Accepted, the request is used up and the server's next approval state ends it; refused
+        // or lost, the button comes back (the reply line says why).
+        const accepted = answer.type === "reply" && answer.accepted;
+        if (!accepted && this.approving === key) this.approving = null;
+        this.tick();
+      });
+    };
     this.tick();
   }
 
-  // The approval's countdown; called every second.
+  // The approval's countdown against the server's clock, and the approve button; called often.
   tick(): void {
+    const approve = byId<HTMLButtonElement>("approve");
     const expiry = document.getElementById("approval-expiry");
-    if (!expiry || !this.approvalExpiry) return;
-    const left_s = (this.approvalExpiry.expires_at_ms - performance.now()) / 1000;
-    expiry.textContent = left_s > 0 ? `expires in ${Math.ceil(left_s)} s` : "expired: request approval again";
-    expiry.className = left_s > 10 ? "" : "warning";
+    if (!this.pending || !expiry) {
+      approve.hidden = true;
+      return;
+    }
+    const { approval, may_approve } = this.pending;
+    const view = approvalView({
+      expires_at_unix_s: approval.expires_at_unix_s,
+      server_now_s: this.actions.serverNow_s(),
+      connected: this.connected,
+      may_approve,
+      in_flight: this.approving === approvalKey(approval),
+    });
+    expiry.textContent = view.expiry_text;
+    expiry.className = view.urgent ? "warning" : "";
+    expiry.dataset.expired = String(view.expired);
+    approve.hidden = view.approve_hidden;
+    approve.disabled = view.approve_disabled;
+    approve.textContent = view.approve_label;
   }
 
   motion(motion: MotionState | undefined): void {

@@ -62,8 +62,11 @@ export interface TargetState {
   tre_warning: boolean;
   order: number;
   predicted_deviation_mm: number | null;
-  status: string; // planned | reached | unreachable | unregistered
+  status: string; // planned | reached | unreachable | unregistered | outside_volume
   path_lps?: Vec3[]; // absent from servers that predate docs/WEB.md
+  // A CT is loaded and the target lies outside it (never imaged): lock_plan refuses it.
+  outside_volume?: boolean; // absent from servers that predate issue 26, as are:
+  path_warning?: string; // "" or: the planned path leaves the loaded CT (where, for how long)
 }
 
 export interface PlannedMove {
@@ -73,7 +76,7 @@ export interface PlannedMove {
 }
 
 export interface ApprovalState {
-  status: string; // none | pending
+  status: string; // none | pending (also once expired: the server then refuses it)
   plan_id: number;
   digest: string;
   target_id: number; // 0: the final retraction of the stylet
@@ -82,8 +85,8 @@ export interface ApprovalState {
   moves: PlannedMove[];
   duration_s: number;
   tre_mm: number;
-  expires_in_s: number;
-  expires_at_unix_s: number;
+  expires_in_s: number; // at publication: a late page must not count from it
+  expires_at_unix_s: number; // the server's clock (Unix s)
   approvers: string[];
 }
 
@@ -114,6 +117,9 @@ export interface HealthState {
   commands_rejected: number;
   journal: string;
   igtl_clients?: number; // OpenIGTLink clients connected now
+  // The server's wall clock (Unix s) when it wrote this sample, once a second: what an approval's
+  // expires_at_unix_s is counted down against (clock.ts). Absent from servers before issue 26.
+  server_time_unix_s?: number;
 }
 
 // Every topic is absent until the server first publishes it.

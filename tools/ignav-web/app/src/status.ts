@@ -3,6 +3,7 @@
 import type { ApprovalState, MotionState, TargetState } from "./state";
 
 export type DisplayStatus =
+  | "outside_volume" // outside the loaded CT: never imaged, so lock_plan refuses it
   | "unregistered" // no registration yet: no robot coordinates
   | "unreachable" // outside the workspace (the server says why)
   | "reachable" // feasible, the plan still editable
@@ -15,10 +16,12 @@ export interface TargetDisplay {
   status: DisplayStatus;
   label: string;
   colour: string; // CSS colour of its marker, path and status cell
-  detail: string; // for a tooltip: the server's reason or message
+  detail: string; // for a tooltip: the server's reason or message, and any path warning
+  path_warning: string; // "" or: the planned path leaves the loaded CT (where, for how long)
 }
 
 const kLabel: Record<DisplayStatus, string> = {
+  outside_volume: "outside the CT",
   unregistered: "unregistered",
   unreachable: "unreachable",
   reachable: "reachable",
@@ -29,6 +32,7 @@ const kLabel: Record<DisplayStatus, string> = {
 };
 
 export const kStatusColour: Record<DisplayStatus, string> = {
+  outside_volume: "#8d6e63",
   unregistered: "#9e9e9e",
   unreachable: "#f44336",
   reachable: "#4caf50",
@@ -54,8 +58,13 @@ export function targetDisplay(
 ): TargetDisplay {
   const status = displayStatus(target, phase, approval, motion);
   const reason = target.reach && target.reach !== "reachable" ? `${target.reach}: ` : "";
-  const detail = target.message ? `${reason}${target.message}` : target.reach;
-  return { status, label: kLabel[status], colour: kStatusColour[status], detail };
+  let detail = target.message ? `${reason}${target.message}` : target.reach;
+  // The server's message names the distance when it has one; without, the verdict still shows.
+  if (status === "outside_volume" && !target.message) detail = "outside the loaded CT: lock_plan refuses it";
+  const path_warning = target.path_warning ?? "";
+  // The server's message carries the warning already; older messages, or none, may not.
+  if (path_warning && !detail.includes(path_warning)) detail = detail ? `${detail}; ${path_warning}` : path_warning;
+  return { status, label: kLabel[status], colour: kStatusColour[status], detail, path_warning };
 }
 
 function displayStatus(
@@ -64,6 +73,10 @@ function displayStatus(
   approval: ApprovalState | undefined,
   motion: MotionState | undefined,
 ): DisplayStatus {
+  // As the server rules (Target::status): where the needle has been stays "reached".
+  if (target.status === "outside_volume" || (target.outside_volume && target.status !== "reached")) {
+    return "outside_volume";
+  }
   if (target.status === "unregistered" || !target.registered) return "unregistered";
   if (target.status === "unreachable" || !target.reachable) return "unreachable";
   if (motion?.state === "moving" && motion.target_id === target.id) return "moving";

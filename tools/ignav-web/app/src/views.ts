@@ -1,7 +1,10 @@
 // One slice view: a canvas showing the server's slice (the CT with the feasible region) and,
 // drawn here, the fiducials, targets, planned paths and the needle tip. At most one slice request
 // per view is in flight; when the wanted slice changes meanwhile, the newest is asked for once
-// the answer is in (a scroll of ten steps costs two requests, not ten).
+// the answer is in (a scroll of ten steps costs two requests, not ten). Each view asks for its
+// own slice only when its own plane or pan changes: scrolling one view asks for no other. While
+// a view is being scrolled it fetches the next slice in that direction once the wanted one is
+// shown, and keeps the last few slices, so that a step onto either is drawn without a wait.
 import {
   type CanvasScale,
   type SliceFrame,
@@ -19,6 +22,14 @@ import {
 import type { Answer, SliceRequest, Vec3, ViewName } from "./state";
 
 export const kSizePx = 512;
+
+// The unit normal n = u x v of each view's plane (modules/volume/include/ignav/volume/slice.hpp):
+// axial +S, coronal +P, sagittal -L. A wheel step moves the plane along it.
+export const kViewNormal: Record<ViewName, Vec3> = {
+  axial: [0, 0, 1],
+  coronal: [0, 1, 0],
+  sagittal: [-1, 0, 0],
+};
 
 export interface ViewSettings {
   centre_lps: Vec3;
@@ -48,20 +59,25 @@ export type ClickMode = "navigate" | "fiducial" | "target";
 
 // What a view needs from the page.
 export interface ViewHost {
-  settings(): ViewSettings | null; // null: no volume to show
+  settings(view: ViewName): ViewSettings | null; // this view's (its own centre); null: no volume
   overlay(): Overlay;
   mode(): ClickMode;
   planeToleranceMm(normal: Vec3): number; // a point this close to the plane is on it
+  // The slice one more wheel step would want (this view was scrolled last), or null.
+  prefetch(view: ViewName): ViewSettings | null;
   send(request: SliceRequest): Promise<Answer>;
   clicked(lps: Vec3): void;
   targetDragged(id: number, lps: Vec3): void;
-  scrolled(normal: Vec3, steps: number): void;
+  scrolled(view: ViewName, steps: number): void; // steps along kViewNormal[view]
   zoomed(factor: number): void;
 }
 
 interface Shown {
   frame: SliceFrame;
   image: HTMLImageElement;
+  pixel_to_lps: number[];
+  centre_lps: Vec3; // asked for
+  pixel_mm: number;
 }
 
 interface Drag {
@@ -73,6 +89,12 @@ interface Drag {
   moved: boolean;
 }
 
+// Answers after which the view keeps its slice and waits to be asked again (on reconnection).
+const kRetryLater = new Set(["disconnected", "no_server"]);
+
+// Slices a view keeps (decoded, about 1 MB each): the last few shown and the one fetched ahead.
+const kKeptSlices = 6;
+
 const kMarkerRadiusPx = 7;
 const kHitRadiusCss = 10; // how near a press must be to a marker to grab it
 const kDragThresholdCss = 3; // a press that moves less is a click
@@ -83,9 +105,16 @@ export class SliceView {
   private readonly ctx: CanvasRenderingContext2D;
   private shown: Shown | null = null;
   private problem = ""; // why nothing is shown
-  private lastRequest: string | null = null; // JSON of the request sent last
-  private inFlight = false;
+  // Slices are known by their request (JSON): the one on the canvas, the one the settings want,
+  // the one asked for (at most one at a time), and the last ones received.
+  private shownKey: string | null = null;
+  private wantedKey: string | null = null;
+  private fetchingKey: string | null = null;
+  private prefetchedFor: string | null = null; // shownKey whose next slice was fetched ahead
+  private readonly kept = new Map<string, Shown>(); // oldest first
+  private generation = 0; // a forced refresh makes everything asked before it stale
   private slicesShown = 0;
+  prefetching = true; // for benchmarks: off, every step waits for the server
   private drag: Drag | null = null;
   private press: { pointer: number; start_css: [number, number] } | null = null;
 
@@ -111,19 +140,41 @@ export class SliceView {
     this.draw();
   }
 
-  // Ask for the slice the settings want, unless it is already shown or asked for. `force` asks
-  // again even so: after a reconnection, a new volume or a new registration (the region).
+  // Show the slice the settings want: at once when it is kept, else ask for it (unless another
+  // request of this view is out: its answer calls refresh again). `force` forgets every slice
+  // shown, kept or asked for: after a reconnection, a new volume or a new registration (the
+  // region drawn in it).
   refresh(force = false): void {
-    if (force) this.lastRequest = null;
-    const settings = this.host.settings();
+    if (force) {
+      this.generation++;
+      this.shownKey = null;
+      this.prefetchedFor = null;
+      this.kept.clear();
+    }
+    const settings = this.host.settings(this.name);
     if (!settings) {
-      this.lastRequest = null;
+      this.shownKey = this.wantedKey = null;
       this.showNothing("no volume loaded");
       this.draw();
       return;
     }
-    if (this.inFlight) return; // the answer's arrival calls refresh again
-    const request: SliceRequest = {
+    const request = this.request(settings);
+    const key = JSON.stringify(request);
+    this.wantedKey = key;
+    if (key !== this.shownKey) {
+      const kept = this.kept.get(key);
+      if (kept) {
+        this.display(key, kept);
+      } else {
+        if (this.fetchingKey === null) this.fetch(request, key);
+        return;
+      }
+    }
+    this.fetchAhead();
+  }
+
+  private request(settings: ViewSettings): SliceRequest {
+    return {
       op: "slice",
       view: this.name,
       centre_lps: settings.centre_lps,
@@ -133,17 +184,67 @@ export class SliceView {
       level: settings.level,
       overlays: "region",
     };
-    const key = JSON.stringify(request);
-    if (key === this.lastRequest) return;
-    this.lastRequest = key;
-    this.inFlight = true;
+  }
+
+  private fetch(request: SliceRequest, key: string): void {
+    this.fetchingKey = key;
+    const generation = this.generation;
     void this.host.send(request).then(async (answer) => {
-      await this.show(answer, request);
-      this.inFlight = false;
-      // Lost with the connection: the next connection's hello asks again.
-      if (answer.type === "error" && answer.code === "disconnected") return;
+      const slice = await decode(answer, request);
+      this.fetchingKey = null;
+      if (generation !== this.generation) return this.refresh(); // asked before a forced refresh
+      const wanted = key === this.wantedKey;
+      if (typeof slice !== "string") {
+        this.keep(key, slice);
+      } else if (answer.type === "error" && kRetryLater.has(answer.code)) {
+        // Lost with the connection or the server: the slice on screen stays (the banner says
+        // why) and the view asks again once the server is back.
+        return;
+      } else if (wanted) {
+        this.shownKey = key; // not asked again until something changes
+        this.showNothing(slice);
+        this.draw();
+        return;
+      } else {
+        return; // a slice fetched ahead that failed: not asked again
+      }
       this.refresh();
     });
+  }
+
+  // While this view is being scrolled: the slice one more step would show, fetched now.
+  private fetchAhead(): void {
+    if (!this.prefetching || this.fetchingKey !== null || this.shownKey === null) return;
+    if (this.prefetchedFor === this.shownKey) return;
+    const next = this.host.prefetch(this.name);
+    if (!next) return;
+    this.prefetchedFor = this.shownKey;
+    const request = this.request(next);
+    const key = JSON.stringify(request);
+    if (!this.kept.has(key) && key !== this.shownKey) this.fetch(request, key);
+  }
+
+  private keep(key: string, slice: Shown): void {
+    this.kept.delete(key);
+    this.kept.set(key, slice);
+    for (const oldest of this.kept.keys()) {
+      if (this.kept.size <= kKeptSlices) break;
+      this.kept.delete(oldest);
+    }
+  }
+
+  private display(key: string, slice: Shown): void {
+    this.keep(key, slice); // the most recently used
+    this.shownKey = key;
+    this.shown = slice;
+    this.problem = "";
+    // For tests and tools: the map of the slice on screen, and the centre it was asked for.
+    this.canvas.dataset.pixelToLps = JSON.stringify(slice.pixel_to_lps);
+    this.canvas.dataset.centreLps = JSON.stringify(slice.centre_lps);
+    this.caption.textContent = `${this.name} · ${formatLps(slice.centre_lps)} mm · ${slice.pixel_mm.toFixed(3)} mm/px`;
+    this.draw();
+    // Counted once it is on the canvas (a test or bench waits for this to change).
+    this.canvas.dataset.slicesShown = String(++this.slicesShown);
   }
 
   draw(): void {
@@ -163,37 +264,6 @@ export class SliceView {
     // PNG pixel (u, v) has its centre at canvas (u + 0.5, v + 0.5).
     ctx.translate(0.5, 0.5);
     this.drawOverlay(shown.frame);
-  }
-
-  private async show(answer: Answer, request: SliceRequest): Promise<void> {
-    if (answer.type === "error") {
-      // Lost with the connection, the slice on screen stays until the next one. Otherwise, why.
-      if (answer.code === "disconnected") {
-        this.lastRequest = null;
-        return;
-      }
-      this.showNothing(`${answer.code}: ${answer.message}`);
-    } else if (answer.type !== "slice") {
-      this.showNothing(`unexpected answer ${answer.type}`);
-    } else if (!answer.ok) {
-      this.showNothing(`slice: ${answer.message}`);
-    } else {
-      try {
-        const image = new Image();
-        image.src = `data:image/png;base64,${answer.png_base64}`;
-        await image.decode();
-        this.shown = { frame: sliceFrame(answer.pixel_to_lps), image };
-        this.problem = "";
-        // For tests and tools: the map of the slice on screen, and the centre it was asked for.
-        this.canvas.dataset.pixelToLps = JSON.stringify(answer.pixel_to_lps);
-        this.canvas.dataset.centreLps = JSON.stringify(request.centre_lps);
-        this.canvas.dataset.slicesShown = String(++this.slicesShown);
-        this.caption.textContent = `${this.name} · ${formatLps(request.centre_lps)} mm · ${request.pixel_mm.toFixed(3)} mm/px`;
-      } catch (error) {
-        this.showNothing(`slice: ${String(error)}`);
-      }
-    }
-    this.draw();
   }
 
   private showNothing(problem: string): void {
@@ -409,9 +479,30 @@ export class SliceView {
         if (!this.shown || event.deltaY === 0) return;
         event.preventDefault();
         if (event.ctrlKey) this.host.zoomed(event.deltaY > 0 ? 1.25 : 1 / 1.25);
-        else this.host.scrolled(this.shown.frame.normal, event.deltaY > 0 ? 1 : -1);
+        else this.host.scrolled(this.name, event.deltaY > 0 ? 1 : -1);
       },
       { passive: false },
     );
+  }
+}
+
+// A slice answer decoded for the canvas, or why there is none.
+async function decode(answer: Answer, request: SliceRequest): Promise<Shown | string> {
+  if (answer.type === "error") return `${answer.code}: ${answer.message}`;
+  if (answer.type !== "slice") return `unexpected answer ${answer.type}`;
+  if (!answer.ok) return `slice: ${answer.message}`;
+  try {
+    const image = new Image();
+    image.src = `data:image/png;base64,${answer.png_base64}`;
+    await image.decode();
+    return {
+      frame: sliceFrame(answer.pixel_to_lps),
+      image,
+      pixel_to_lps: answer.pixel_to_lps,
+      centre_lps: request.centre_lps,
+      pixel_mm: request.pixel_mm,
+    };
+  } catch (error) {
+    return `slice: ${String(error)}`;
   }
 }
