@@ -13,12 +13,13 @@
 //        [--app-dir DIR]   (the bundled app; default BUILD/tools/ignav-web/app)
 //
 // Screenshots of every stage go to --out (01-loaded.png ... 08-server-gone.png; failure.png).
-import { spawn, execFileSync } from "node:child_process";
+import { execFileSync } from "node:child_process";
 import fs from "node:fs";
 import os from "node:os";
 import path from "node:path";
 import { createRequire } from "node:module";
 import { parseArgs } from "node:util";
+import { children, kill, startProcess, stopChildren } from "./children.mjs";
 
 const { values: args } = parseArgs({
   options: {
@@ -76,63 +77,6 @@ function invertRigid(m) {
   return [...rt.map((row) => [...row, -dot(row, t)]), [0, 0, 0, 1]];
 }
 const fmt = (p) => p.map((x) => x.toFixed(2)).join(", ");
-
-// ---- processes ------------------------------------------------------------------------------
-
-const children = [];
-function startProcess(name, exe, argv, readyPattern) {
-  check(fs.existsSync(exe), `${exe} is missing: build the project first`);
-  const child = spawn(exe, argv, { stdio: ["ignore", "pipe", "pipe"] });
-  const record = { name, child, output: "", match: null };
-  children.push(record);
-  return new Promise((resolve, reject) => {
-    const timer = setTimeout(() => reject(new Error(`${name} not ready in ${kTimeoutMs} ms`)), kTimeoutMs);
-    const collect = (chunk) => {
-      record.output += chunk.toString();
-      const match = record.output.match(readyPattern);
-      if (match && !record.match) {
-        clearTimeout(timer);
-        record.match = match;
-        resolve(record);
-      }
-    };
-    child.stdout.on("data", collect);
-    child.stderr.on("data", (chunk) => (record.output += chunk.toString()));
-    child.on("exit", (code, signal) => {
-      clearTimeout(timer);
-      reject(new Error(`${name} exited (${code ?? signal}) before it was ready:\n${record.output}`));
-    });
-  });
-}
-// SIGKILL, as a crash would: nothing of the process's own shutdown runs.
-function killProcess({ child }) {
-  if (child.exitCode !== null || child.signalCode !== null) return Promise.resolve();
-  return new Promise((resolve) => {
-    child.once("exit", resolve);
-    child.kill("SIGKILL");
-  });
-}
-function killChildren() {
-  for (const { child } of children) if (child.exitCode === null && child.signalCode === null) child.kill("SIGKILL");
-}
-process.on("exit", killChildren);
-for (const signal of ["SIGINT", "SIGTERM"]) process.on(signal, () => process.exit(1));
-
-async function stopChildren() {
-  await Promise.all(
-    children.map(({ child }) => {
-      if (child.exitCode !== null || child.signalCode !== null) return null;
-      return new Promise((resolve) => {
-        const force = setTimeout(() => child.kill("SIGKILL"), 3000);
-        child.on("exit", () => {
-          clearTimeout(force);
-          resolve();
-        });
-        child.kill("SIGTERM");
-      });
-    }),
-  );
-}
 
 // ---- page helpers -----------------------------------------------------------------------------
 
@@ -593,7 +537,7 @@ async function run(pages) {
     check(before.controls.commands.includes(command), `${command} was not enabled before (${before.controls.commands})`);
   }
   check(before.controls.approve === "enabled" && !before.controls.estop.disabled, "approve or E-STOP not enabled before");
-  await killProcess(gateway);
+  await kill(gateway);
   await checkCutOff(page, "gateway");
   const expiryWhileDown = await byTestId(page, "approval-expiry").textContent();
   check(/not reachable/.test(expiryWhileDown), `the approval still counts down as if approvable: "${expiryWhileDown}"`);
@@ -673,7 +617,7 @@ async function run(pages) {
 
   step("the server dies (SIGKILL): the gateway says so within seconds, and the page cuts itself off");
   const killed = Date.now();
-  await killProcess(server);
+  await kill(server);
   // DDS alone would keep the dead server matched until its lease ran out (10 s): the gateway
   // goes by its health samples, which stop (3 s of silence).
   await waitText(page, "connection", /server: not connected/, 8000);

@@ -17,13 +17,14 @@
 //
 // A benchmark, not a test: it prints figures (docs/PERFORMANCE.md) and fails only when the
 // viewer does not do the thing at all.
-import { spawn, execFileSync } from "node:child_process";
+import { execFileSync } from "node:child_process";
 import fs from "node:fs";
 import os from "node:os";
 import path from "node:path";
 import { createRequire } from "node:module";
 import { fileURLToPath } from "node:url";
 import { parseArgs } from "node:util";
+import { children, kill, startProcess, stopChildren } from "../../tests/web/children.mjs";
 
 const source = path.resolve(path.dirname(fileURLToPath(import.meta.url)), "../..");
 const { values: args } = parseArgs({
@@ -50,45 +51,6 @@ const kTimeoutMs = 15000;
 function check(condition, message) {
   if (!condition) throw new Error(message);
 }
-
-// ---- processes --------------------------------------------------------------------------------
-
-const children = [];
-function startProcess(name, exe, argv, readyPattern) {
-  check(fs.existsSync(exe), `${exe} is missing: build the project first`);
-  const child = spawn(exe, argv, { stdio: ["ignore", "pipe", "pipe"] });
-  const record = { name, child, output: "", match: null };
-  children.push(record);
-  return new Promise((resolve, reject) => {
-    const timer = setTimeout(() => reject(new Error(`${name} not ready in ${kTimeoutMs} ms`)), kTimeoutMs);
-    child.stdout.on("data", (chunk) => {
-      record.output += chunk.toString();
-      const match = record.output.match(readyPattern);
-      if (match && !record.match) {
-        clearTimeout(timer);
-        record.match = match;
-        resolve(record);
-      }
-    });
-    child.stderr.on("data", (chunk) => (record.output += chunk.toString()));
-    child.on("exit", (code, signal) => {
-      clearTimeout(timer);
-      reject(new Error(`${name} exited (${code ?? signal}) before it was ready:\n${record.output.slice(-2000)}`));
-    });
-  });
-}
-const running = ({ child }) => child.exitCode === null && child.signalCode === null;
-function kill(record, signal = "SIGKILL") {
-  if (!running(record)) return Promise.resolve();
-  return new Promise((resolve) => {
-    record.child.once("exit", resolve);
-    record.child.kill(signal);
-  });
-}
-process.on("exit", () => {
-  for (const record of children) if (running(record)) record.child.kill("SIGKILL");
-});
-for (const signal of ["SIGINT", "SIGTERM"]) process.on(signal, () => process.exit(1));
 
 // ---- statistics ---------------------------------------------------------------------------------
 
@@ -269,7 +231,7 @@ async function main() {
     console.log(`  from its ready line:            median ${ms(b.median)}, p95 ${ms(b.p95)}, max ${ms(b.max)}`);
   } finally {
     await browser?.close().catch(() => {});
-    await Promise.all(children.map((record) => kill(record, "SIGTERM")));
+    await stopChildren();
     fs.rmSync(tmp, { recursive: true, force: true });
   }
 }
