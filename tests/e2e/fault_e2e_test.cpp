@@ -28,29 +28,6 @@ std::uint64_t revisionOf(Client& c) {
   return c.state()["workflow"]["revision"].get<std::uint64_t>();
 }
 
-// Loads the phantom, registers on its markers, adds a target given in the robot frame.
-void plannedTarget(Client& c, const Eigen::Vector3d& robot_mm) {
-  ASSERT_TRUE(c.send("load_volume", {"phantom:", {}, {}}).accepted);
-  c.waitFor([](const json& s) { return stateText(s, "volume", "status") == "loaded"; }, 60s);
-  ASSERT_TRUE(c.send("auto_fiducials").accepted);
-  c.waitFor([](const json& s) { return stateText(s, "registration", "status") == "registered"; },
-            10s);
-  const auto added = c.send("add_target", {"", {lpsOf(c.state(), robot_mm)}, {}});
-  ASSERT_TRUE(added.accepted) << added.message;
-}
-
-void lockAndWaitForApproval(Client& c) {
-  const auto locked = c.send("lock_plan");
-  ASSERT_TRUE(locked.accepted) << locked.message;
-  c.waitFor([](const json& s) { return stateText(s, "approval", "status") == "pending"; }, 10s);
-}
-
-workflow::Reply approveShown(Client& c) {
-  c.poll();
-  const json& a = c.state()["approval"];
-  return c.approve(a["plan_id"].get<std::uint64_t>(), a["digest"].get<std::string>());
-}
-
 std::size_t journalLines(const ServerProcess& server) {
   std::ifstream in(server.sessionDir() / "journal.jsonl");
   std::size_t n = 0;

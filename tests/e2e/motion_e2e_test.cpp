@@ -36,33 +36,6 @@ std::array<std::int64_t, 3> steps(const json& j) {
   return {j[0].get<std::int64_t>(), j[1].get<std::int64_t>(), j[2].get<std::int64_t>()};
 }
 
-// Load the phantom, register on its markers, click one target given in the robot frame, lock.
-std::uint32_t lockedPlanTo(Client& c, const Eigen::Vector3d& robot_mm) {
-  EXPECT_TRUE(c.send("load_volume", {"phantom:", {}, {}}).accepted);
-  c.waitFor([](const json& s) { return s.contains("volume") && s["volume"]["status"] == "loaded"; },
-            60s);
-  EXPECT_TRUE(c.send("auto_fiducials").accepted);
-  c.waitFor(
-      [](const json& s) {
-        return s.contains("registration") && s["registration"]["status"] == "registered";
-      },
-      10s);
-  const auto added = c.send("add_target", {"", {lpsOf(c.state(), robot_mm)}, {}});
-  EXPECT_TRUE(added.accepted) << added.message;
-  const auto locked = c.send("lock_plan");
-  EXPECT_TRUE(locked.accepted) << locked.message;
-  c.waitFor(
-      [](const json& s) { return s.contains("approval") && s["approval"]["status"] == "pending"; },
-      10s);
-  return added.target_id;
-}
-
-workflow::Reply approveShown(Client& c) {
-  c.poll();
-  const json& a = c.state()["approval"];
-  return c.approve(a["plan_id"].get<std::uint64_t>(), a["digest"].get<std::string>());
-}
-
 std::string journalText(const ServerProcess& server) {
   std::ifstream in(server.sessionDir() / "journal.jsonl");
   std::stringstream s;

@@ -66,6 +66,45 @@ inline Eigen::Vector3d lpsOf(const nlohmann::json& state, const Eigen::Vector3d&
   return (imageToRobot(state).inverse() * robot_mm.homogeneous()).head<3>();
 }
 
+// Loads the phantom, registers on its markers, adds a target given in the robot frame; its id.
+inline std::uint32_t plannedTarget(protocol::Client& c, const Eigen::Vector3d& robot_mm) {
+  using namespace std::chrono_literals;
+  EXPECT_TRUE(c.send("load_volume", {"phantom:", {}, {}}).accepted);
+  c.waitFor([](const nlohmann::json& s) { return stateText(s, "volume", "status") == "loaded"; },
+            60s);
+  EXPECT_TRUE(c.send("auto_fiducials").accepted);
+  c.waitFor(
+      [](const nlohmann::json& s) {
+        return stateText(s, "registration", "status") == "registered";
+      },
+      10s);
+  const auto added = c.send("add_target", {"", {lpsOf(c.state(), robot_mm)}, {}});
+  EXPECT_TRUE(added.accepted) << added.message;
+  return added.target_id;
+}
+
+inline void lockAndWaitForApproval(protocol::Client& c) {
+  using namespace std::chrono_literals;
+  const auto locked = c.send("lock_plan");
+  EXPECT_TRUE(locked.accepted) << locked.message;
+  c.waitFor([](const nlohmann::json& s) { return stateText(s, "approval", "status") == "pending"; },
+            10s);
+}
+
+// plannedTarget, then lock: an approval request for the motion to it is pending.
+inline std::uint32_t lockedPlanTo(protocol::Client& c, const Eigen::Vector3d& robot_mm) {
+  const auto id = plannedTarget(c, robot_mm);
+  lockAndWaitForApproval(c);
+  return id;
+}
+
+// Approves the request the approval state shows, exactly as shown.
+inline workflow::Reply approveShown(protocol::Client& c) {
+  c.poll();
+  const nlohmann::json& a = c.state()["approval"];
+  return c.approve(a["plan_id"].get<std::uint64_t>(), a["digest"].get<std::string>());
+}
+
 class ServerProcess {
  public:
   // Each test passes its own domain id so that tests running in parallel never meet.
