@@ -30,6 +30,10 @@ int main(int argc, char** argv) {
   app.add_option("--dds-config", dds_config, "Cyclone XML (overrides the config)");
   std::string controller;
   std::optional<double> speed;
+  std::optional<int> controller_timeout;
+  app.add_option("--controller-timeout-ms", controller_timeout,
+                 "a controller reply (or connection) that takes longer is a fault (galil; "
+                 "overrides the config)");
   std::vector<std::string> approvers;
   std::string tissue;
   app.add_option("--tissue", tissue,
@@ -107,6 +111,7 @@ int main(int argc, char** argv) {
       options.controller.speed_steps_s = *speed;
       options.controller.acceleration_steps_s2 = 10.0 * *speed;
     }
+    if (controller_timeout) options.controller.timeout_ms = *controller_timeout;
     if (!approvers.empty()) options.approvers = approvers;
     if (!tissue.empty()) options.tissue_name = tissue;
     if (!replay.empty()) {

@@ -1,5 +1,6 @@
 #include "server.hpp"
 
+#include "controller_component.hpp"
 #include "igtl_listener.hpp"
 
 #include <spdlog/spdlog.h>
@@ -52,24 +53,23 @@ struct ConfigError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// The controller the options name. The simulation runs on the server's clock (advanceTo).
-struct ControllerHandle {
-  std::unique_ptr<actuation::MotorController> controller;
-  actuation::SimulatedController* sim = nullptr;
-  std::string name;
-};
+// The controller the options name, as MotionState names it.
+std::string controllerName(const ControllerOptions& c) {
+  return c.kind == "galil" ? fmt::format("galil {}:{}", c.host, c.port) : "simulated";
+}
 
-ControllerHandle makeController(const ControllerOptions& c) {
-  ControllerHandle h;
+// The driver the options name; the controller component runs it (the simulation on the
+// component's clock). A recovered session's simulation starts where the journal left the motors.
+std::unique_ptr<actuation::MotorController> makeDriver(
+    const ControllerOptions& c, const std::optional<actuation::Steps>& place_at) {
   if (c.kind == "galil") {
     actuation::GalilOptions g;
     g.host = c.host;
     g.port = c.port;
+    g.timeout_ms = c.timeout_ms;
     g.speed_steps_s = c.speed_steps_s;
     g.acceleration_steps_s2 = c.acceleration_steps_s2;
-    h.controller = std::make_unique<actuation::GalilController>(g);
-    h.name = fmt::format("galil {}:{}", c.host, c.port);
-    return h;
+    return std::make_unique<actuation::GalilController>(g);
   }
   std::array<actuation::SimulatedAxis, 3> axes{};
   for (auto& a : axes) {
@@ -77,10 +77,8 @@ ControllerHandle makeController(const ControllerOptions& c) {
     a.acceleration_steps_s2 = c.acceleration_steps_s2;
   }
   auto sim = std::make_unique<actuation::SimulatedController>(axes);
-  h.sim = sim.get();
-  h.controller = std::move(sim);
-  h.name = "simulated";
-  return h;
+  if (place_at) (void)sim->placeAt(*place_at);
+  return sim;
 }
 
 workflow::ApprovalPolicy approvalPolicy(const ServerOptions& o) {
@@ -235,8 +233,7 @@ class Server {
                          Qos::kRequest),
         approval_(participant_, &ignav_msg_ApprovalState_desc, topic::kApprovalState, Qos::kState),
         motion_(participant_, &ignav_msg_MotionState_desc, topic::kMotion, Qos::kState),
-        controller_(makeController(o.controller)),
-        control_period_(std::chrono::milliseconds(o.controller.control_period_ms)),
+        controller_name_(controllerName(o.controller)),
         waitset_(participant_),
         loader_(waitset_),
         session_dir_(std::move(session_dir)),
@@ -304,11 +301,9 @@ class Server {
   }
 
   int run(const std::atomic<bool>& stop, const std::vector<std::string>& journal_lines) {
-    const auto connected = controller_.controller->connect();
-    if (!connected) spdlog::error("controller {}: {}", controller_.name, connected.error().message);
     if (journal_lines.empty()) {
       // A new session starts with the robot at its home: that position is zero.
-      if (connected) (void)controller_.controller->home();
+      startController(true, std::nullopt);
       Input config_loaded;
       config_loaded.kind = InputKind::kConfigLoaded;
       config_loaded.policy = approvalPolicy(options_);
@@ -321,14 +316,14 @@ class Server {
       }
       // A real controller kept counting while we were down; the simulation is told where the
       // journal last verified the motors (a move in flight at the crash stops where it began).
-      if (controller_.sim) (void)controller_.sim->placeAt(session_.position);
+      startController(false, session_.position);
       publishEverything();
       // Approvals die here, and the position is checked against the controller's.
       Input restarted;
       restarted.kind = InputKind::kServerRestarted;
       if (!step(restarted)) return 3;
     }
-    superviseController(true);
+    publishMotion();
     publishHealth();  // then once a second
     std::cout << "ignav-server ready domain=" << options_.domain_id
               << " session=" << session_dir_.string() << " security=" << (identity_ ? "on" : "OFF")
@@ -338,8 +333,9 @@ class Server {
     while (!stop.load()) {
       // While commands keep coming, poll instead of sleeping: waking a sleeping thread costs
       // ~150 µs on this kind of VM, more than the command itself (docs/PERFORMANCE.md).
+      // The controller component wakes the waitset when it has something: no polling here.
       if (Clock::now() - last_event >= kBusyPoll) {
-        waitset_.wait(robotActive() ? control_period_ : std::chrono::milliseconds(200));
+        waitset_.wait(std::chrono::milliseconds(200));
       } else {
         std::this_thread::yield();
       }
@@ -400,13 +396,8 @@ class Server {
       }
       if (failed) return 3;
       handled += slice_requests_.take([&](const ignav_msg_SliceRequest& r) { answerSlice(r); });
-      while (!internal_.empty()) {
-        Input in = std::move(internal_.front());
-        internal_.pop_front();
-        ++handled;
-        if (!step(std::move(in))) return 3;
-      }
-      if (!superviseController(false)) return 3;
+      if (!takeControllerEvents()) return 3;
+      if (!releaseHeld()) return 3;
       if (handled > 0) last_event = Clock::now();
       if (session_.volume_status.status == "loading" && loader_.progress() != last_progress_) {
         last_progress_ = loader_.progress();
@@ -466,21 +457,86 @@ class Server {
     writeReport();
   }
 
-  // One input through the reducer, then its effects in the order DESIGN.md requires.
+  // Inputs that judge the robot by a controller reading wait (held, in order, with the client
+  // commands that come after them) for a reading taken after every command already sent to the
+  // controller: the latest one may predate a move or a halt, and a slow controller takes seconds
+  // per reading. The event loop goes on meanwhile. Emergency stops and queries never wait; an
+  // emergency stop refuses what was held (it came after them and must not be undone by them).
   bool step(Input in) {
+    if (in.kind == InputKind::kEmergencyStop) {
+      refuseHeld("superseded",
+                 "not done: an emergency stop came while this waited for a reading of the "
+                 "controller");
+      return stepNow(std::move(in));
+    }
+    const bool client = workflow::isCommand(in.kind) && in.kind != InputKind::kQuery;
+    if ((client && !held_.empty()) || waitsForReading(in)) {
+      if (held_.empty()) held_since_ = Clock::now();
+      held_.push_back(std::move(in));
+      if (component_) component_->pollNow();
+      return true;
+    }
+    return stepNow(std::move(in));
+  }
+
+  bool waitsForReading(const Input& in) const {
+    if (!component_ || in.controller || !workflow::needsControllerReading(in.kind)) return false;
+    const auto r = component_->latest();
+    return r.status.state != actuation::ControllerState::kDisconnected &&
+           r.after_command < last_submitted_;
+  }
+
+  // Steps the held inputs whose reading has come; one that waited too long is refused.
+  bool releaseHeld() {
+    const auto limit = std::chrono::milliseconds(6 * options_.controller.timeout_ms + 1000);
+    while (!held_.empty()) {
+      if (waitsForReading(held_.front())) {
+        if (Clock::now() - held_since_ < limit) return true;
+        const Input& late = held_.front();
+        sendReply({late.client_id, late.request_id, false, "controller_unavailable",
+                   fmt::format("not done: no reading of the controller came within {} ms after "
+                               "its last command; try again",
+                               limit.count()),
+                   0, session_.revision});
+        held_.pop_front();
+        held_since_ = Clock::now();
+        continue;
+      }
+      Input in = std::move(held_.front());
+      held_.pop_front();
+      held_since_ = Clock::now();
+      if (!stepNow(std::move(in))) return false;
+    }
+    return true;
+  }
+
+  void refuseHeld(const char* code, const std::string& why) {
+    for (const auto& in : held_) {
+      if (!workflow::isCommand(in.kind)) continue;
+      sendReply({in.client_id, in.request_id, false, code, why, 0, session_.revision});
+    }
+    held_.clear();
+  }
+
+  // One input through the reducer, then its effects in the order DESIGN.md requires.
+  bool stepNow(Input in) {
     in.time_s = wall_s();
     if (workflow::needsControllerReading(in.kind) && !in.controller) {
-      // An operator resetting or homing may have just reconnected the cable: try again.
+      // The component's latest reading: taken after every command sent so far (step() held the
+      // input until then), or the last word before the connection went. A move it releases is
+      // checked again on a reading taken just before it is sent (ControllerComponent::execute).
+      in.controller = latestReading().status;
+      // An operator resetting or homing may have just reconnected the cable: try again now.
       if ((in.kind == InputKind::kResetEmergency || in.kind == InputKind::kHome) &&
-          last_reading_.state == actuation::ControllerState::kDisconnected) {
-        (void)controller_.controller->connect();
+          in.controller->state == actuation::ControllerState::kDisconnected && component_) {
+        component_->reconnectNow();
       }
-      in.controller = readController();
     }
     workflow::Step s = workflow::reduce(session_, in);
-    // Halts before anything else, even the journal (DESIGN.md safety invariant 3).
+    // Halts before anything else, even the journal (DESIGN.md safety invariant 3): handed to the
+    // component's halt thread, which sends them at once (queued moves are dropped).
     for (const auto& c : s.effects.controller) {
-      if (c.isHalt()) runController(c);
+      if (c.isHalt()) runController(c, std::nullopt);
     }
     if (!s.effects.journal.empty()) crashPoint("before_journal", s.session.revision);
     if (!s.effects.journal.empty() && !journal_failure_.empty()) {
@@ -495,7 +551,7 @@ class Server {
         journal_failure_ = ok.error().message;
         spdlog::critical("{}: halting the robot and refusing every change until restarted",
                          journal_failure_);
-        (void)controller_.controller->stop();
+        runController({workflow::ControllerAction::kStop, {}}, std::nullopt);
         publishHealth();
         refuseUnjournaled(in, s.effects);
         return true;
@@ -513,11 +569,15 @@ class Server {
                        : "rejected (" + e.replies.front().error_code + ")",
                    workflow::toString(session_.phase));
     }
-    // Moves and the rest only once the journal holds the approval that released them.
+    // Moves and the rest only once the journal holds the approval that released them. A move is
+    // sent only if the robot is still at rest where its segment starts.
     for (const auto& c : e.controller) {
-      if (!c.isHalt()) runController(c);
+      if (!c.isHalt()) {
+        runController(c, session_.motion
+                             ? std::optional<actuation::Steps>(session_.motion->segment_from)
+                             : std::nullopt);
+      }
     }
-    if (!e.controller.empty()) readController();  // what the command did, for MotionState
     publishEffects(e);
     for (const auto& r : e.replies)
       sendReply(r);
@@ -761,76 +821,80 @@ class Server {
     if (!r.accepted) spdlog::warn("rejected: {}", r.message);
   }
 
-  bool robotActive() const {
-    return session_.phase == workflow::Phase::kMoving ||
-           last_reading_.state == actuation::ControllerState::kMoving;
+  // The controller component: started (and its first connection tried) before the first input.
+  // Inputs that need a reading wait for that first attempt, within a bound.
+  void startController(bool home, const std::optional<actuation::Steps>& place_at) {
+    ControllerComponentOptions co;
+    co.name = controller_name_;
+    co.active_period = std::chrono::milliseconds(options_.controller.control_period_ms);
+    co.home_on_first_connect = home;
+    component_ = std::make_unique<ControllerComponent>(makeDriver(options_.controller, place_at),
+                                                       co, [this] { waitset_.trigger(); });
+    component_->start();
+    // Connect, set up (4 replies), home, read (3): each within the driver's timeout.
+    const auto bound = std::chrono::milliseconds(10 * options_.controller.timeout_ms + 1000);
+    if (!component_->waitForFirstReading(bound)) {
+      spdlog::error("controller {}: no answer within {} ms; going on without it", controller_name_,
+                    bound.count());
+    }
+    (void)component_->take();  // the first reading is the latest: nothing to judge yet
+    last_reading_ = latestReading().status;
+    if (last_reading_.state == actuation::ControllerState::kDisconnected) {
+      spdlog::error("controller {}: {}", controller_name_, last_reading_.fault);
+    }
   }
 
-  actuation::ControllerStatus readController() {
-    if (controller_.sim) controller_.sim->advanceTo(now_s());
-    auto r = controller_.controller->poll();
-    if (r) {
-      last_reading_ = *r;
-    } else {
-      last_reading_ = {};
-      last_reading_.state = actuation::ControllerState::kDisconnected;
-      last_reading_.fault = r.error().message;
-    }
-    return last_reading_;
+  ControllerReading latestReading() const {
+    if (component_) return component_->latest();
+    ControllerReading r;
+    r.status.fault = "no controller";
+    return r;
   }
 
-  // A controller command from the reducer. A failure becomes a controller_fault input (queued:
-  // the step that asked is finished first).
-  void runController(const workflow::ControllerCommand& c) {
-    if (controller_.sim) controller_.sim->advanceTo(now_s());
-    auto& ctl = *controller_.controller;
-    Status done = Ok{};
-    switch (c.action) {
-      case workflow::ControllerAction::kMove:
-        done = ctl.move(c.increments);
-        break;
-      case workflow::ControllerAction::kStop:
-        done = ctl.stop();
-        break;
-      case workflow::ControllerAction::kAbort:
-        done = ctl.abort();
-        break;
-      case workflow::ControllerAction::kHome:
-        done = ctl.home();
-        break;
-      case workflow::ControllerAction::kClearFault:
-        done = ctl.clearFault();
-        break;
-    }
-    if (!done) {
-      spdlog::error("controller {}: {}", controller_.name, done.error().message);
-      Input fault;
-      fault.kind = InputKind::kControllerFault;
-      fault.controller = readController();
-      if (fault.controller->fault.empty()) fault.controller->fault = done.error().message;
-      if (fault.controller->state == actuation::ControllerState::kIdle) {
-        fault.controller->state = actuation::ControllerState::kFault;
+  // A controller command from the reducer, to the component's mailbox. Its failure comes back
+  // as an event (takeControllerEvents).
+  void runController(const workflow::ControllerCommand& c,
+                     const std::optional<actuation::Steps>& expect_from) {
+    if (!component_) return;
+    const std::uint64_t seq = component_->submit(c, expect_from);
+    last_submitted_ = seq;
+    if (c.action == workflow::ControllerAction::kMove) move_seq_ = seq;
+  }
+
+  // What the controller component reported since last time: readings are published (and shown
+  // to Slicer), a finished move or a fault becomes the reducer's input.
+  bool takeControllerEvents() {
+    if (!component_) return true;
+    for (auto& ev : component_->take()) {
+      if (ev.kind == ControllerEvent::Kind::kCommandFailed) {
+        // A command that failed: a controller_fault input. The reducer answers a fault with a
+        // halt; a halt that fails for the reason just reported (the controller is gone) must not
+        // report it again, or the two feed each other without end (docs/RELIABILITY.md, R1).
+        Input fault;
+        fault.kind = InputKind::kControllerFault;
+        fault.controller = ev.reading.status;
+        fault.controller->fault = ev.why;
+        if (fault.controller->state == actuation::ControllerState::kIdle ||
+            fault.controller->state == actuation::ControllerState::kMoving) {
+          fault.controller->state = actuation::ControllerState::kFault;
+        }
+        if (fault.controller->fault == last_fault_reported_) continue;
+        last_fault_reported_ = fault.controller->fault;
+        if (!step(std::move(fault))) return false;
+        continue;
       }
-      // The reducer answers a fault with a halt; a halt that fails for the reason just reported
-      // (the controller is gone) must not report it again, or the two feed each other without
-      // end (docs/RELIABILITY.md, R1).
-      if (fault.controller->fault == last_fault_reported_) return;
-      last_fault_reported_ = fault.controller->fault;
-      internal_.push_back(std::move(fault));
+      if (!onReading(ev.reading)) return false;
     }
+    return true;
   }
 
-  // Polls the controller every control period while the robot moves (every 200 ms otherwise),
-  // publishes what it reports, and turns a finished move or a fault into the reducer's input.
-  bool superviseController(bool now) {
-    const auto period = robotActive() ? control_period_ : std::chrono::milliseconds(200);
-    if (!now && Clock::now() - last_controller_poll_ < period) return true;
-    last_controller_poll_ = Clock::now();
+  bool onReading(const ControllerReading& reading) {
     const auto before = last_reading_;
-    const auto r = readController();
+    const auto& r = reading.status;
+    last_reading_ = r;
     const bool changed =
         r.state != before.state || r.position != before.position || r.fault != before.fault;
-    if (changed || now) publishMotion();
+    if (changed) publishMotion();
     // Slicer sees the tip move (at most every 50 ms, and where it comes to rest).
     const bool moving = r.state == actuation::ControllerState::kMoving;
     if (bridge_ && igtl_->clientCount() > 0 && r.position != last_igtl_steps_ &&
@@ -840,15 +904,17 @@ class Server {
       last_igtl_steps_ = r.position;
       sendIgtl(bridge_->onPosition(session_, r.position));
     }
-    if (session_.phase == workflow::Phase::kMoving && session_.motion &&
-        r.state != actuation::ControllerState::kMoving) {
+    const bool bad = r.state == actuation::ControllerState::kDisconnected ||
+                     r.state == actuation::ControllerState::kFault;
+    // A segment is done on a reading taken after its move was sent, at rest (or on a fault).
+    if (session_.phase == workflow::Phase::kMoving && session_.motion && !moving &&
+        (bad || reading.after_command >= move_seq_)) {
+      if (bad) last_fault_reported_ = r.fault;
       Input done;
       done.kind = InputKind::kSegmentDone;
       done.controller = r;
       return step(std::move(done));
     }
-    const bool bad = r.state == actuation::ControllerState::kDisconnected ||
-                     r.state == actuation::ControllerState::kFault;
     if (!bad) {
       last_fault_reported_.clear();
       return true;
@@ -905,7 +971,7 @@ class Server {
     const std::string fault = !session_.fault.empty() ? session_.fault : r.fault;
     std::string kind;
     ignav_msg_MotionState m{};
-    m.controller = cstr(controller_.name);
+    m.controller = cstr(controller_name_);
     m.state = cstr(state);
     m.fault = cstr(fault);
     for (std::size_t a = 0; a < 3; ++a) {
@@ -1292,15 +1358,18 @@ class Server {
   std::optional<SenderIdentities> senders_;  // with DDS Security on
   std::string journal_failure_;              // why the journal cannot be written ("" = it can)
   std::set<InputKind> unjournaled_kinds_;
-  ControllerHandle controller_;
-  std::chrono::milliseconds control_period_;
-  actuation::ControllerStatus last_reading_;
+  std::string controller_name_;
+  actuation::ControllerStatus last_reading_;  // the component's, as last taken (or replayed)
+  std::uint64_t move_seq_ = 0;                // the component's number of the last move sent
+  std::uint64_t last_submitted_ = 0;          // ... of the last command of any kind
+  std::deque<Input> held_;                    // inputs waiting for a fresh reading (step())
+  Clock::time_point held_since_;
   std::string last_fault_reported_;
-  Clock::time_point last_controller_poll_;
-  std::deque<Input> internal_;  // inputs the server raised itself (a controller call failed)
   std::map<std::uint32_t, std::vector<std::string>> report_images_;  // by target id
   WaitSet waitset_;
   Loader loader_;
+  // The controller component (run() only; its threads wake the waitset, so it goes first).
+  std::unique_ptr<ControllerComponent> component_;
   fs::path session_dir_;
   std::optional<journal::Journal> journal_;
   std::string crash_at_ = std::getenv("IGNAV_CRASH_AT") ? std::getenv("IGNAV_CRASH_AT") : "";
@@ -1340,6 +1409,9 @@ std::optional<std::string> checkControllerOptions(const ServerOptions& o) {
   if (!(c.acceleration_steps_s2 > 0) || !std::isfinite(c.acceleration_steps_s2)) {
     return fmt::format("controller.acceleration_steps_s2: {} must be positive",
                        c.acceleration_steps_s2);
+  }
+  if (c.timeout_ms < 10 || c.timeout_ms > 60000) {
+    return fmt::format("controller.timeout_ms: {} is not within 10..60000", c.timeout_ms);
   }
   if (c.control_period_ms < 1 || c.control_period_ms > 1000) {
     return fmt::format("controller.control_period_ms: {} is not within 1..1000",
@@ -1410,10 +1482,12 @@ ServerOptions loadServerOptions(const std::string& path) {
           co.acceleration_steps_s2 = kv.second.as<double>();
         } else if (key == "control_period_ms") {
           co.control_period_ms = kv.second.as<int>();
+        } else if (key == "timeout_ms") {
+          co.timeout_ms = kv.second.as<int>();
         } else {
           throw ConfigError(path + ": server.controller." + key +
                             ": unknown key; expected kind, host, port, speed_steps_s, "
-                            "acceleration_steps_s2, control_period_ms");
+                            "acceleration_steps_s2, control_period_ms, timeout_ms");
         }
       }
     }

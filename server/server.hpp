@@ -1,5 +1,7 @@
 // ignav-server: the DDS edge around the workflow reducer. One thread runs the event queue
-// (commands, slice requests, finished loads); a loader thread runs volume loads.
+// (commands, slice requests, finished loads, controller events); a loader thread runs volume
+// loads; the controller component (controller_component.hpp) runs the motor controller on
+// threads of its own. docs/ARCHITECTURE.md has the picture.
 #pragma once
 
 #include <atomic>
@@ -20,6 +22,7 @@ struct ControllerOptions {
   double speed_steps_s = 2000.0;   // every motor (SP; the simulation's axes)
   double acceleration_steps_s2 = 8000.0;
   int control_period_ms = 10;  // how often a moving robot is polled and its state published
+  int timeout_ms = 1000;       // galil: connecting, and each reply; then it is a fault
 };
 
 // DDS Security (server.yaml `security:`, docs/SECURITY.md). Without an identity the server runs

@@ -1,13 +1,16 @@
 // dmc-emulator: a small Galil DMC look-alike on 127.0.0.1 for tests and demos. It speaks the
 // subset GalilController uses (SP AC DC SH MO PR BG ST AB TP DP MG _BGn/_SCn TC1), answering ':'
-// or '?', and moves a SimulatedController in real time.
+// or '?', and moves a SimulatedController in real time. Several clients may be connected at
+// once (a DMC accepts several handles).
 //   dmc-emulator [--port 0] [--limit-max STEPS]    prints "listening on 127.0.0.1:PORT"
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -149,7 +152,7 @@ int main(int argc, char** argv) {
   addr.sin_port = htons(static_cast<std::uint16_t>(port));
   addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);  // loopback only
   if (::bind(server, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 ||
-      ::listen(server, 1) != 0) {
+      ::listen(server, 16) != 0) {
     std::perror("dmc-emulator");
     return 1;
   }
@@ -157,22 +160,47 @@ int main(int argc, char** argv) {
   ::getsockname(server, reinterpret_cast<sockaddr*>(&addr), &len);
   std::cout << "dmc-emulator listening on 127.0.0.1:" << ntohs(addr.sin_port) << std::endl;
 
+  // Several TCP handles at once, as a DMC has (the driver halts on a handle of its own): one
+  // thread, commands taken in the order they arrive on any handle.
   Emulator emulator(limit_max);
-  for (;;) {
-    const int client = ::accept(server, nullptr, nullptr);
-    if (client < 0) continue;
+  struct Handle {
+    int fd;
     std::string line;
-    char c = 0;
-    while (::recv(client, &c, 1, 0) == 1) {
-      if (c != '\r' && c != '\n' && c != ';') {
-        line += c;
-        continue;
-      }
-      if (line.empty()) continue;
-      const std::string reply = emulator.handle(line);
-      line.clear();
-      if (::send(client, reply.data(), reply.size(), MSG_NOSIGNAL) < 0) break;
+  };
+  std::vector<Handle> handles;
+  for (;;) {
+    std::vector<pollfd> fds{{server, POLLIN, 0}};
+    for (const auto& h : handles)
+      fds.push_back({h.fd, POLLIN, 0});
+    if (::poll(fds.data(), fds.size(), -1) < 0) continue;
+    if (fds[0].revents & POLLIN) {
+      const int client = ::accept(server, nullptr, nullptr);
+      if (client >= 0) handles.push_back({client, {}});
     }
-    ::close(client);
+    for (std::size_t i = 1; i < fds.size(); ++i) {
+      if (!(fds[i].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+      Handle& h = handles[i - 1];
+      char buf[256];
+      const ssize_t n = ::recv(h.fd, buf, sizeof buf, 0);
+      bool gone = n <= 0;
+      for (ssize_t k = 0; k < n && !gone; ++k) {
+        const char c = buf[k];
+        if (c != '\r' && c != '\n' && c != ';') {
+          h.line += c;
+          continue;
+        }
+        if (h.line.empty()) continue;
+        const std::string reply = emulator.handle(h.line);
+        h.line.clear();
+        if (::send(h.fd, reply.data(), reply.size(), MSG_NOSIGNAL) < 0) gone = true;
+      }
+      if (gone) {
+        ::close(h.fd);
+        h.fd = -1;
+      }
+    }
+    handles.erase(
+        std::remove_if(handles.begin(), handles.end(), [](const Handle& h) { return h.fd < 0; }),
+        handles.end());
   }
 }

@@ -37,6 +37,9 @@ class MotorController {
   virtual Status abort() = 0;  // halt at once
   virtual Expected<ControllerStatus> poll() = 0;
   virtual Status clearFault() = 0;
+  // True when stop() and abort() may be called from another thread while any other call is in
+  // progress (they then never wait behind it). Otherwise the caller serialises every call.
+  virtual bool concurrentHalts() const { return false; }
 };
 
 // Rest-to-rest time of a trapezoidal move over `distance_steps` (sign ignored) at this speed and
