@@ -25,8 +25,24 @@ using protocol::Client;
 using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 
-constexpr auto kWire = 250ms;   // emergency stop sent -> AB at the controller (goal: 10 ms)
-constexpr auto kReply = 300ms;  // a command sent -> its reply (goal: 50 ms)
+// Correctness bounds, not the goals (those are measured by tools/bench/bench_slow_controller):
+// each stays under the 900 ms one controller reply takes here, so a stop or a query that waited
+// for the controller fails (the one-thread server took 0.8-6 s). Under AddressSanitizer, with
+// other sanitized suites on both cores, the server's own work is several times slower.
+#if defined(__SANITIZE_ADDRESS__)
+#define IGNAV_E2E_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define IGNAV_E2E_SANITIZED 1
+#endif
+#endif
+#ifdef IGNAV_E2E_SANITIZED
+constexpr auto kWire = 600ms;   // emergency stop sent -> AB at the controller (goal: 10 ms)
+constexpr auto kReply = 800ms;  // a command sent -> its reply (goal: 50 ms)
+#else
+constexpr auto kWire = 250ms;
+constexpr auto kReply = 300ms;
+#endif
 
 double ms(Clock::duration d) {
   return std::chrono::duration<double, std::milli>(d).count();
