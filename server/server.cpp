@@ -2,6 +2,7 @@
 
 #include "controller_component.hpp"
 #include "igtl_listener.hpp"
+#include "reports.hpp"
 
 #include <spdlog/spdlog.h>
 #include <unistd.h>
@@ -13,9 +14,7 @@
 #include <ctime>
 #include <deque>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
-#include <map>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -29,7 +28,6 @@
 #include "ignav/protocol/messages.hpp"
 #include "ignav/protocol/security.hpp"
 #include "ignav/registration/robot_phantom.hpp"
-#include "ignav/registration/slicer_export.hpp"
 #include "ignav/volume/load.hpp"
 #include "ignav/volume/phantom.hpp"
 #include "ignav/volume/render.hpp"
@@ -237,6 +235,7 @@ class Server {
         waitset_(participant_),
         loader_(waitset_),
         session_dir_(std::move(session_dir)),
+        reports_(session_dir_),
         journal_(std::move(journal)),
         started_(Clock::now()) {
     for (const auto& c : commands_)
@@ -453,8 +452,9 @@ class Server {
       publishTarget(t.id);
     publishApproval();
     publishWorkflow();
-    writeExports();
-    writeReport();
+    auto snapshot = std::make_shared<const Session>(session_);
+    reports_.exports(snapshot);
+    reports_.report(snapshot);
   }
 
   // Inputs that judge the robot by a controller reading wait (held, in order, with the client
@@ -581,24 +581,29 @@ class Server {
     publishEffects(e);
     for (const auto& r : e.replies)
       sendReply(r);
-    // The Slicer files after the replies: they are for people, not on the command's path.
+    // The files for people (Slicer exports, report slices, the report) after the replies, on
+    // the reports thread: handed a snapshot of the session, never waited for.
+    Reports::Snapshot snapshot;
+    auto snap = [&] {
+      if (!snapshot) snapshot = std::make_shared<const Session>(session_);
+      return snapshot;
+    };
     if (in.kind != InputKind::kQuery &&
         (e.registration_changed || !e.targets_changed.empty() || !e.targets_removed.empty())) {
-      writeExports();
+      reports_.exports(snap());
     }
     if (session_.phase != phase_before) {
       if (session_.phase == workflow::Phase::kPlanLocked && in.kind == InputKind::kLockPlan) {
-        report_images_.clear();
-        writeReportSlices(true, 0);
+        reports_.slices(snap(), true, 0);
       } else if (session_.phase == workflow::Phase::kAtTarget) {
         const workflow::Target* last = nullptr;  // the target just reached
         for (const auto& t : session_.targets) {
           if (t.reached && (!last || t.reached_s > last->reached_s)) last = &t;
         }
-        if (last) writeReportSlices(false, last->id);
+        if (last) reports_.slices(snap(), false, last->id);
       }
     }
-    if (!e.journal.empty()) writeReport();
+    if (!e.journal.empty()) reports_.report(snap());
     if (e.load_volume) loader_.start(*e.load_volume, *session_.robot, session_dir_);
     if (bridge_) sendIgtl(bridge_->onState(session_));
     return true;
@@ -1157,91 +1162,6 @@ class Server {
     health_.write(h);
   }
 
-  // The session's files for 3D Slicer, rewritten whenever they change.
-  void writeExports() {
-    if (session_.registration) {
-      const auto& reg = *session_.registration;
-      (void)registration::writeItkTransform(reg, (session_dir_ / "image_to_robot.tfm").string());
-      std::vector<registration::MarkupPoint> fiducials;
-      for (std::size_t i = 0; i < reg.image_mm.size() && i < 3; ++i) {
-        fiducials.push_back({registration::toString(static_cast<registration::FeaturePoint>(i)),
-                             reg.image_mm[i],
-                             fmt::format("residual {:.3f} mm", reg.residuals_mm[i]), true});
-      }
-      (void)registration::writeMarkupsJson("ignav fiducials", fiducials,
-                                           (session_dir_ / "fiducials.mrk.json").string());
-    }
-    std::vector<registration::MarkupPoint> targets;
-    for (const auto& t : session_.targets) {
-      targets.push_back({"T" + std::to_string(t.id), t.lps_mm, t.message, false});
-    }
-    (void)registration::writeMarkupsJson("ignav targets", targets,
-                                         (session_dir_ / "targets.mrk.json").string());
-  }
-
-  void writeReport() {
-    std::vector<std::string> images;
-    for (const auto& [id, files] : report_images_)
-      images.insert(images.end(), files.begin(), files.end());
-    // Written aside and renamed over: a reader never meets a half-written (or empty) report.
-    const fs::path report = session_dir_ / "report.md", aside = session_dir_ / "report.md.tmp";
-    std::ofstream(aside, std::ios::trunc) << workflow::procedureReport(session_, images);
-    std::error_code ec;
-    fs::rename(aside, report, ec);
-    if (ec) spdlog::warn("{}: not updated: {}", report.string(), ec.message());
-  }
-
-  // Slices for the report through each target (at lock) or through the target just reached,
-  // with the tip where the verified steps put it. After the replies: for people, not on the
-  // command's path. At most kReportTargets targets get slices at lock.
-  void writeReportSlices(bool all_targets, std::uint32_t reached_id) {
-    constexpr std::size_t kReportTargets = 12;
-    if (!session_.ct.volume || !session_.registration) return;
-    const auto started = Clock::now();
-    const fs::path dir = session_dir_ / "report";
-    std::error_code ec;
-    fs::create_directories(dir, ec);
-    std::size_t drawn = 0;
-    for (const auto& t : session_.targets) {
-      if (!t.registered || !t.solution.reachable()) continue;
-      if (!all_targets && t.id != reached_id) continue;
-      if (all_targets && ++drawn > kReportTargets) break;
-      volume::Overlays overlays = overlaysFor();
-      overlays.paths.push_back(
-          {workflow::needlePathLps(session_, t.solution.joints), {0, 255, 255}, 1});
-      if (t.reached) {
-        const auto& robot = *session_.robot;
-        const Eigen::Vector3d tip =
-            robot.kinematics.forward(robot.transmission.toJoints(session_.position)).tip_mm;
-        overlays.points.push_back({session_.registration->toImage(tip), "tip", {255, 0, 255}, 3});
-      }
-      std::vector<std::string> files;
-      for (const auto& [view, name] : {std::pair{volume::View::kCoronal, "coronal"},
-                                       std::pair{volume::View::kAxial, "axial"}}) {
-        volume::SliceSpec spec;
-        spec.view = view;
-        spec.centre_lps_mm = t.lps_mm;
-        spec.width_px = spec.height_px = 384;
-        spec.pixel_size_mm = 0.2;
-        spec.window = volume::kWindowBone;
-        auto slice = volume::reslice(*session_.ct.volume, spec);
-        if (!slice) continue;
-        auto png = volume::renderPng(*slice, overlays);
-        if (!png) continue;
-        const std::string file =
-            fmt::format("report/T{}_{}{}.png", t.id, name, t.reached ? "_reached" : "");
-        std::ofstream(session_dir_ / file, std::ios::binary)
-            .write(reinterpret_cast<const char*>(png->data()),
-                   static_cast<std::streamsize>(png->size()));
-        files.push_back(file);
-      }
-      report_images_[t.id] = files;
-    }
-    // Only ever with the robot at rest (lock, arrival), but the event loop waits meanwhile.
-    spdlog::info("report slices written in {:.0f} ms",
-                 std::chrono::duration<double, std::milli>(Clock::now() - started).count());
-  }
-
   void answerSlice(const ignav_msg_SliceRequest& req) {
     SliceResultOwned out;
     out.client_id = req.client_id ? req.client_id : "";
@@ -1276,7 +1196,7 @@ class Server {
     auto slice = volume::reslice(*session_.ct.volume, spec);
     if (!slice) return fail(slice.error().message);
     volume::Overlays overlays;
-    if (req.overlays) overlays = overlaysFor();
+    if (req.overlays) overlays = overlaysFor(session_);
     if (req.overlays && req.region_only) {
       overlays.points.clear();
       overlays.paths.clear();
@@ -1289,31 +1209,6 @@ class Server {
     out.pixel_to_lps = slice->pixel_to_lps;
     out.png = std::move(png).value();
     sendSlice(out);
-  }
-
-  volume::Overlays overlaysFor() const {
-    volume::Overlays o;
-    if (const auto& reg = session_.registration) {
-      for (std::size_t i = 0; i < reg->image_mm.size(); ++i) {
-        o.points.push_back({reg->image_mm[i], "F" + std::to_string(i + 1), {255, 255, 0}, 4});
-      }
-      const auto robot = session_.robot;
-      const registration::Registration r = *reg;
-      o.regions.push_back({[robot, r](const Eigen::Vector3d& lps) {
-                             const auto s = robot->kinematics.inverse(r.toRobot(lps));
-                             return s.ok() && s->reachable();
-                           },
-                           {},
-                           {0, 200, 80},
-                           0.25});
-    }
-    for (const auto& t : session_.targets) {
-      const volume::Rgb colour = !t.registered            ? volume::Rgb{160, 160, 160}
-                                 : t.solution.reachable() ? volume::Rgb{0, 255, 0}
-                                                          : volume::Rgb{255, 60, 60};
-      o.points.push_back({t.lps_mm, "T" + std::to_string(t.id), colour, 5});
-    }
-    return o;
   }
 
   struct SliceResultOwned {
@@ -1365,12 +1260,13 @@ class Server {
   std::deque<Input> held_;                    // inputs waiting for a fresh reading (step())
   Clock::time_point held_since_;
   std::string last_fault_reported_;
-  std::map<std::uint32_t, std::vector<std::string>> report_images_;  // by target id
   WaitSet waitset_;
   Loader loader_;
   // The controller component (run() only; its threads wake the waitset, so it goes first).
   std::unique_ptr<ControllerComponent> component_;
   fs::path session_dir_;
+  // The report and the Slicer files, on a thread of their own; drained when the server goes.
+  Reports reports_;
   std::optional<journal::Journal> journal_;
   std::string crash_at_ = std::getenv("IGNAV_CRASH_AT") ? std::getenv("IGNAV_CRASH_AT") : "";
   Session session_;

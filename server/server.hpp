@@ -1,7 +1,8 @@
 // ignav-server: the DDS edge around the workflow reducer. One thread runs the event queue
 // (commands, slice requests, finished loads, controller events); a loader thread runs volume
-// loads; the controller component (controller_component.hpp) runs the motor controller on
-// threads of its own. docs/ARCHITECTURE.md has the picture.
+// loads; a reports thread (reports.hpp) writes the report, its slices and the Slicer exports; the
+// controller component (controller_component.hpp) runs the motor controller on threads of its
+// own. docs/ARCHITECTURE.md has the picture.
 #pragma once
 
 #include <atomic>

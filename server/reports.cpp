@@ -1,0 +1,228 @@
+#include "reports.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <exception>
+#include <fstream>
+#include <utility>
+
+#include "ignav/registration/slicer_export.hpp"
+#include "ignav/volume/slice.hpp"
+#include "ignav/workflow/reducer.hpp"
+
+namespace ignav::server {
+namespace {
+
+namespace fs = std::filesystem;
+using workflow::Session;
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+// Written aside and renamed over: a reader never meets a half-written (or empty) file.
+bool writeAtomically(const fs::path& path, const char* data, std::size_t size) {
+  const fs::path aside = path.string() + ".tmp";
+  {
+    std::ofstream out(aside, std::ios::binary | std::ios::trunc);
+    out.write(data, static_cast<std::streamsize>(size));
+    if (!out) {
+      spdlog::warn("{}: not written", aside.string());
+      return false;
+    }
+  }
+  std::error_code ec;
+  fs::rename(aside, path, ec);
+  if (ec) spdlog::warn("{}: not updated: {}", path.string(), ec.message());
+  return !ec;
+}
+
+}  // namespace
+
+volume::Overlays overlaysFor(const Session& session) {
+  volume::Overlays o;
+  if (const auto& reg = session.registration) {
+    for (std::size_t i = 0; i < reg->image_mm.size(); ++i) {
+      o.points.push_back({reg->image_mm[i], "F" + std::to_string(i + 1), {255, 255, 0}, 4});
+    }
+    const auto robot = session.robot;
+    const registration::Registration r = *reg;
+    o.regions.push_back({[robot, r](const Eigen::Vector3d& lps) {
+                           const auto s = robot->kinematics.inverse(r.toRobot(lps));
+                           return s.ok() && s->reachable();
+                         },
+                         {},
+                         {0, 200, 80},
+                         0.25});
+  }
+  for (const auto& t : session.targets) {
+    const volume::Rgb colour = !t.registered            ? volume::Rgb{160, 160, 160}
+                               : t.solution.reachable() ? volume::Rgb{0, 255, 0}
+                                                        : volume::Rgb{255, 60, 60};
+    o.points.push_back({t.lps_mm, "T" + std::to_string(t.id), colour, 5});
+  }
+  return o;
+}
+
+Reports::Reports(fs::path session_dir)
+    : session_dir_(std::move(session_dir)), thread_([this] { loop(); }) {}
+
+Reports::~Reports() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_one();
+  thread_.join();
+  spdlog::info("reports: {} jobs done ({} replaced by newer ones before they ran)", done_,
+               replaced_);
+}
+
+void Reports::exports(Snapshot session) {
+  submit({Kind::kExports, std::move(session), false, 0});
+}
+
+void Reports::report(Snapshot session) {
+  submit({Kind::kReport, std::move(session), false, 0});
+}
+
+void Reports::slices(Snapshot session, bool all_targets, std::uint32_t reached_id) {
+  submit({Kind::kSlices, std::move(session), all_targets, reached_id});
+}
+
+void Reports::submit(Job job) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    // What the new job makes useless: an older job of its kind (the slices through a reached
+    // target only when the new one is a lock's, which starts the pictures afresh). The new job
+    // goes last, so the report always comes after the slices it lists.
+    const auto size = queue_.size();
+    queue_.erase(std::remove_if(queue_.begin(), queue_.end(),
+                                [&](const Job& queued) {
+                                  return queued.kind == job.kind &&
+                                         (job.kind != Kind::kSlices || job.all_targets);
+                                }),
+                 queue_.end());
+    replaced_ += size - queue_.size();
+    queue_.push_back(std::move(job));
+  }
+  wake_.notify_one();
+}
+
+void Reports::loop() {
+  for (;;) {
+    Job job;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      wake_.wait(lock, [this] { return stopping_ || !queue_.empty(); });
+      if (queue_.empty()) return;  // stopping, and everything handed over is written
+      job = std::move(queue_.front());
+      queue_.pop_front();
+    }
+    run(job);
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++done_;
+  }
+}
+
+void Reports::run(const Job& job) {
+  // A file for people that cannot be written is said in the log; it never stops the server.
+  try {
+    switch (job.kind) {
+      case Kind::kExports:
+        writeExports(*job.session);
+        break;
+      case Kind::kReport:
+        writeReport(*job.session);
+        break;
+      case Kind::kSlices:
+        writeSlices(*job.session, job.all_targets, job.reached_id);
+        break;
+    }
+  } catch (const std::exception& e) {
+    spdlog::error("reports: {}", e.what());
+  }
+}
+
+void Reports::writeExports(const Session& session) const {
+  if (session.registration) {
+    const auto& reg = *session.registration;
+    (void)registration::writeItkTransform(reg, (session_dir_ / "image_to_robot.tfm").string());
+    std::vector<registration::MarkupPoint> fiducials;
+    for (std::size_t i = 0; i < reg.image_mm.size() && i < 3; ++i) {
+      fiducials.push_back({registration::toString(static_cast<registration::FeaturePoint>(i)),
+                           reg.image_mm[i], fmt::format("residual {:.3f} mm", reg.residuals_mm[i]),
+                           true});
+    }
+    (void)registration::writeMarkupsJson("ignav fiducials", fiducials,
+                                         (session_dir_ / "fiducials.mrk.json").string());
+  }
+  std::vector<registration::MarkupPoint> targets;
+  for (const auto& t : session.targets) {
+    targets.push_back({"T" + std::to_string(t.id), t.lps_mm, t.message, false});
+  }
+  (void)registration::writeMarkupsJson("ignav targets", targets,
+                                       (session_dir_ / "targets.mrk.json").string());
+}
+
+void Reports::writeReport(const Session& session) const {
+  std::vector<std::string> images;
+  for (const auto& [id, files] : images_)
+    images.insert(images.end(), files.begin(), files.end());
+  const std::string text = workflow::procedureReport(session, images);
+  writeAtomically(session_dir_ / "report.md", text.data(), text.size());
+}
+
+void Reports::writeSlices(const Session& session, bool all_targets, std::uint32_t reached_id) {
+  constexpr std::size_t kReportTargets = 12;
+  if (all_targets) images_.clear();  // a lock starts the pictures afresh
+  if (!session.ct.volume || !session.registration) return;
+  const auto started = Clock::now();
+  const fs::path dir = session_dir_ / "report";
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  std::size_t drawn = 0;
+  for (const auto& t : session.targets) {
+    if (!t.registered || !t.solution.reachable()) continue;
+    if (!all_targets && t.id != reached_id) continue;
+    if (all_targets && ++drawn > kReportTargets) break;
+    volume::Overlays overlays = overlaysFor(session);
+    overlays.paths.push_back(
+        {workflow::needlePathLps(session, t.solution.joints), {0, 255, 255}, 1});
+    if (t.reached) {
+      const auto& robot = *session.robot;
+      const Eigen::Vector3d tip =
+          robot.kinematics.forward(robot.transmission.toJoints(session.position)).tip_mm;
+      overlays.points.push_back({session.registration->toImage(tip), "tip", {255, 0, 255}, 3});
+    }
+    std::vector<std::string> files;
+    for (const auto& [view, name] :
+         {std::pair{volume::View::kCoronal, "coronal"}, std::pair{volume::View::kAxial, "axial"}}) {
+      volume::SliceSpec spec;
+      spec.view = view;
+      spec.centre_lps_mm = t.lps_mm;
+      spec.width_px = spec.height_px = 384;
+      spec.pixel_size_mm = 0.2;
+      spec.window = volume::kWindowBone;
+      auto slice = volume::reslice(*session.ct.volume, spec);
+      if (!slice) continue;
+      auto png = volume::renderPng(*slice, overlays);
+      if (!png) continue;
+      const std::string file =
+          fmt::format("report/T{}_{}{}.png", t.id, name, t.reached ? "_reached" : "");
+      if (!writeAtomically(session_dir_ / file, reinterpret_cast<const char*>(png->data()),
+                           png->size())) {
+        continue;
+      }
+      files.push_back(file);
+    }
+    images_[t.id] = files;
+  }
+  // On the reports thread: the event loop goes on meanwhile (docs/ARCHITECTURE.md).
+  spdlog::info("report slices written in {:.0f} ms", msSince(started));
+}
+
+}  // namespace ignav::server
