@@ -244,7 +244,8 @@ TEST(FaultE2E, AnEmergencyStopFromASenderThatExitsAtOnceIsStillTaken) {
     }
     const auto reset = op->send("reset_emergency");
     ASSERT_TRUE(reset.accepted) << reset.message;
-    ASSERT_TRUE(op->send("resume").accepted) << "round " << round;
+    const auto resumed = op->send("resume");
+    ASSERT_TRUE(resumed.accepted) << resumed.error_code << ": " << resumed.message;
     op->waitFor([](const json& s) { return phaseIs(s, "registration"); }, 5s);
   }
 }
