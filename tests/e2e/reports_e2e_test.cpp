@@ -31,24 +31,8 @@ using namespace std::chrono_literals;
 
 // Correctness bounds, not goals (ARCHITECTURE.md: 50 ms). Under AddressSanitizer, with other
 // sanitized suites on both cores, the server's own work is several times slower.
-#if defined(__SANITIZE_ADDRESS__)
-#define IGNAV_E2E_SANITIZED 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define IGNAV_E2E_SANITIZED 1
-#endif
-#endif
-#ifdef IGNAV_E2E_SANITIZED
-constexpr double kWorstQueryMs = 800.0;
-constexpr double kShareOfRendering = 0.5;
-#else
-constexpr double kWorstQueryMs = 300.0;
-constexpr double kShareOfRendering = 1.0 / 3.0;
-#endif
-
-double ms(Clock::duration d) {
-  return std::chrono::duration<double, std::milli>(d).count();
-}
+constexpr double kWorstQueryMs = kSanitized ? 800.0 : 300.0;
+constexpr double kShareOfRendering = kSanitized ? 0.5 : 1.0 / 3.0;
 
 const config::Robot& paperRobot() {
   static const config::Robot robot =
@@ -61,37 +45,6 @@ std::string slurp(const std::filesystem::path& path) {
   s << std::ifstream(path).rdbuf();
   return s.str();
 }
-
-// Another client asking `query` every 20 ms on its own thread, timing each answer.
-class Queries {
- public:
-  explicit Queries(const ServerProcess& server) : client_(server.client("watcher")) {
-    thread_ = std::thread([this] {
-      while (!stop_) {
-        const auto t = Clock::now();
-        const bool ok = client_->send("query", {}, 20s).accepted;
-        const double took = ms(Clock::now() - t);
-        if (ok) ++answered_;
-        if (took > worst_ms_) worst_ms_ = took;
-        std::this_thread::sleep_for(20ms);
-      }
-    });
-  }
-  ~Queries() { stop(); }
-  void stop() {
-    stop_ = true;
-    if (thread_.joinable()) thread_.join();
-  }
-  int answered() const { return answered_; }
-  double worstMs() const { return worst_ms_; }
-
- private:
-  std::unique_ptr<Client> client_;
-  std::atomic<bool> stop_{false};
-  std::atomic<int> answered_{0};
-  std::atomic<double> worst_ms_{0.0};
-  std::thread thread_;
-};
 
 // The built-in robot phantom (as the server makes it: oblique, 8 HU noise) at `spacing_mm`
 // isotropic over the same extent, as NRRD in `folder`.
@@ -170,21 +123,21 @@ TEST(ReportsE2E, QueriesAreAnsweredAtOnceWhileALockRendersTheReportSlicesOfALarg
   op->waitFor([](const json& s) { return stateText(s, "volume", "status") == "loaded"; }, 60s);
   std::filesystem::remove_all(folder);
   ASSERT_EQ(stateText(op->state(), "volume", "status"), "loaded") << op->state()["volume"].dump();
-  const double load_ms = ms(Clock::now() - t);
+  const double load_ms = msOf(Clock::now() - t);
   // Detection runs inside the reducer (on the event thread) for now: its reply says how long.
   t = Clock::now();
   const auto detected = op->send("auto_fiducials", {}, 60s);
-  const double detect_ms = ms(Clock::now() - t);
+  const double detect_ms = msOf(Clock::now() - t);
   ASSERT_TRUE(detected.accepted) << detected.message;
   op->waitFor([](const json& s) { return stateText(s, "registration", "status") == "registered"; },
               10s);
   const auto ids = addTwelveTargets(*op);
 
-  Queries queries(server);
+  QueryWatcher queries(server.client("watcher"), 20ms);
   std::this_thread::sleep_for(200ms);
   t = Clock::now();
   const auto locked = op->send("lock_plan", {}, 60s);
-  const double lock_reply_ms = ms(Clock::now() - t);
+  const double lock_reply_ms = msOf(Clock::now() - t);
   ASSERT_TRUE(locked.accepted) << locked.message;
   // The report that lists every slice, written after them.
   std::string report;
@@ -192,7 +145,7 @@ TEST(ReportsE2E, QueriesAreAnsweredAtOnceWhileALockRendersTheReportSlicesOfALarg
     std::this_thread::sleep_for(25ms);
     report = slurp(server.sessionDir() / "report.md");
   }
-  const double written_ms = ms(Clock::now() - t);
+  const double written_ms = msOf(Clock::now() - t);
   std::this_thread::sleep_for(100ms);  // and a few queries after
   queries.stop();
   ASSERT_TRUE(listsEverySlice(report, ids)) << report;
