@@ -44,16 +44,32 @@ std::vector<std::string> overProxy(const test::DelayProxy& proxy) {
           "1000"};
 }
 
-TEST(SlowControllerE2E, EmergencyStopMidMoveGoesOutAtOnceWhileEveryReplyTakes900ms) {
+// The robot behind a DMC emulator and a proxy that can delay or swallow its replies, a server
+// driving it, an approved move under way, and another client's queries timed throughout.
+struct MovingOverProxy {
   test::Emulator dmc;
-  test::DelayProxy proxy(dmc.port());
-  ServerProcess server(110, overProxy(proxy));
-  auto op = server.client("operator");
-  ASSERT_NO_FATAL_FAILURE(lockedPlanTo(*op, {-10, 15, -190}));
-  QueryWatcher queries(server.client("watcher"), 50ms);
-  const auto approved = Clock::now();
-  ASSERT_TRUE(approveShown(*op).accepted);
-  ASSERT_TRUE(proxy.waitFor("BG", approved, 10s)) << "the move never started";
+  test::DelayProxy proxy{dmc.port()};
+  std::unique_ptr<ServerProcess> server;
+  std::unique_ptr<Client> op;
+  std::unique_ptr<QueryWatcher> queries;
+
+  void start(std::uint32_t domain) {
+    server = std::make_unique<ServerProcess>(domain, overProxy(proxy));
+    op = server->client("operator");
+    ASSERT_NO_FATAL_FAILURE(lockedPlanTo(*op, {-10, 15, -190}));
+    queries = std::make_unique<QueryWatcher>(server->client("watcher"), 50ms);
+    const auto approved = Clock::now();
+    ASSERT_TRUE(approveShown(*op).accepted);
+    ASSERT_TRUE(proxy.waitFor("BG", approved, 10s)) << "the move never started";
+  }
+};
+
+TEST(SlowControllerE2E, EmergencyStopMidMoveGoesOutAtOnceWhileEveryReplyTakes900ms) {
+  MovingOverProxy rig;
+  ASSERT_NO_FATAL_FAILURE(rig.start(110));
+  auto& proxy = rig.proxy;
+  auto& op = rig.op;
+  auto& queries = *rig.queries;
   // From now on every reply takes 900 ms: each poll of the moving robot (three replies) 2.7 s.
   proxy.setDelay(900ms);
   op->waitFor([](const json& s) { return stateText(s, "motion", "move_kind") != ""; }, 2s);
@@ -91,15 +107,11 @@ TEST(SlowControllerE2E, EmergencyStopMidMoveGoesOutAtOnceWhileEveryReplyTakes900
 }
 
 TEST(SlowControllerE2E, WithTheControllerSilentTheStopIsSentTheServerAnswersAndTheFaultComes) {
-  test::Emulator dmc;
-  test::DelayProxy proxy(dmc.port());
-  ServerProcess server(111, overProxy(proxy));
-  auto op = server.client("operator");
-  ASSERT_NO_FATAL_FAILURE(lockedPlanTo(*op, {-10, 15, -190}));
-  QueryWatcher queries(server.client("watcher"), 50ms);
-  const auto approved = Clock::now();
-  ASSERT_TRUE(approveShown(*op).accepted);
-  ASSERT_TRUE(proxy.waitFor("BG", approved, 10s)) << "the move never started";
+  MovingOverProxy rig;
+  ASSERT_NO_FATAL_FAILURE(rig.start(111));
+  auto& proxy = rig.proxy;
+  auto& op = rig.op;
+  auto& queries = *rig.queries;
   std::this_thread::sleep_for(300ms);
   proxy.setSilent(true);  // the commands arrive; no reply ever comes back
   const auto silent = Clock::now();

@@ -3,6 +3,7 @@
 // when this node process exits, however it exits.
 import { spawn } from "node:child_process";
 import fs from "node:fs";
+import path from "node:path";
 
 export const kReadyTimeoutMs = 15000;
 
@@ -55,5 +56,27 @@ export async function stopChildren() {
       const force = setTimeout(() => record.child.kill("SIGKILL"), 3000);
       return kill(record, "SIGTERM").then(() => clearTimeout(force));
     }),
+  );
+}
+
+// ignav-server on loopback DDS, with no OpenIGTLink listener, its session in `sessionDir`.
+export function startServer({ build, config, domain, sessionDir, dds }) {
+  return startProcess(
+    "ignav-server",
+    path.join(build, "server/ignav-server"),
+    ["--config", config, "--domain", String(domain), "--session-dir", sessionDir, "--dds-config", dds, "--no-igtl"],
+    /ignav-server ready/,
+  );
+}
+
+// ignav-web as the client "operator" on `port` (0: any free one); its record's match[1] is the URL.
+// `appDir`: the bundled app to serve (undefined: the build's own).
+export function startGateway({ build, domain, dds, port, appDir }) {
+  return startProcess(
+    "ignav-web",
+    path.join(build, "tools/ignav-web/ignav-web"),
+    ["--dds-config", dds, "--domain", String(domain), "--port", String(port), "--client-id", "operator",
+     ...(appDir ? ["--app-dir", appDir] : [])],
+    /ignav-web ready url=(\S+)/,
   );
 }

@@ -19,7 +19,7 @@ import os from "node:os";
 import path from "node:path";
 import { createRequire } from "node:module";
 import { parseArgs } from "node:util";
-import { children, kill, startProcess, stopChildren } from "./children.mjs";
+import { children, kill, startGateway as startGatewayProcess, startServer, stopChildren } from "./children.mjs";
 
 const { values: args } = parseArgs({
   options: {
@@ -323,21 +323,10 @@ async function run(pages) {
   check(shortExpiry !== yaml, "configs/server.yaml has no approval expiry_s to shorten");
   fs.writeFileSync(path.join(configDir, "server.yaml"), shortExpiry);
   const dds = path.join(source, "configs/dds/loopback.xml");
-  const server = await startProcess(
-    "ignav-server",
-    path.join(build, "server/ignav-server"),
-    ["--config", path.join(configDir, "server.yaml"), "--domain", args.domain,
-     "--session-dir", path.join(tmp, "session"), "--dds-config", dds, "--no-igtl"],
-    /ignav-server ready/,
-  );
-  const startGateway = (port) =>
-    startProcess(
-      "ignav-web",
-      path.join(build, "tools/ignav-web/ignav-web"),
-      ["--dds-config", dds, "--domain", args.domain, "--port", String(port), "--client-id", "operator",
-       "--app-dir", appDir],
-      /ignav-web ready url=(\S+)/,
-    );
+  const server = await startServer({
+    build, config: path.join(configDir, "server.yaml"), domain: args.domain, sessionDir: path.join(tmp, "session"), dds,
+  });
+  const startGateway = (port) => startGatewayProcess({ build, domain: args.domain, dds, port, appDir });
   let gateway = await startGateway(0);
   const url = gateway.match[1];
   const port = Number(new URL(url).port);

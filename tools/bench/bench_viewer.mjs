@@ -24,7 +24,7 @@ import path from "node:path";
 import { createRequire } from "node:module";
 import { fileURLToPath } from "node:url";
 import { parseArgs } from "node:util";
-import { children, kill, startProcess, stopChildren } from "../../tests/web/children.mjs";
+import { children, kill, startGateway as startGatewayProcess, startServer, stopChildren } from "../../tests/web/children.mjs";
 
 const source = path.resolve(path.dirname(fileURLToPath(import.meta.url)), "../..");
 const { values: args } = parseArgs({
@@ -134,21 +134,12 @@ async function main() {
       "--robot",
       path.join(source, "configs/robots/torabi2014.yaml"),
     ]);
-    await startProcess(
-      "ignav-server",
-      path.join(build, "server/ignav-server"),
-      ["--config", path.join(source, "configs/server.yaml"), "--domain", args.domain, "--session-dir",
-       path.join(tmp, "session"), "--dds-config", dds, "--no-igtl"],
-      /ignav-server ready/,
-    );
-    const startGateway = (port) =>
-      startProcess(
-        "ignav-web",
-        path.join(build, "tools/ignav-web/ignav-web"),
-        ["--dds-config", dds, "--domain", args.domain, "--port", String(port), "--client-id", "operator",
-         ...(args["app-dir"] ? ["--app-dir", path.resolve(args["app-dir"])] : [])],
-        /ignav-web ready url=(\S+)/,
-      );
+    await startServer({
+      build, config: path.join(source, "configs/server.yaml"), domain: args.domain, sessionDir: path.join(tmp, "session"),
+      dds,
+    });
+    const appDir = args["app-dir"] ? path.resolve(args["app-dir"]) : undefined;
+    const startGateway = (port) => startGatewayProcess({ build, domain: args.domain, dds, port, appDir });
     let gateway = await startGateway(0);
     const url = gateway.match[1];
     const port = Number(new URL(url).port);
