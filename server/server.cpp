@@ -460,8 +460,8 @@ class Server {
   // Inputs that judge the robot by a controller reading wait (held, in order, with the client
   // commands that come after them) for a reading taken after every command already sent to the
   // controller: the latest one may predate a move or a halt, and a slow controller takes seconds
-  // per reading. The event loop goes on meanwhile. Emergency stops and queries never wait; an
-  // emergency stop refuses what was held (it came after them and must not be undone by them).
+  // per reading. The event loop goes on meanwhile. Emergency stops, queries and pings never wait;
+  // an emergency stop refuses what was held (it came after them and must not be undone by them).
   bool step(Input in) {
     if (in.kind == InputKind::kEmergencyStop) {
       refuseHeld("superseded",
@@ -469,7 +469,10 @@ class Server {
                  "controller");
       return stepNow(std::move(in));
     }
-    const bool client = workflow::isCommand(in.kind) && in.kind != InputKind::kQuery;
+    // Questions that need no reading (query, ping) never wait behind the held inputs.
+    const bool at_once =
+        workflow::isQuestion(in.kind) && !workflow::needsControllerReading(in.kind);
+    const bool client = workflow::isCommand(in.kind) && !at_once;
     if ((client && !held_.empty()) || waitsForReading(in)) {
       if (held_.empty()) held_since_ = Clock::now();
       held_.push_back(std::move(in));

@@ -158,6 +158,10 @@ workflow::Reply Client::send(const std::string& command, const CommandArgs& args
   for (const auto& p : args.points)
     owned.points.push_back(toMsg(p));
   owned.ids = args.ids;
+  if (args.matrix) {
+    for (int k = 0; k < 16; ++k)
+      owned.matrix[static_cast<std::size_t>(k)] = (*args.matrix)(k / 4, k % 4);
+  }
   const Role role = requiredRole(*kind);
   impl_->commands[static_cast<int>(role)]
       .get("'" + command + "' needs the " + toString(role) + " role")
@@ -167,17 +171,9 @@ workflow::Reply Client::send(const std::string& command, const CommandArgs& args
 
 workflow::Reply Client::setRegistration(const Eigen::Matrix4d& image_to_robot,
                                         std::chrono::milliseconds timeout) {
-  const std::uint64_t request_id = next_request_++;
-  OwnedCommand owned;
-  owned.client_id = client_id_;
-  for (int k = 0; k < 16; ++k)
-    owned.matrix[k] = image_to_robot(k / 4, k % 4);
-  const auto kind = ignav_msg_CMD_SET_REGISTRATION;
-  const Role role = requiredRole(kind);
-  impl_->commands[static_cast<int>(role)]
-      .get(std::string("'set_registration' needs the ") + toString(role) + " role")
-      .write(owned.build(request_id, kind));
-  return awaitReply(request_id, "set_registration", timeout);
+  CommandArgs args;
+  args.matrix = image_to_robot;
+  return send("set_registration", args, timeout);
 }
 
 workflow::Reply Client::approve(std::uint64_t plan_id, const std::string& digest,

@@ -3,34 +3,12 @@
 namespace ignav::protocol {
 namespace {
 
-struct KindName {
-  ignav_msg_CommandKind kind;
-  workflow::InputKind input;
-  Role role;  // the least role that may give it (docs/SECURITY.md)
-};
-
-constexpr KindName kKinds[] = {
-    {ignav_msg_CMD_LOAD_VOLUME, workflow::InputKind::kLoadVolume, Role::kPlanner},
-    {ignav_msg_CMD_SET_FIDUCIALS, workflow::InputKind::kSetFiducials, Role::kPlanner},
-    {ignav_msg_CMD_AUTO_FIDUCIALS, workflow::InputKind::kAutoFiducials, Role::kPlanner},
-    {ignav_msg_CMD_ADD_TARGET, workflow::InputKind::kAddTarget, Role::kPlanner},
-    {ignav_msg_CMD_MOVE_TARGET, workflow::InputKind::kMoveTarget, Role::kPlanner},
-    {ignav_msg_CMD_REMOVE_TARGET, workflow::InputKind::kRemoveTarget, Role::kPlanner},
-    {ignav_msg_CMD_CLEAR_TARGETS, workflow::InputKind::kClearTargets, Role::kPlanner},
-    {ignav_msg_CMD_REORDER_TARGETS, workflow::InputKind::kReorderTargets, Role::kPlanner},
-    {ignav_msg_CMD_LOCK_PLAN, workflow::InputKind::kLockPlan, Role::kPlanner},
-    {ignav_msg_CMD_UNLOCK_PLAN, workflow::InputKind::kUnlockPlan, Role::kPlanner},
-    {ignav_msg_CMD_STOP, workflow::InputKind::kStop, Role::kPlanner},
-    {ignav_msg_CMD_RESUME, workflow::InputKind::kResume, Role::kApprover},
-    {ignav_msg_CMD_EMERGENCY_STOP, workflow::InputKind::kEmergencyStop, Role::kViewer},
-    {ignav_msg_CMD_RESET_EMERGENCY, workflow::InputKind::kResetEmergency, Role::kApprover},
-    {ignav_msg_CMD_QUERY, workflow::InputKind::kQuery, Role::kViewer},
-    {ignav_msg_CMD_REQUEST_APPROVAL, workflow::InputKind::kRequestApproval, Role::kPlanner},
-    {ignav_msg_CMD_HOME, workflow::InputKind::kHome, Role::kApprover},
-    {ignav_msg_CMD_SET_REGISTRATION, workflow::InputKind::kSetRegistration, Role::kPlanner},
-    {ignav_msg_CMD_MANUAL, workflow::InputKind::kManual, Role::kPlanner},
-    {ignav_msg_CMD_CHECK_READY, workflow::InputKind::kCheckReady, Role::kViewer},
-};
+static_assert(static_cast<int>(Role::kViewer) == static_cast<int>(workflow::ClientRole::kViewer) &&
+                  static_cast<int>(Role::kPlanner) ==
+                      static_cast<int>(workflow::ClientRole::kPlanner) &&
+                  static_cast<int>(Role::kApprover) ==
+                      static_cast<int>(workflow::ClientRole::kApprover),
+              "protocol::Role and workflow::ClientRole name the same roles in the same order");
 
 std::string copy(const char* s) {
   return s ? std::string(s) : std::string();
@@ -38,35 +16,27 @@ std::string copy(const char* s) {
 
 }  // namespace
 
-std::optional<ignav_msg_CommandKind> commandKindFromName(const std::string& name) {
-  for (const auto& k : kKinds) {
-    if (name == workflow::toString(k.input)) return k.kind;
-  }
-  return std::nullopt;
+std::optional<std::int32_t> commandKindFromName(const std::string& name) {
+  const auto* spec = workflow::commandNamed(name);
+  if (!spec || spec->wire_kind == workflow::kNoWireKind) return std::nullopt;
+  return spec->wire_kind;
 }
 
 Role requiredRole(std::int32_t kind) {
-  for (const auto& k : kKinds) {
-    if (k.kind == kind) return k.role;
-  }
-  return Role::kApprover;  // unknown kinds are refused anyway
+  const auto* spec = workflow::commandOfWireKind(kind);
+  return spec ? static_cast<Role>(spec->role) : Role::kApprover;  // unknown kinds are refused
 }
 
 const char* commandKindName(std::int32_t kind) {
-  for (const auto& k : kKinds) {
-    if (k.kind == kind) return workflow::toString(k.input);
-  }
-  return "unknown";
+  const auto* spec = workflow::commandOfWireKind(kind);
+  return spec ? spec->name : "unknown";
 }
 
 std::optional<workflow::Input> toInput(const ignav_msg_Command& c) {
-  const KindName* found = nullptr;
-  for (const auto& k : kKinds) {
-    if (k.kind == c.kind) found = &k;
-  }
-  if (!found) return std::nullopt;
+  const auto* spec = workflow::commandOfWireKind(c.kind);
+  if (!spec) return std::nullopt;
   workflow::Input in;
-  in.kind = found->input;
+  in.kind = spec->kind;
   in.client_id = copy(c.client_id);
   in.request_id = c.request_id;
   in.path = copy(c.path);
@@ -77,12 +47,8 @@ std::optional<workflow::Input> toInput(const ignav_msg_Command& c) {
   }
   for (std::uint32_t i = 0; i < c.ids._length && i < cap; ++i)
     in.ids.push_back(c.ids._buffer[i]);
-  if (in.kind == workflow::InputKind::kSetRegistration) {
-    Eigen::Matrix4d m;
-    for (int k = 0; k < 16; ++k)
-      m(k / 4, k % 4) = c.matrix[k];
-    in.matrix = m;
-  }
+  // The matrix is a fixed array, always on the wire: it means something only where it is asked.
+  if (spec->args.matrix_is) in.matrix = fromRowMajor(c.matrix);
   return in;
 }
 

@@ -219,7 +219,7 @@ TEST(SecurityE2E, PermissionsRefuseTheWritersOfTheWrongRoleAndTheServerTheWrongT
     protocol::OwnedCommand owned;
     owned.client_id = "sneaky";
     owned.path = "phantom:";
-    commands.write(owned.build(7, ignav_msg_CMD_LOAD_VOLUME));
+    commands.write(owned.build(7, protocol::commandKindFromName("load_volume").value()));
     std::string code, message;
     for (int i = 0; i < 1000 && code.empty(); ++i) {
       replies.take([&](const ignav_msg_Reply& r) {

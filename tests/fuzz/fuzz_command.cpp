@@ -84,7 +84,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       c.client_id = protocol::cstr(client);
       c.request_id = in.ConsumeIntegral<std::uint64_t>();
       // Mostly our kinds, sometimes any integer (issue 27: every value gets a reply).
-      c.kind = in.ConsumeBool() ? in.ConsumeIntegralInRange<std::int32_t>(0, 20)
+      c.kind = in.ConsumeBool() ? in.ConsumeIntegralInRange<std::int32_t>(
+                                      0, static_cast<std::int32_t>(workflow::inputTable().size()))
                                 : in.ConsumeIntegral<std::int32_t>();
       c.path = protocol::cstr(path);
       protocol::viewSequence(c.points, points);

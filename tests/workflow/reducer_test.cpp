@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include "ignav/config/robot_config.hpp"
@@ -65,7 +66,8 @@ Session planningSession() {
 
 TEST(Workflow, EveryPhaseInputPairIsATransitionOrARejectionThatChangesNothing) {
   for (Phase phase : kAllPhases) {
-    for (InputKind kind : kAllInputs) {
+    for (const auto& spec : inputTable()) {
+      const InputKind kind = spec.kind;
       if (!isCommand(kind)) continue;
       Session s = planningSession();
       s.phase = phase;
@@ -85,6 +87,88 @@ TEST(Workflow, EveryPhaseInputPairIsATransitionOrARejectionThatChangesNothing) {
         EXPECT_NE(reply.error_code, "wrong_phase") << toString(phase) << " " << toString(kind);
       }
     }
+  }
+}
+
+TEST(Inputs, EachInputIsDeclaredOnceWithItsOwnNameAndWireKind) {
+  std::set<std::string> names;
+  std::set<std::int32_t> wire;
+  std::size_t commands = 0;
+  for (std::size_t i = 0; i < inputTable().size(); ++i) {
+    const auto& spec = inputTable()[i];
+    EXPECT_EQ(static_cast<std::size_t>(spec.kind), i) << spec.name;
+    EXPECT_TRUE(names.insert(spec.name).second) << spec.name;
+    EXPECT_TRUE(std::string(spec.help).size() > 10) << spec.name;
+    if (spec.wire_kind != kNoWireKind) {
+      EXPECT_TRUE(wire.insert(spec.wire_kind).second) << spec.name;
+      EXPECT_TRUE(isCommand(spec.kind)) << spec.name;  // only clients send Commands
+      EXPECT_EQ(commandOfWireKind(spec.wire_kind), &spec);
+    }
+    if (isCommand(spec.kind)) {
+      ++commands;
+      EXPECT_EQ(commandNamed(spec.name), &spec);
+    } else {
+      EXPECT_EQ(commandNamed(spec.name), nullptr) << spec.name << " is the server's own";
+    }
+  }
+  EXPECT_EQ(commands, 22u);  // 21 on the Command topics, and approve on its own
+  // The numbers clients built against the old IDL enum keep their meaning.
+  EXPECT_EQ(commandNamed("load_volume")->wire_kind, 0);
+  EXPECT_EQ(commandNamed("query")->wire_kind, 14);
+  EXPECT_EQ(commandNamed("check_ready")->wire_kind, 19);
+  EXPECT_EQ(commandNamed("approve")->wire_kind, kNoWireKind);
+}
+
+// Each command's row says what it carries; anything else is refused before it does anything.
+TEST(Inputs, WhatACommandCarriesIsCheckedAgainstItsRow) {
+  const Session s = planningSession();
+  auto reject = [&](Input in) {
+    const auto step = reduce(s, in);
+    EXPECT_EQ(step.session.revision, s.revision);
+    return step.effects.replies.at(0);
+  };
+  Input in = command(InputKind::kAddTarget, 50, {{1, 2, 3}, {4, 5, 6}});
+  auto r = reject(in);
+  EXPECT_EQ(r.error_code, "bad_arguments");
+  EXPECT_EQ(r.message, "add_target takes 1 point(s) and 0 id(s); got 2 and 0");
+  in = command(InputKind::kClearTargets, 51);
+  in.path = "x";
+  EXPECT_EQ(reject(in).message, "clear_targets takes no path");
+  in = command(InputKind::kCheckReady, 52);
+  in.path = "robot|targeting";
+  r = reject(in);
+  EXPECT_EQ(r.error_code, "bad_arguments");
+  EXPECT_EQ(r.message, "check_ready's path is one of robot|targeting; got \"robot|targeting\"");
+  in = command(InputKind::kSetRegistration, 53);
+  EXPECT_EQ(reject(in).message, "set_registration needs a 4x4 matrix");
+  in = command(InputKind::kAddTarget, 54, {{1, 2, 3}});
+  in.matrix = Eigen::Matrix4d::Identity();
+  EXPECT_EQ(reject(in).message, "add_target takes no matrix");
+  // "Any number" of ids: reorder_targets takes a list, judged against the targets.
+  in = command(InputKind::kReorderTargets, 55, {}, {7, 8, 9});
+  EXPECT_EQ(reject(in).error_code, "bad_order");
+}
+
+TEST(Inputs, PingAnswersWithTheServersTimeInEveryPhaseAndChangesNothing) {
+  for (Phase phase : kAllPhases) {
+    Session s = planningSession();
+    s.phase = phase;
+    s.pending = MotionRequest{};
+    s.pending->plan_id = 77;
+    Input ping = command(InputKind::kPing, 60);
+    ping.time_s = 1764000000.25;
+    const auto step = reduce(s, ping);
+    const auto& reply = step.effects.replies.at(0);
+    EXPECT_TRUE(reply.accepted) << toString(phase) << ": " << reply.message;
+    EXPECT_EQ(reply.message,
+              fmt::format("server_time_unix_s=1764000000.250000 revision={}", s.revision));
+    EXPECT_EQ(reply.revision, s.revision);
+    EXPECT_EQ(step.session.revision, s.revision);
+    EXPECT_EQ(step.session.phase, phase);
+    EXPECT_TRUE(step.effects.journal.empty());
+    EXPECT_TRUE(step.effects.controller.empty());
+    ASSERT_TRUE(step.session.pending.has_value()) << "a question must not kill a pending request";
+    EXPECT_EQ(step.session.pending->plan_id, 77u);
   }
 }
 
@@ -396,6 +480,17 @@ TEST(Workflow, DiagramInDocsIsCurrent) {
   text << in.rdbuf();
   EXPECT_EQ(text.str(), workflowMarkdown())
       << "regenerate: build/tools/workflow-diagram/ignav-workflow-diagram > docs/WORKFLOW.md";
+}
+
+TEST(Workflow, CommandTableInProtocolDocIsCurrent) {
+  std::ifstream in(IGNAV_SOURCE_DIR "/docs/PROTOCOL.md");
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string generated = "<!-- commands: generated by ignav-workflow-diagram -->\n" +
+                                commandsMarkdown() + "<!-- end of generated commands -->\n";
+  EXPECT_NE(text.str().find(generated), std::string::npos)
+      << "regenerate: build/tools/workflow-diagram/ignav-workflow-diagram --update-protocol "
+         "docs/PROTOCOL.md";
 }
 
 }  // namespace

@@ -113,9 +113,9 @@ struct Gateway::Impl {
       subject = protocol::certificateSubject(
           std::string(std::istreambuf_iterator<char>(pem), std::istreambuf_iterator<char>()));
     }
-    for (const auto kind : workflow::kAllInputs) {
-      const std::string name = workflow::toString(kind);
-      if (workflow::isCommand(kind) && client.mayPublish(name)) permitted.push_back(name);
+    for (const auto& spec : workflow::inputTable()) {
+      if ((spec.traits & workflow::kFromClients) && client.mayPublish(spec.name))
+        permitted.push_back(spec.name);
     }
     // Browsers never wait for a reply by polling; the DDS thread sleeps on the waitset.
     client.setReplySpin(std::chrono::microseconds(0));

@@ -4,12 +4,14 @@
 //   ignavctl slice --view axial --lps X,Y,Z --out s.png | watch | run script.yaml
 //   ignavctl approval | approve [--yes] [--plan N --digest HEX] | motion | emergency-stop
 //   ignavctl replay SESSION [--speed 1|10|max] [--until SEQ]
+//   and every other command by its name: ignavctl ping | add-target X,Y,Z | check-ready robot ...
 #include <yaml-cpp/yaml.h>
 #include <CLI/CLI.hpp>
 
 #include <unistd.h>
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -68,19 +70,57 @@ Eigen::Matrix4d matrix16(const std::string& text) {
   return m;
 }
 
-void printReply(const ignav::workflow::Reply& r, bool as_json) {
+// `round_trip_ms` (< 0: not measured) is from writing the command to taking its reply.
+void printReply(const ignav::workflow::Reply& r, bool as_json, double round_trip_ms = -1.0) {
   if (as_json) {
-    std::cout << json{{"accepted", r.accepted},     {"error_code", r.error_code},
-                      {"message", r.message},       {"target_id", r.target_id},
-                      {"request_id", r.request_id}, {"revision", r.revision}}
-                     .dump()
-              << "\n";
+    json out{{"accepted", r.accepted},   {"error_code", r.error_code}, {"message", r.message},
+             {"target_id", r.target_id}, {"request_id", r.request_id}, {"revision", r.revision}};
+    if (round_trip_ms >= 0) out["round_trip_ms"] = round_trip_ms;
+    std::cout << out.dump() << "\n";
   } else if (r.accepted) {
     std::cout << "accepted" << (r.target_id ? " (target " + std::to_string(r.target_id) + ")" : "")
               << ": " << r.message << "\n";
   } else {
     std::cout << "REJECTED [" << r.error_code << "]: " << r.message << "\n";
   }
+}
+
+// A derived subcommand's words as its command's arguments, in usageOf()'s order: the path,
+// then the ids, the points, the matrix.
+CommandArgs commandArgs(const ignav::workflow::InputSpec& spec,
+                        const std::vector<std::string>& words) {
+  const auto& a = spec.args;
+  const std::string usage = std::string(spec.name) + " " + ignav::workflow::usageOf(spec);
+  CommandArgs out;
+  std::size_t next = 0;
+  auto take = [&]() -> const std::string& {
+    if (next >= words.size()) throw UsageError("usage: " + usage);
+    return words[next++];
+  };
+  if (a.path_is) out.path = take();
+  auto count = [&](std::size_t n, std::size_t others) {
+    // "Any number" takes what the fields after it leave.
+    return n == ignav::workflow::kAnyCount ? words.size() - std::min(words.size(), next + others)
+                                           : n;
+  };
+  const std::size_t after_ids =
+      (a.points == ignav::workflow::kAnyCount ? 0 : a.points) + (a.matrix_is ? 1 : 0);
+  for (std::size_t i = 0, n = count(a.ids, after_ids); i < n; ++i) {
+    const std::string& word = take();
+    try {
+      std::size_t used = 0;
+      const unsigned long id = std::stoul(word, &used);
+      if (used != word.size() || id > UINT32_MAX) throw std::out_of_range(word);
+      out.ids.push_back(static_cast<std::uint32_t>(id));
+    } catch (const std::logic_error&) {
+      throw UsageError("'" + word + "' is not a target id; usage: " + usage);
+    }
+  }
+  for (std::size_t i = 0, n = count(a.points, a.matrix_is ? 1 : 0); i < n; ++i)
+    out.points.push_back(triple(take()));
+  if (a.matrix_is) out.matrix = matrix16(take());
+  if (next != words.size()) throw UsageError("too many arguments; usage: " + usage);
+  return out;
 }
 
 std::string fmt3(const json& p) {
@@ -446,12 +486,21 @@ int main(int argc, char** argv) {
   std::string ready_what;
   auto* ready = app.add_subcommand("ready", "is the robot (or the plan) ready? changes nothing");
   ready->add_option("what", ready_what, "robot | targeting")->required();
-  std::string simple;
-  for (const char* name :
-       {"stop", "resume", "reset-emergency", "home", "request-approval", "query", "manual"}) {
-    app.add_subcommand(name, std::string("send ") + name)->callback([&simple, name] {
-      simple = name;
-    });
+  // Every other command, from the table that declares them (workflow/inputs.hpp): "add-target
+  // X,Y,Z", "ping", ... with the arguments its row names.
+  const ignav::workflow::InputSpec* derived = nullptr;
+  std::vector<std::string> derived_words;
+  for (const auto& spec : ignav::workflow::inputTable()) {
+    if (spec.wire_kind == ignav::workflow::kNoWireKind) continue;
+    std::string name = spec.name;
+    std::replace(name.begin(), name.end(), '_', '-');
+    const auto given =
+        app.get_subcommands([&name](CLI::App* sub) { return sub->get_name() == name; });
+    if (!given.empty()) continue;  // given a friendlier form above
+    auto* sub = app.add_subcommand(name, spec.help);
+    sub->callback([&derived, &spec] { derived = &spec; });
+    const std::string usage = ignav::workflow::usageOf(spec);
+    if (!usage.empty()) sub->add_option("args", derived_words, usage)->required();
   }
   std::string replay_dir, replay_speed = "1", server_config = "configs/server.yaml";
   std::uint64_t replay_until = 0;
@@ -652,10 +701,12 @@ int main(int argc, char** argv) {
       printReply(r, as_json);
       return r.accepted ? 0 : kExitRejected;
     }
-    if (!simple.empty()) {
-      std::string command = simple;
-      std::replace(command.begin(), command.end(), '-', '_');
-      return send(command);
+    if (derived) {
+      const auto started = std::chrono::steady_clock::now();
+      const auto r = client.send(derived->name, commandArgs(*derived, derived_words));
+      const auto round_trip = std::chrono::steady_clock::now() - started;
+      printReply(r, as_json, std::chrono::duration<double, std::milli>(round_trip).count());
+      return r.accepted ? 0 : kExitRejected;
     }
   } catch (const UsageError& e) {
     std::cerr << "ignavctl: " << e.what() << "\n";

@@ -111,45 +111,44 @@ std::optional<Rejection> checkShape(const Input& in) {
                                    i, in.points[i].cwiseAbs().maxCoeff(), kMaxCoordinate_mm)};
     }
   }
-  auto want = [&](std::size_t points, std::size_t ids) -> std::optional<Rejection> {
-    if (in.points.size() == points && in.ids.size() == ids) return std::nullopt;
-    return Rejection{"bad_arguments",
-                     fmt::format("{} takes {} point(s) and {} id(s); got {} and {}",
-                                 toString(in.kind), points, ids, in.points.size(), in.ids.size())};
-  };
-  switch (in.kind) {
-    case InputKind::kLoadVolume:
-      if (in.path.empty()) return Rejection{"bad_arguments", "load_volume needs a path"};
-      return want(0, 0);
-    case InputKind::kSetFiducials:
-      return want(3, 0);
-    case InputKind::kAddTarget:
-      return want(1, 0);
-    case InputKind::kMoveTarget:
-      return want(1, 1);
-    case InputKind::kRemoveTarget:
-      return want(0, 1);
-    case InputKind::kReorderTargets:
-      return std::nullopt;  // checked against the targets
-    case InputKind::kSetRegistration:
-      if (!in.matrix) return Rejection{"bad_arguments", "set_registration needs a 4x4 matrix"};
-      return want(0, 0);
-    case InputKind::kCheckReady:
-      if (in.path != "robot" && in.path != "targeting") {
-        return Rejection{"bad_arguments",
-                         "check_ready asks about \"robot\" or \"targeting\"; got \"" +
-                             in.path.substr(0, 64) + "\""};
-      }
-      return want(0, 0);
-    case InputKind::kApprove:
-      if (in.digest.size() > kMaxIdLength) {
-        return Rejection{"too_long", fmt::format("digest has {} characters; at most {}",
-                                                 in.digest.size(), kMaxIdLength)};
-      }
-      return want(0, 0);
-    default:
-      return want(0, 0);
+  if (in.digest.size() > kMaxIdLength) {
+    return Rejection{"too_long", fmt::format("digest has {} characters; at most {}",
+                                             in.digest.size(), kMaxIdLength)};
   }
+  // The rest from the input table: what this kind carries, and nothing else.
+  const InputSpec& spec = specOf(in.kind);
+  const Arguments& a = spec.args;
+  if (!a.path_is && !in.path.empty()) {
+    return Rejection{"bad_arguments", fmt::format("{} takes no path", spec.name)};
+  }
+  if (a.path_is && in.path.empty()) {
+    return Rejection{"bad_arguments", fmt::format("{} needs a path: {}", spec.name, a.path_is)};
+  }
+  if (a.path_choices) {
+    const std::string choices = std::string("|") + a.path_choices + "|";
+    if (in.path.find('|') != std::string::npos ||
+        choices.find("|" + in.path + "|") == std::string::npos) {
+      return Rejection{"bad_arguments", fmt::format("{}'s path is one of {}; got \"{}\"", spec.name,
+                                                    a.path_choices, in.path.substr(0, 64))};
+    }
+  }
+  const bool points_ok = a.points == kAnyCount || in.points.size() == a.points;
+  const bool ids_ok = a.ids == kAnyCount || in.ids.size() == a.ids;
+  if (!points_ok || !ids_ok) {
+    auto count = [](std::size_t n) {
+      return n == kAnyCount ? std::string("any number of") : std::to_string(n);
+    };
+    return Rejection{"bad_arguments",
+                     fmt::format("{} takes {} point(s) and {} id(s); got {} and {}", spec.name,
+                                 count(a.points), count(a.ids), in.points.size(), in.ids.size())};
+  }
+  if (a.matrix_is && !in.matrix) {
+    return Rejection{"bad_arguments", fmt::format("{} needs a 4x4 matrix", spec.name)};
+  }
+  if (!a.matrix_is && in.matrix) {
+    return Rejection{"bad_arguments", fmt::format("{} takes no matrix", spec.name)};
+  }
+  return std::nullopt;
 }
 
 Target* findTarget(Session& s, std::uint32_t id) {
@@ -346,8 +345,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
                                Phase& to, std::string& note) {
   // Whatever else happens, a pending approval request dies with any change (DESIGN.md safety
   // invariant 1); only an approve consumes it, and new ones are issued below.
-  if (in.kind != InputKind::kQuery && in.kind != InputKind::kApprove &&
-      in.kind != InputKind::kCheckReady && s.pending) {
+  if (!isQuestion(in.kind) && in.kind != InputKind::kApprove && s.pending) {
     s.pending.reset();
     e.approval_changed = true;
   }
@@ -740,6 +738,10 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       for (const auto& t : s.targets)
         e.targets_changed.push_back(t.id);
       return std::nullopt;
+    case InputKind::kPing:
+      // The time the server stamped on the input as it took it; the reply carries the revision.
+      note = fmt::format("server_time_unix_s={:.6f} revision={}", in.time_s, s.revision);
+      return std::nullopt;
   }
   return Rejection{"internal", "unhandled input"};
 }
@@ -857,10 +859,10 @@ std::optional<actuation::ControllerStatus> readingFromJson(const json& j) {
 }
 
 InputKind inputKindFromName(const std::string& name, bool& found) {
-  for (InputKind k : kAllInputs) {
-    if (name == toString(k)) {
+  for (const auto& spec : inputTable()) {
+    if (name == spec.name) {
       found = true;
-      return k;
+      return spec.kind;
     }
   }
   found = false;
@@ -1083,7 +1085,7 @@ Step reduce(const Session& session, const Input& in) {
   const Phase before = s.phase;
   s.phase = to;
   // Questions change nothing, so there is nothing to journal (and no fsync on their path).
-  const bool question = in.kind == InputKind::kQuery || in.kind == InputKind::kCheckReady;
+  const bool question = isQuestion(in.kind);
   if (!question) ++s.revision;
   s.last_event = toString(in.kind);
   if (command) ++s.accepted;

@@ -35,103 +35,13 @@ const char* toString(Phase phase) {
   return "unknown";
 }
 
-const char* toString(InputKind kind) {
-  switch (kind) {
-    case InputKind::kLoadVolume:
-      return "load_volume";
-    case InputKind::kSetFiducials:
-      return "set_fiducials";
-    case InputKind::kAutoFiducials:
-      return "auto_fiducials";
-    case InputKind::kAddTarget:
-      return "add_target";
-    case InputKind::kMoveTarget:
-      return "move_target";
-    case InputKind::kRemoveTarget:
-      return "remove_target";
-    case InputKind::kClearTargets:
-      return "clear_targets";
-    case InputKind::kReorderTargets:
-      return "reorder_targets";
-    case InputKind::kLockPlan:
-      return "lock_plan";
-    case InputKind::kUnlockPlan:
-      return "unlock_plan";
-    case InputKind::kStop:
-      return "stop";
-    case InputKind::kResume:
-      return "resume";
-    case InputKind::kEmergencyStop:
-      return "emergency_stop";
-    case InputKind::kResetEmergency:
-      return "reset_emergency";
-    case InputKind::kQuery:
-      return "query";
-    case InputKind::kApprove:
-      return "approve";
-    case InputKind::kRequestApproval:
-      return "request_approval";
-    case InputKind::kHome:
-      return "home";
-    case InputKind::kSetRegistration:
-      return "set_registration";
-    case InputKind::kManual:
-      return "manual";
-    case InputKind::kCheckReady:
-      return "check_ready";
-    case InputKind::kConfigLoaded:
-      return "config_loaded";
-    case InputKind::kVolumeLoaded:
-      return "volume_loaded";
-    case InputKind::kVolumeLoadFailed:
-      return "volume_load_failed";
-    case InputKind::kSegmentDone:
-      return "segment_done";
-    case InputKind::kControllerFault:
-      return "controller_fault";
-    case InputKind::kServerRestarted:
-      return "server_restarted";
-  }
-  return "unknown";
-}
-
-bool isCommand(InputKind kind) {
-  switch (kind) {
-    case InputKind::kConfigLoaded:
-    case InputKind::kVolumeLoaded:
-    case InputKind::kVolumeLoadFailed:
-    case InputKind::kSegmentDone:
-    case InputKind::kControllerFault:
-    case InputKind::kServerRestarted:
-      return false;
-    default:
-      return true;
-  }
-}
-
-bool needsControllerReading(InputKind kind) {
-  switch (kind) {
-    case InputKind::kApprove:
-    case InputKind::kResume:
-    case InputKind::kResetEmergency:
-    case InputKind::kHome:
-    case InputKind::kManual:
-    case InputKind::kCheckReady:
-    case InputKind::kSegmentDone:
-    case InputKind::kControllerFault:
-    case InputKind::kServerRestarted:
-      return true;
-    default:
-      return false;
-  }
-}
-
 namespace {
 
 using P = Phase;
 using I = InputKind;
 
-// Stop, emergency stop and query are allowed (almost) everywhere; they are added below per phase.
+// Stop, emergency stop and the kEveryPhase inputs (query, ping) are allowed (almost) everywhere;
+// they are added below per phase.
 // A (phase, input) pair may lead to several phases; the reducer picks one of the declared ones.
 std::vector<Transition> buildTable() {
   std::vector<Transition> t = {
@@ -197,7 +107,9 @@ std::vector<Transition> buildTable() {
       t.push_back({p, I::kStop, P::kStopped, "stop"});
     }
     if (p != P::kEmergency) t.push_back({p, I::kEmergencyStop, P::kEmergency, "EMERGENCY"});
-    t.push_back({p, I::kQuery, p, "query"});
+    for (const auto& spec : inputTable()) {
+      if (spec.traits & kEveryPhase) t.push_back({p, spec.kind, p, spec.name});
+    }
     // Manual control and readiness questions: not while the robot is in trouble or moving.
     const bool troubled = p == P::kEmergency || p == P::kFault || p == P::kManual;
     if (!troubled && p != P::kStartup && p != P::kMoving) {
@@ -234,11 +146,16 @@ std::vector<InputKind> allowedCommands(Phase phase) {
 }
 
 std::string mermaidDiagram() {
+  std::string everywhere;
+  for (const auto& spec : inputTable()) {
+    if (spec.traits & kEveryPhase)
+      everywhere += (everywhere.empty() ? "" : ", ") + std::string(spec.name);
+  }
   std::string out = "stateDiagram-v2\n  [*] --> startup\n";
   std::set<std::string> seen;
   for (const auto& t : transitionTable()) {
     // Self-loops on (almost) every phase, noted once.
-    if (t.input == InputKind::kQuery || t.input == InputKind::kCheckReady) continue;
+    if ((specOf(t.input).traits & kEveryPhase) || t.input == InputKind::kCheckReady) continue;
     // The server's own inputs that leave a phase as it is: noted once, not drawn per phase.
     const bool server_self_loop =
         (t.input == InputKind::kControllerFault || t.input == InputKind::kServerRestarted) &&
@@ -255,9 +172,8 @@ std::string mermaidDiagram() {
   for (Phase p : kResumePhases)
     destinations += (destinations.empty() ? "" : ", ") + std::string(toString(p));
   out += "  resume_target: the phase the interruption left (" + destinations + ")\n";
-  out +=
-      "  note right of stopped: query is accepted in every phase; check_ready in every phase "
-      "but moving, emergency, fault and manual\n";
+  out += "  note right of stopped: accepted in every phase: " + everywhere +
+         "; check_ready in every phase but moving, emergency, fault and manual\n";
   out +=
       "  note right of fault: controller_fault and server_restarted leave the other phases "
       "as they are\n";
@@ -278,6 +194,59 @@ std::string workflowMarkdown() {
       allowed += (allowed.empty() ? "" : ", ") + std::string("`") + toString(k) + "`";
     }
     out += std::string("| ") + toString(p) + " | " + allowed + " |\n";
+  }
+  return out;
+}
+
+namespace {
+
+// "every phase", "every phase but a, b" or "a, b, c": where the table allows `kind`.
+std::string allowedIn(InputKind kind) {
+  std::vector<std::string> in, out;
+  for (Phase p : kAllPhases) {
+    const bool allowed =
+        std::any_of(transitionTable().begin(), transitionTable().end(),
+                    [&](const Transition& t) { return t.from == p && t.input == kind; });
+    (allowed ? in : out).push_back(toString(p));
+  }
+  auto join = [](const std::vector<std::string>& words) {
+    std::string text;
+    for (const auto& w : words)
+      text += (text.empty() ? "" : ", ") + w;
+    return text;
+  };
+  if (out.empty()) return "every phase";
+  if (out.size() < in.size()) return "every phase but " + join(out);
+  return join(in);
+}
+
+std::string argumentsText(const InputSpec& spec) {
+  const Arguments& a = spec.args;
+  std::string text;
+  auto add = [&](const std::string& part) { text += (text.empty() ? "" : "; ") + part; };
+  if (a.path_is) add(std::string("`path`: ") + a.path_is);
+  auto counted = [](std::size_t n, const char* field) {
+    if (n == kAnyCount) return std::string("`") + field + "`";
+    return "`" + std::string(field) + "` (" + std::to_string(n) + ")";
+  };
+  if (a.ids) add(counted(a.ids, "ids") + ": " + a.ids_are);
+  if (a.points) add(counted(a.points, "points") + ": " + a.points_are);
+  if (a.matrix_is) add(std::string("`matrix`: ") + a.matrix_is);
+  return text.empty() ? "—" : text;
+}
+
+}  // namespace
+
+std::string commandsMarkdown() {
+  std::string out =
+      "| kind | command | least role | arguments | what it does | allowed in |\n"
+      "|---|---|---|---|---|---|\n";
+  for (const auto& spec : inputTable()) {
+    if (!(spec.traits & kFromClients)) continue;
+    const std::string kind =
+        spec.wire_kind == kNoWireKind ? "(own topic)" : std::to_string(spec.wire_kind);
+    out += "| " + kind + " | `" + spec.name + "` | " + toString(spec.role) + " | " +
+           argumentsText(spec) + " | " + spec.help + " | " + allowedIn(spec.kind) + " |\n";
   }
   return out;
 }

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,10 +18,12 @@
 
 namespace ignav::protocol {
 
+// What a command carries (workflow/inputs.hpp says which fields each command takes).
 struct CommandArgs {
   std::string path;
   std::vector<Eigen::Vector3d> points;
   std::vector<std::uint32_t> ids;
+  std::optional<Eigen::Matrix4d> matrix = std::nullopt;  // set_registration
 };
 
 struct SliceArgs {

@@ -53,10 +53,11 @@ inline Eigen::Matrix4d fromRowMajor(const double (&in)[16]) {
   return m;
 }
 
-// The command kinds by name ("load_volume", ...), for clients.
-std::optional<ignav_msg_CommandKind> commandKindFromName(const std::string& name);
+// Command.kind of a command by name ("load_volume", ...; workflow/inputs.hpp), for clients;
+// nullopt for a name that is no command on the Command topics (approve has its own topic).
+std::optional<std::int32_t> commandKindFromName(const std::string& name);
 // Command.kind is an integer on the wire, so these take any value ("unknown" / approver for a
-// value no CommandKind names).
+// value no command has).
 const char* commandKindName(std::int32_t kind);
 // The least role that may give a command: it travels on commandTopic(requiredRole(kind)).
 Role requiredRole(std::int32_t kind);
@@ -72,7 +73,7 @@ struct OwnedCommand {
   std::vector<std::uint32_t> ids;
   std::array<double, 16> matrix{};  // row-major
   ignav_msg_Command msg{};
-  const ignav_msg_Command& build(std::uint64_t request_id, std::int32_t kind);  // a CommandKind
+  const ignav_msg_Command& build(std::uint64_t request_id, std::int32_t kind);  // Command.kind
 };
 
 struct OwnedReply {

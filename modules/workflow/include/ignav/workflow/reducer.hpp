@@ -27,6 +27,9 @@ std::vector<InputKind> allowedCommands(Phase phase);
 std::string mermaidDiagram();
 // docs/WORKFLOW.md: the diagram and the table of (phase, allowed commands).
 std::string workflowMarkdown();
+// docs/PROTOCOL.md's table of commands, from the input table (inputs.hpp) and the transitions:
+// wire kind, name, least role, arguments, what it does, where it is allowed.
+std::string commandsMarkdown();
 
 // A fresh session for this robot (phase startup, no volume). The approval policy arrives with
 // the config_loaded input.

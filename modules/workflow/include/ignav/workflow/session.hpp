@@ -20,6 +20,7 @@
 #include "ignav/planning/insertion_plan.hpp"
 #include "ignav/registration/point_registration.hpp"
 #include "ignav/volume/volume.hpp"
+#include "ignav/workflow/inputs.hpp"
 
 namespace ignav::workflow {
 
@@ -53,68 +54,6 @@ constexpr bool isInterruption(Phase p) {
 constexpr Phase kResumePhases[] = {Phase::kStartup,  Phase::kImaging,    Phase::kRegistration,
                                    Phase::kPlanning, Phase::kPlanLocked, Phase::kAtTarget,
                                    Phase::kDone};
-
-// Client commands first, then what the server itself feeds in.
-enum class InputKind {
-  kLoadVolume,
-  kSetFiducials,
-  kAutoFiducials,
-  kAddTarget,
-  kMoveTarget,
-  kRemoveTarget,
-  kClearTargets,
-  kReorderTargets,
-  kLockPlan,
-  kUnlockPlan,
-  kStop,
-  kResume,
-  kEmergencyStop,
-  kResetEmergency,
-  kQuery,
-  kApprove,           // plan id + digest of a pending approval request
-  kRequestApproval,   // a fresh request (new plan id and expiry) for the same next motion
-  kHome,              // the operator brought the robot to its home: the present position is zero
-  kSetRegistration,   // an image -> robot transform computed elsewhere (3D Slicer), as a matrix
-  kManual,            // hand the robot to manual control (halted first); resume takes it back
-  kCheckReady,        // is the robot (path "robot") or the plan (path "targeting") ready? no change
-  kConfigLoaded,      // the server started with a valid robot config
-  kVolumeLoaded,      // a load the server ran finished
-  kVolumeLoadFailed,  // ... or failed
-  kSegmentDone,       // the controller came to rest after a move the server sent
-  kControllerFault,   // the controller reported a fault or stopped answering
-  kServerRestarted,   // recovery finished: approvals die, the position is checked
-};
-constexpr InputKind kAllInputs[] = {InputKind::kLoadVolume,
-                                    InputKind::kSetFiducials,
-                                    InputKind::kAutoFiducials,
-                                    InputKind::kAddTarget,
-                                    InputKind::kMoveTarget,
-                                    InputKind::kRemoveTarget,
-                                    InputKind::kClearTargets,
-                                    InputKind::kReorderTargets,
-                                    InputKind::kLockPlan,
-                                    InputKind::kUnlockPlan,
-                                    InputKind::kStop,
-                                    InputKind::kResume,
-                                    InputKind::kEmergencyStop,
-                                    InputKind::kResetEmergency,
-                                    InputKind::kQuery,
-                                    InputKind::kApprove,
-                                    InputKind::kRequestApproval,
-                                    InputKind::kHome,
-                                    InputKind::kSetRegistration,
-                                    InputKind::kManual,
-                                    InputKind::kCheckReady,
-                                    InputKind::kConfigLoaded,
-                                    InputKind::kVolumeLoaded,
-                                    InputKind::kVolumeLoadFailed,
-                                    InputKind::kSegmentDone,
-                                    InputKind::kControllerFault,
-                                    InputKind::kServerRestarted};
-const char* toString(InputKind kind);  // "load_volume", ...
-bool isCommand(InputKind kind);        // issued by clients (the rest come from the server)
-// Inputs the reducer judges against the controller: the server stamps them with a fresh reading.
-bool needsControllerReading(InputKind kind);
 
 // Limits on what one command may carry (oversized sequences are rejected, not truncated).
 // Points or ids in one command (a plan's own limit, planning.max_targets, may be lower).

@@ -1,0 +1,168 @@
+#include "ignav/workflow/inputs.hpp"
+
+#include <stdexcept>
+
+namespace ignav::workflow {
+namespace {
+
+using I = InputKind;
+using R = ClientRole;
+constexpr Arguments kNone{};
+constexpr unsigned kCommand = kFromClients;
+constexpr unsigned kServer = kPlain;
+
+// The wire kinds 0-19 are the IDL CommandKind enum's values from before the table (issue 22), so
+// clients built against it still work.
+const std::vector<InputSpec> kInputs = {
+    // kind, name, wire kind, least role, traits, arguments, what it does
+    {I::kLoadVolume, "load_volume", 0, R::kPlanner, kCommand,
+     kNone.path("a server-side DICOM folder or file, .nrrd/.nhdr, .mha/.mhd, or phantom: (the "
+                "built-in phantom)"),
+     "load the CT; VolumeState goes loading -> loaded or failed, with progress"},
+    {I::kSetFiducials, "set_fiducials", 1, R::kPlanner, kCommand,
+     kNone.withPoints(3, "the image points (LPS) of cannula base, cannula tip, stylet tip"),
+     "register the image to the robot with three clicked fiducials"},
+    {I::kAutoFiducials, "auto_fiducials", 2, R::kPlanner, kCommand, kNone,
+     "find the robot's markers on the CT, match them and register"},
+    {I::kAddTarget, "add_target", 3, R::kPlanner, kCommand, kNone.withPoints(1, "the target (LPS)"),
+     "add a target; the reply's target_id names it"},
+    {I::kMoveTarget, "move_target", 4, R::kPlanner, kCommand,
+     kNone.withIds(1, "the target").withPoints(1, "its new place (LPS)"), "move a target"},
+    {I::kRemoveTarget, "remove_target", 5, R::kPlanner, kCommand, kNone.withIds(1, "the target"),
+     "remove a target"},
+    {I::kClearTargets, "clear_targets", 6, R::kPlanner, kCommand, kNone, "remove every target"},
+    {I::kReorderTargets, "reorder_targets", 7, R::kPlanner, kCommand,
+     kNone.withIds(kAnyCount, "every target id once, in the new order"),
+     "visit the targets in this order (lock_plan then keeps it)"},
+    {I::kLockPlan, "lock_plan", 8, R::kPlanner, kCommand, kNone,
+     "lock the plan (at least one target, all reachable) and ask for approval of its first "
+     "motion"},
+    {I::kUnlockPlan, "unlock_plan", 9, R::kPlanner, kCommand, kNone,
+     "unlock the plan to edit it; a pending approval request dies"},
+    {I::kStop, "stop", 10, R::kPlanner, kCommand, kNone,
+     "halt whatever is in progress (a move decelerates to rest) and wait in stopped"},
+    {I::kResume, "resume", 11, R::kApprover, kCommand | kNeedsReading, kNone,
+     "back to the phase the first interruption left (a move in flight: plan_locked, planned "
+     "again from where the robot stands; done when nothing is left); from manual, the motors' "
+     "position is adopted"},
+    {I::kEmergencyStop, "emergency_stop", 12, R::kViewer, kCommand, kNone,
+     "abort the controller before anything else happens (also the EmergencyStop topic)"},
+    {I::kResetEmergency, "reset_emergency", 13, R::kApprover, kCommand | kNeedsReading, kNone,
+     "check the position, clear the fault and go to stopped"},
+    {I::kQuery, "query", 14, R::kViewer, kCommand | kQuestion | kEveryPhase, kNone,
+     "republish every state topic (a client that lost samples)"},
+    {I::kApprove, "approve", kNoWireKind, R::kApprover, kCommand | kNeedsReading, kNone,
+     "release the pending motion: plan_id and digest exactly as ApprovalState shows them (the "
+     "Approval topic)"},
+    {I::kRequestApproval, "request_approval", 15, R::kPlanner, kCommand, kNone,
+     "a fresh approval request for the next motion (new plan id, new expiry)"},
+    {I::kHome, "home", 16, R::kApprover, kCommand | kNeedsReading, kNone,
+     "the robot was brought home by hand: its present position becomes zero"},
+    {I::kSetRegistration, "set_registration", 17, R::kPlanner, kCommand,
+     kNone.matrix("row-major 4x4, p_robot = M * p_lps: a proper similarity computed elsewhere "
+                  "(3D Slicer's); the targets' TRE is then unknown"),
+     "register with a matrix computed elsewhere"},
+    {I::kManual, "manual", 18, R::kPlanner, kCommand | kNeedsReading, kNone,
+     "halt and hand the robot to manual control; resume takes it back"},
+    {I::kCheckReady, "check_ready", 19, R::kViewer, kCommand | kQuestion | kNeedsReading,
+     kNone.path("robot: the controller answers, at rest, no fault; targeting: that, and a "
+                "registration exists",
+                "robot|targeting"),
+     "accepted when ready, refused with the reason when not"},
+    {I::kPing, "ping", 20, R::kViewer, kCommand | kQuestion | kEveryPhase, kNone,
+     "the server's clock (Unix s) and the session revision, answered at once: for clients "
+     "measuring their clock offset and round trip"},
+    {I::kConfigLoaded, "config_loaded", kNoWireKind, R::kApprover, kServer, kNone,
+     "the server started with a valid robot config"},
+    {I::kVolumeLoaded, "volume_loaded", kNoWireKind, R::kApprover, kServer, kNone,
+     "a load the server ran finished"},
+    {I::kVolumeLoadFailed, "volume_load_failed", kNoWireKind, R::kApprover, kServer, kNone,
+     "a load the server ran failed"},
+    {I::kSegmentDone, "segment_done", kNoWireKind, R::kApprover, kServer | kNeedsReading, kNone,
+     "the controller came to rest after a move the server sent"},
+    {I::kControllerFault, "controller_fault", kNoWireKind, R::kApprover, kServer | kNeedsReading,
+     kNone, "the controller reported a fault or stopped answering"},
+    {I::kServerRestarted, "server_restarted", kNoWireKind, R::kApprover, kServer | kNeedsReading,
+     kNone, "recovery finished: approvals die, the position is checked"},
+};
+
+bool inOrder() {
+  for (std::size_t i = 0; i < kInputs.size(); ++i)
+    if (static_cast<std::size_t>(kInputs[i].kind) != i) return false;
+  return true;
+}
+
+}  // namespace
+
+const char* toString(ClientRole role) {
+  switch (role) {
+    case ClientRole::kViewer:
+      return "viewer";
+    case ClientRole::kPlanner:
+      return "planner";
+    case ClientRole::kApprover:
+      return "approver";
+  }
+  return "unknown";
+}
+
+const std::vector<InputSpec>& inputTable() {
+  // A row out of place would give an input another's name and rules: refuse to run at all.
+  static const bool ok = inOrder();
+  if (!ok) throw std::logic_error("workflow input table is not in InputKind order");
+  return kInputs;
+}
+
+const InputSpec& specOf(InputKind kind) {
+  return inputTable().at(static_cast<std::size_t>(kind));
+}
+
+const InputSpec* commandNamed(std::string_view name) {
+  for (const auto& s : inputTable())
+    if ((s.traits & kFromClients) && name == s.name) return &s;
+  return nullptr;
+}
+
+const InputSpec* commandOfWireKind(std::int32_t wire_kind) {
+  if (wire_kind == kNoWireKind) return nullptr;
+  for (const auto& s : inputTable())
+    if (s.wire_kind == wire_kind) return &s;
+  return nullptr;
+}
+
+const char* toString(InputKind kind) {
+  return specOf(kind).name;
+}
+
+bool isCommand(InputKind kind) {
+  return (specOf(kind).traits & kFromClients) != 0;
+}
+
+bool isQuestion(InputKind kind) {
+  return (specOf(kind).traits & kQuestion) != 0;
+}
+
+bool needsControllerReading(InputKind kind) {
+  return (specOf(kind).traits & kNeedsReading) != 0;
+}
+
+std::string usageOf(const InputSpec& spec) {
+  const Arguments& a = spec.args;
+  std::string out;
+  auto add = [&](const std::string& word) { out += (out.empty() ? "" : " ") + word; };
+  if (a.path_is) add(a.path_choices ? a.path_choices : "PATH");
+  auto repeated = [&](std::size_t n, const char* one) {
+    if (n == kAnyCount) {
+      add(std::string(one) + "...");
+    } else {
+      for (std::size_t i = 0; i < n; ++i)
+        add(one);
+    }
+  };
+  repeated(a.ids, "ID");
+  repeated(a.points, "X,Y,Z");
+  if (a.matrix_is) add("M11,M12,...,M44");
+  return out;
+}
+
+}  // namespace ignav::workflow
