@@ -91,7 +91,7 @@ double ControllerComponent::clock_s() const {
   return std::chrono::duration<double>(Clock::now() - epoch_).count();
 }
 
-std::uint64_t ControllerComponent::submit(const workflow::ControllerCommand& command,
+std::uint64_t ControllerComponent::submit(const MotorCommand& command,
                                           std::optional<actuation::Steps> expect_from) {
   std::uint64_t seq = 0;
   if (command.isHalt()) {

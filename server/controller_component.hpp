@@ -64,6 +64,19 @@ struct ControllerComponentOptions {
   bool home_on_first_connect = false;              // a new session: the robot is at home
 };
 
+// What the component sends to the driver. Below the workflow: the executor (server.cpp
+// runController) makes one from a workflow::ControllerCommand only when that command is
+// releasable (a move exactly as its approval); the component and the drivers know nothing of
+// approvals, as a ros2_control hardware interface knows nothing of topics.
+struct MotorCommand {
+  workflow::ControllerAction action = workflow::ControllerAction::kStop;
+  actuation::Steps increments;  // kMove
+  bool isHalt() const {
+    return action == workflow::ControllerAction::kStop ||
+           action == workflow::ControllerAction::kAbort;
+  }
+};
+
 class ControllerComponent {
  public:
   // `wake` is called (from the component's threads) whenever events are waiting.
@@ -79,7 +92,7 @@ class ControllerComponent {
   // Queues a command; returns its sequence number. A halt (stop, abort) pre-empts: queued moves
   // are dropped and it goes to the controller at once. A move with `expect_from` is sent only if
   // a reading taken just before shows the robot at rest there (else it fails, with why).
-  std::uint64_t submit(const workflow::ControllerCommand& command,
+  std::uint64_t submit(const MotorCommand& command,
                        std::optional<actuation::Steps> expect_from = std::nullopt);
 
   ControllerReading latest() const;                             // the last reading (any thread)
@@ -93,7 +106,7 @@ class ControllerComponent {
   using Clock = std::chrono::steady_clock;
   struct Queued {
     std::uint64_t seq = 0;
-    workflow::ControllerCommand command;
+    MotorCommand command;
     std::optional<actuation::Steps> expect_from;
   };
   void cycleLoop();

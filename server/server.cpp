@@ -554,7 +554,7 @@ class Server {
         journal_failure_ = ok.error().message;
         spdlog::critical("{}: halting the robot and refusing every change until restarted",
                          journal_failure_);
-        runController({workflow::ControllerAction::kStop, {}}, std::nullopt);
+        runController(workflow::ControllerCommand::stop(), std::nullopt);
         publishHealth();
         refuseUnjournaled(in, s.effects);
         return true;
@@ -861,18 +861,35 @@ class Server {
 
   // A controller command from the reducer, to the component's mailbox. Its failure comes back
   // as an event (takeControllerEvents).
+  // The one place a workflow command becomes a motor command. A move goes out only if it is
+  // exactly one move of an intact approval (ControllerCommand::releasable); anything else halts
+  // the robot and becomes a fault (DESIGN.md safety invariant 1).
   void runController(const workflow::ControllerCommand& c,
                      const std::optional<actuation::Steps>& expect_from) {
     if (!component_) return;
-    const std::uint64_t seq = component_->submit(c, expect_from);
+    if (!c.releasable()) {
+      spdlog::critical("refused to send a move that is not exactly what was approved");
+      last_submitted_ = component_->submit({workflow::ControllerAction::kAbort, {}});
+      refused_move_ = "refused to send a move that is not exactly what was approved";
+      return;
+    }
+    const std::uint64_t seq = component_->submit({c.action(), c.increments()}, expect_from);
     last_submitted_ = seq;
-    if (c.action == workflow::ControllerAction::kMove) move_seq_ = seq;
+    if (c.action() == workflow::ControllerAction::kMove) move_seq_ = seq;
   }
 
   // What the controller component reported since last time: readings are published (and shown
   // to Slicer), a finished move or a fault becomes the reducer's input.
   bool takeControllerEvents() {
     if (!component_) return true;
+    if (!refused_move_.empty()) {
+      Input fault;
+      fault.kind = InputKind::kControllerFault;
+      fault.controller = component_->latest().status;
+      fault.controller->state = actuation::ControllerState::kFault;
+      fault.controller->fault = std::exchange(refused_move_, std::string());
+      if (!step(fault)) return false;
+    }
     for (auto& ev : component_->take()) {
       if (ev.kind == ControllerEvent::Kind::kCommandFailed) {
         // A command that failed: a controller_fault input. The reducer answers a fault with a
@@ -988,11 +1005,11 @@ class Server {
       m.goal_steps[a] = session_.position.motor[a];
     }
     if (const auto& mo = session_.motion) {
-      const auto& move = mo->request.moves[std::min(mo->segment, mo->request.moves.size() - 1)];
-      m.plan_id = mo->request.plan_id;
-      m.target_id = mo->request.target_id;
+      const auto& move = mo->request().moves[std::min(mo->segment, mo->request().moves.size() - 1)];
+      m.plan_id = mo->request().plan_id;
+      m.target_id = mo->request().target_id;
       m.move_index = static_cast<std::uint32_t>(mo->segment + 1);
-      m.move_count = static_cast<std::uint32_t>(mo->request.moves.size());
+      m.move_count = static_cast<std::uint32_t>(mo->request().moves.size());
       kind = planning::toString(move.kind);
       for (std::size_t a = 0; a < 3; ++a)
         m.goal_steps[a] = mo->segment_from.motor[a] + move.steps.motor[a];
@@ -1263,6 +1280,7 @@ class Server {
   std::deque<Input> held_;                    // inputs waiting for a fresh reading (step())
   Clock::time_point held_since_;
   std::string last_fault_reported_;
+  std::string refused_move_;  // a move runController would not send: a fault, reported next
   WaitSet waitset_;
   Loader loader_;
   // The controller component (run() only; its threads wake the waitset, so it goes first).

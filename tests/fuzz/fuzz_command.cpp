@@ -108,7 +108,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (!accepted && (step.session.revision != session.revision || !e.journal.empty()))
       __builtin_trap();  // a rejection changes nothing
     for (const auto& action : e.controller) {
-      if (action.action == workflow::ControllerAction::kMove &&
+      if (action.action() == workflow::ControllerAction::kMove &&
           !(accepted && input->kind == InputKind::kApprove))
         __builtin_trap();  // nothing moves without an accepted approval
     }

@@ -125,7 +125,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const auto pending_before = session.pending;
       const auto step = workflow::reduce(session, i);
       for (const auto& c : step.effects.controller) {
-        if (c.action != workflow::ControllerAction::kMove) continue;
+        if (c.action() != workflow::ControllerAction::kMove) continue;
         // Only an approval of exactly the pending plan releases a move.
         if (i.kind != InputKind::kApprove || !pending_before ||
             pending_before->plan_id != i.plan_id || pending_before->digest != i.digest) {

@@ -4,6 +4,8 @@
 // (SimulatedController::movesStarted).
 #include <gtest/gtest.h>
 
+#include <type_traits>
+
 #include <fmt/format.h>
 #include <Eigen/Geometry>
 
@@ -162,9 +164,9 @@ class Bench {
  private:
   void execute(const ControllerCommand& c) {
     sim_.advanceTo(t);
-    switch (c.action) {
+    switch (c.action()) {
       case ControllerAction::kMove:
-        (void)sim_.move(c.increments);
+        (void)sim_.move(c.increments());
         break;
       case ControllerAction::kStop:
         (void)sim_.stop();
@@ -430,7 +432,7 @@ TEST(Approval, EmergencyStopMidMoveHaltsFirstThenResetChecksThePosition) {
   ASSERT_EQ(b.reading().state, ControllerState::kMoving);
   const auto step = b.feed(b.command(InputKind::kEmergencyStop));
   ASSERT_FALSE(step.effects.controller.empty());
-  EXPECT_EQ(step.effects.controller.front().action, ControllerAction::kAbort);
+  EXPECT_EQ(step.effects.controller.front().action(), ControllerAction::kAbort);
   EXPECT_EQ(b.s.phase, Phase::kEmergency);
   // Halted at once: the same position a control period later.
   const auto halted = b.reading();
@@ -459,7 +461,7 @@ TEST(Approval, StopMidMoveDeceleratesAndResumeNeedsANewApproval) {
   ASSERT_TRUE(b.send(b.approvePending()).accepted);
   b.advance(0.05);
   const auto step = b.feed(b.command(InputKind::kStop));
-  EXPECT_EQ(step.effects.controller.front().action, ControllerAction::kStop);
+  EXPECT_EQ(step.effects.controller.front().action(), ControllerAction::kStop);
   EXPECT_EQ(b.s.phase, Phase::kStopped);
   // Still decelerating: resume waits for rest.
   if (b.reading().state == ControllerState::kMoving) {
@@ -1025,6 +1027,45 @@ TEST(SetRegistration, AMatrixRegistersAndIsJournaledExactly) {
   auto missing = b.command(InputKind::kSetRegistration);
   missing.request_id = 1000;  // (the sheared one took the next id)
   EXPECT_EQ(b.send(missing).error_code, "bad_arguments");
+}
+
+// Approval as a type (issue 22): only the approval check makes an ApprovedMotion, a move for the
+// controller exists only as one move of one, and the executor's check holds for exactly those.
+static_assert(!std::is_default_constructible_v<ApprovedMotion>);
+static_assert(!std::is_constructible_v<ApprovedMotion, std::string, MotionRequest>);
+static_assert(!std::is_default_constructible_v<ControllerCommand>);
+static_assert(!std::is_constructible_v<ControllerCommand, ControllerAction>);
+
+TEST(ApprovedMotionType, EveryMoveSentIsOneMoveOfTheIntactApprovalInOrder) {
+  Bench b;
+  b.addRobotTarget(kJointsA);
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  const MotionRequest shown = b.s.pending.value();
+  auto step = b.feed(b.approvePending());
+  ASSERT_EQ(step.effects.controller.size(), 1u);
+  std::vector<ControllerCommand> sent = step.effects.controller;
+  while (b.s.phase == Phase::kMoving) {
+    b.t += 0.05;
+    if (b.reading().state == ControllerState::kMoving) continue;
+    step = b.feed(b.internal(InputKind::kSegmentDone));
+    sent.insert(sent.end(), step.effects.controller.begin(), step.effects.controller.end());
+  }
+  EXPECT_EQ(b.s.phase, Phase::kAtTarget);
+  ASSERT_EQ(sent.size(), shown.moves.size());
+  for (std::size_t i = 0; i < sent.size(); ++i) {
+    const auto& c = sent[i];
+    EXPECT_EQ(c.action(), ControllerAction::kMove);
+    EXPECT_TRUE(c.releasable()) << i;
+    ASSERT_TRUE(c.approval().has_value());
+    EXPECT_EQ(c.approval()->request().digest, shown.digest);
+    EXPECT_EQ(c.approval()->request().plan_id, shown.plan_id);
+    EXPECT_EQ(c.increments(), shown.moves[i].steps) << i;
+    // The digest, recomputed independently over what is about to be sent, is the one approved.
+    EXPECT_EQ(requestDigest(b.s.session_id, c.approval()->request()), shown.digest);
+  }
+  // Halts and the rest carry no approval and need none.
+  EXPECT_TRUE(ControllerCommand::abort().releasable());
+  EXPECT_FALSE(ControllerCommand::abort().approval().has_value());
 }
 
 }  // namespace

@@ -182,7 +182,7 @@ TEST(Workflow, EmergencyStopFromEveryPhaseAndOnlyResetLeavesIt) {
     EXPECT_FALSE(reduce(step.session, command(InputKind::kResume, 8)).effects.replies[0].accepted);
     // The robot is halted before anything else.
     ASSERT_FALSE(step.effects.controller.empty());
-    EXPECT_EQ(step.effects.controller.front().action, ControllerAction::kAbort);
+    EXPECT_EQ(step.effects.controller.front().action(), ControllerAction::kAbort);
     // Leaving needs a controller reading that passes the position check.
     auto reset = command(InputKind::kResetEmergency, 9);
     EXPECT_EQ(reduce(step.session, reset).effects.replies[0].error_code, "controller_unavailable");

@@ -208,7 +208,7 @@ std::optional<Rejection> checkPosition(const Session& s, const actuation::Steps&
   }
   const auto& m = *s.motion;
   const auto& from = m.segment_from.motor;
-  const auto& inc = m.request.moves[m.segment].steps.motor;
+  const auto& inc = m.request().moves[m.segment].steps.motor;
   for (std::size_t a = 0; a < 3; ++a) {
     const auto lo = std::min(from[a], from[a] + inc[a]);
     const auto hi = std::max(from[a], from[a] + inc[a]);
@@ -217,12 +217,15 @@ std::optional<Rejection> checkPosition(const Session& s, const actuation::Steps&
           "position_mismatch",
           fmt::format("position check failed: motor {} reads {} steps, off the interrupted {} "
                       "from {} to {}; bring the robot home and send home, then reset",
-                      a + 1, reading.motor[a], planning::toString(m.request.moves[m.segment].kind),
-                      from[a], from[a] + inc[a])};
+                      a + 1, reading.motor[a],
+                      planning::toString(m.request().moves[m.segment].kind), from[a],
+                      from[a] + inc[a])};
     }
   }
   return std::nullopt;
 }
+
+namespace {
 
 std::optional<Rejection> checkApproval(const Session& s, const Input& in) {
   if (!s.pending) return Rejection{"no_pending_approval", "no motion is waiting for approval"};
@@ -267,4 +270,34 @@ std::optional<Rejection> checkApproval(const Session& s, const Input& in) {
   return std::nullopt;
 }
 
+}  // namespace
+
+std::variant<ApprovedMotion, Rejection> ApprovalCheck::approve(const Session& s, const Input& in) {
+  if (auto rejected = checkApproval(s, in)) return *rejected;
+  return ApprovedMotion(s.session_id, *s.pending);
+}
+
 }  // namespace ignav::workflow::detail
+
+namespace ignav::workflow {
+
+bool ApprovedMotion::intact() const {
+  return requestDigest(session_id_, request_) == request_.digest;
+}
+
+ControllerCommand ControllerCommand::move(const ApprovedMotion& approved, std::size_t segment) {
+  ControllerCommand c(ControllerAction::kMove);
+  c.increments_ = approved.request().moves.at(segment).steps;
+  c.approved_ = approved;
+  c.segment_ = segment;
+  return c;
+}
+
+bool ControllerCommand::releasable() const {
+  if (action_ != ControllerAction::kMove) return true;
+  if (!approved_ || !approved_->intact()) return false;
+  const auto& moves = approved_->request().moves;
+  return segment_ < moves.size() && moves[segment_].steps == increments_;
+}
+
+}  // namespace ignav::workflow

@@ -4,6 +4,7 @@
 
 #include <optional>
 #include <string>
+#include <variant>
 
 #include "ignav/workflow/session.hpp"
 
@@ -25,8 +26,11 @@ Expected<std::optional<MotionRequest>> nextRequest(const Session& s, double time
 // on success `s.targets` is in plan order and `summary` says what was chosen.
 std::optional<Rejection> orderPlan(Session& s, std::string& summary);
 
-// Why an approve cannot release the pending request, or nullopt when it can.
-std::optional<Rejection> checkApproval(const Session& s, const Input& in);
+// The one maker of ApprovedMotion: the pending request, released by `in` (an approve), or why it
+// cannot be.
+struct ApprovalCheck {
+  static std::variant<ApprovedMotion, Rejection> approve(const Session& s, const Input& in);
+};
 
 // The controller reading an input carried, checked for a robot at rest and usable.
 std::optional<Rejection> checkAtRest(const Input& in);

@@ -529,14 +529,15 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       note = s.pending->summary;
       return std::nullopt;
     case InputKind::kApprove: {
-      if (auto rejected = detail::checkApproval(s, in)) return rejected;
-      ActiveMotion m{*s.pending, 0, s.pending->from, false};
+      auto approved = detail::ApprovalCheck::approve(s, in);
+      if (auto* rejected = std::get_if<Rejection>(&approved)) return *rejected;
+      ActiveMotion m{std::get<ApprovedMotion>(std::move(approved)), 0, s.pending->from, false};
       s.pending.reset();
       e.approval_changed = e.motion_changed = true;
-      e.controller.push_back({ControllerAction::kMove, m.request.moves.front().steps});
-      note = fmt::format("plan {} approved: {} move(s), about {:.1f} s", m.request.plan_id,
-                         m.request.moves.size(), m.request.duration_s);
-      s.motions.push_back({m.request.plan_id, m.request.target_id,
+      e.controller.push_back(ControllerCommand::move(m.approved, 0));
+      note = fmt::format("plan {} approved: {} move(s), about {:.1f} s", m.request().plan_id,
+                         m.request().moves.size(), m.request().duration_s);
+      s.motions.push_back({m.request().plan_id, m.request().target_id,
                            in.identity.empty() ? in.client_id : in.identity, in.time_s, -1.0, ""});
       s.motion = std::move(m);
       return std::nullopt;
@@ -544,14 +545,14 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
     case InputKind::kSegmentDone: {
       if (!s.motion) return Rejection{"internal", "no motion is under way"};
       ActiveMotion& m = *s.motion;
-      const auto& move = m.request.moves[m.segment];
+      const auto& move = m.request().moves[m.segment];
       const std::string fault = readingFault(in);
       if (!fault.empty()) {
         interruptMotion(s, e, in.time_s, "fault: " + fault);
         s.fault = fmt::format("controller fault during {} of plan {}: {}",
-                              planning::toString(move.kind), m.request.plan_id, fault);
+                              planning::toString(move.kind), m.request().plan_id, fault);
         s.resume_phase = Phase::kPlanLocked;
-        e.controller.push_back({ControllerAction::kAbort, {}});
+        e.controller.push_back(ControllerCommand::abort());
         to = Phase::kFault;
         return std::nullopt;
       }
@@ -565,20 +566,20 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       if (in.controller->position != expected) {
         interruptMotion(s, e, in.time_s, "fault: arrival check failed");
         s.fault = fmt::format("arrival check failed after {} of plan {}: {}",
-                              planning::toString(move.kind), m.request.plan_id,
+                              planning::toString(move.kind), m.request().plan_id,
                               detail::describeMismatch(in.controller->position, expected));
         s.resume_phase = Phase::kPlanLocked;
         to = Phase::kFault;
         return std::nullopt;
       }
       s.position = expected;
-      if (++m.segment < m.request.moves.size()) {
+      if (++m.segment < m.request().moves.size()) {
         m.segment_from = expected;
-        e.controller.push_back({ControllerAction::kMove, m.request.moves[m.segment].steps});
+        e.controller.push_back(ControllerCommand::move(m.approved, m.segment));
         to = Phase::kMoving;
         return std::nullopt;
       }
-      const std::uint32_t target = m.request.target_id;
+      const std::uint32_t target = m.request().target_id;
       s.motion.reset();
       endMotionRecord(s, in.time_s, "arrived");
       if (target == 0) {
@@ -595,7 +596,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
     }
     case InputKind::kControllerFault:
       s.fault = readingFault(in);
-      e.controller.push_back({ControllerAction::kAbort, {}});
+      e.controller.push_back(ControllerCommand::abort());
       interruptMotion(s, e, in.time_s, "fault: " + s.fault);
       if (robotInUse(s.phase)) {
         s.resume_phase = resumeTo(s.phase);
@@ -609,13 +610,13 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       const bool robot_moving =
           in.controller && in.controller->state == actuation::ControllerState::kMoving;
       // Whatever moves when the server starts moves without a live approval: halt it.
-      if (robot_moving) e.controller.push_back({ControllerAction::kAbort, {}});
+      if (robot_moving) e.controller.push_back(ControllerCommand::abort());
       if (s.phase == Phase::kMoving) {
         interruptMotion(s, e, in.time_s, "server restarted");
         s.fault = fmt::format("the server restarted during plan {}: check the position and reset",
-                              s.motion ? s.motion->request.plan_id : 0);
+                              s.motion ? s.motion->request().plan_id : 0);
         s.resume_phase = Phase::kPlanLocked;
-        if (!robot_moving) e.controller.push_back({ControllerAction::kAbort, {}});
+        if (!robot_moving) e.controller.push_back(ControllerCommand::abort());
         to = Phase::kFault;
         return std::nullopt;
       }
@@ -641,19 +642,19 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
     case InputKind::kStop:
       s.resume_phase = resumeTo(s.phase);
       if (s.motion) {
-        e.controller.push_back({ControllerAction::kStop, {}});
+        e.controller.push_back(ControllerCommand::stop());
         interruptMotion(s, e, in.time_s, "stopped");
       }
       return std::nullopt;
     case InputKind::kEmergencyStop:
-      e.controller.push_back({ControllerAction::kAbort, {}});  // whatever moves, halt it
+      e.controller.push_back(ControllerCommand::abort());  // whatever moves, halt it
       interruptMotion(s, e, in.time_s, "emergency stop");
       // Taken while interrupted (stopped, manual, fault), the first interruption's phase stays.
       if (!isInterruption(s.phase)) s.resume_phase = resumeTo(s.phase);
       return std::nullopt;
     case InputKind::kManual:
       if (!isInterruption(s.phase)) s.resume_phase = resumeTo(s.phase);  // manual after a stop
-      e.controller.push_back({ControllerAction::kStop, {}});
+      e.controller.push_back(ControllerCommand::stop());
       interruptMotion(s, e, in.time_s, "manual control");
       note = "manual control: the robot may be moved by hand; resume takes it back";
       return std::nullopt;
@@ -713,7 +714,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
         e.motion_changed = true;
       }
       if (in.controller->state == actuation::ControllerState::kFault) {
-        e.controller.push_back({ControllerAction::kClearFault, {}});
+        e.controller.push_back(ControllerCommand::clearFault());
       }
       s.fault.clear();
       note = fmt::format("position checked: motors at {} / {} / {} steps", s.position.motor[0],
@@ -722,7 +723,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
     }
     case InputKind::kHome:
       if (auto busy = detail::checkAtRest(in)) return busy;
-      e.controller.push_back({ControllerAction::kHome, {}});
+      e.controller.push_back(ControllerCommand::home());
       s.position = {};
       if (s.motion) {
         s.motion.reset();

@@ -170,12 +170,36 @@ struct MotionRecord {
   std::string outcome;    // arrived | stopped | emergency | fault: ... | restarted
 };
 
+namespace detail {
+struct ApprovalCheck;
+}
+
+// A motion an operator approved, exactly as its request showed it (issue 22): only the approval
+// check (detail::ApprovalCheck, motion.cpp) creates one, and a move for the controller can only
+// be built from one (ControllerCommand::move).
+class ApprovedMotion {
+ public:
+  const MotionRequest& request() const { return request_; }
+  const std::string& sessionId() const { return session_id_; }
+  // Does the request still hash to the digest the operator approved? (The executor asks just
+  // before a move goes to the controller.)
+  bool intact() const;
+
+ private:
+  friend struct detail::ApprovalCheck;
+  ApprovedMotion(std::string session_id, MotionRequest request)
+      : session_id_(std::move(session_id)), request_(std::move(request)) {}
+  std::string session_id_;
+  MotionRequest request_;
+};
+
 // An approved motion under way (or interrupted by a stop, an emergency or a fault).
 struct ActiveMotion {
-  MotionRequest request;
+  ApprovedMotion approved;
   std::size_t segment = 0;        // the move under way
   actuation::Steps segment_from;  // where that move started
   bool interrupted = false;
+  const MotionRequest& request() const { return approved.request(); }
 };
 
 struct VolumeStatus {
@@ -220,12 +244,34 @@ struct Session {
 };
 
 enum class ControllerAction { kMove, kStop, kAbort, kHome, kClearFault };
-struct ControllerCommand {
-  ControllerAction action = ControllerAction::kStop;
-  actuation::Steps increments;  // kMove
+
+// What the reducer asks of the controller. A move exists only as one move of an ApprovedMotion.
+class ControllerCommand {
+ public:
+  static ControllerCommand stop() { return ControllerCommand(ControllerAction::kStop); }
+  static ControllerCommand abort() { return ControllerCommand(ControllerAction::kAbort); }
+  static ControllerCommand home() { return ControllerCommand(ControllerAction::kHome); }
+  static ControllerCommand clearFault() { return ControllerCommand(ControllerAction::kClearFault); }
+  // The `segment`th move of `approved` (which must have one).
+  static ControllerCommand move(const ApprovedMotion& approved, std::size_t segment);
+
+  ControllerAction action() const { return action_; }
+  const actuation::Steps& increments() const { return increments_; }  // kMove; else zero
   bool isHalt() const {
-    return action == ControllerAction::kStop || action == ControllerAction::kAbort;
+    return action_ == ControllerAction::kStop || action_ == ControllerAction::kAbort;
   }
+  // For a move: its approval intact (the digest still matches what was approved) and the
+  // increments exactly its segment's. The executor checks this before it sends; anything else
+  // releases no motion. True for every other action.
+  bool releasable() const;
+  const std::optional<ApprovedMotion>& approval() const { return approved_; }
+
+ private:
+  explicit ControllerCommand(ControllerAction action) : action_(action) {}
+  ControllerAction action_;
+  actuation::Steps increments_;
+  std::optional<ApprovedMotion> approved_;  // kMove
+  std::size_t segment_ = 0;
 };
 
 // What the server must do after a step, in this order: append the journal records (durably),
