@@ -1,75 +1,18 @@
-// ignav-server: the DDS edge around the workflow reducer. One thread runs the event queue
-// (commands, slice requests, finished loads, controller events); a loader thread runs volume
-// loads; a reports thread (reports.hpp) writes the report, its slices and the Slicer exports; the
-// controller component (controller_component.hpp) runs the motor controller on threads of its
-// own. docs/ARCHITECTURE.md has the picture.
+// ignav-server: the DDS edge around the workflow reducer. One thread, the event thread, runs the
+// event queue (commands, approvals, emergency stops, finished loads, controller events) and is
+// the only writer of the session (server.cpp, server_core.hpp; a step's effects in step.cpp);
+// a loader thread runs volume loads (volume_loader.hpp); a slices thread renders the slices
+// clients ask for (slices.hpp); a reports thread writes the report, its slices and the Slicer
+// exports (reports.hpp); the controller component (controller_component.hpp) runs the motor
+// controller on threads of its own; the OpenIGTLink listener has one for its sockets
+// (igtl_bridge.hpp). docs/ARCHITECTURE.md has the picture.
 #pragma once
 
 #include <atomic>
-#include <cstdint>
-#include <optional>
 
-#include <string>
-#include <vector>
-#include "ignav/config/tissue_profiles.hpp"
+#include "server_options.hpp"
 
 namespace ignav::server {
-
-// The motor controller the server drives (server.yaml `controller:`).
-struct ControllerOptions {
-  std::string kind = "simulated";  // simulated | galil
-  std::string host = "127.0.0.1";  // galil
-  int port = 23;                   // galil
-  double speed_steps_s = 2000.0;   // every motor (SP; the simulation's axes)
-  double acceleration_steps_s2 = 8000.0;
-  int control_period_ms = 10;  // how often a moving robot is polled and its state published
-  int timeout_ms = 1000;       // galil: connecting, and each reply; then it is a fault
-};
-
-// DDS Security (server.yaml `security:`, docs/SECURITY.md). Without an identity the server runs
-// unauthenticated and unencrypted, for local development only, and says so loudly.
-struct SecurityOptions {
-  std::string identity;  // an identity folder (configs/security/make-test-pki.sh writes them)
-  std::string plugins;   // folder of Cyclone's libdds_security_*.so ("" = Debian's)
-};
-
-// The OpenIGTLink bridge for 3D Slicer (server.yaml `openigtlink:`, docs/OPENIGTLINK.md).
-struct OpenIgtlinkOptions {
-  bool enabled = false;
-  std::string address = "127.0.0.1";  // loopback unless a site opens it
-  int port = 18944;                   // 0: any free port (printed on the ready line)
-  double timeout_s = 5.0;             // a dropped or stalled client is let go after this
-  // OpenIGTLink has no authentication: MOVE_TO_TARGET over it releases motion only if a site
-  // says so here (the server then says so loudly, in its log and in the workflow state).
-  bool allow_motion_approval = false;
-};
-
-struct ServerOptions {
-  ControllerOptions controller;
-  OpenIgtlinkOptions openigtlink;
-  SecurityOptions security;
-  std::vector<std::string> approvers;  // client ids allowed to approve motion
-  double approval_expiry_s = 120.0;
-  std::string tissue_profiles;                  // configs/tissues.yaml
-  std::string tissue_name;                      // "" = no deflection prediction
-  std::optional<config::TissueProfile> tissue;  // loaded by runServer
-  std::size_t max_targets = 100;                // per insertion, at most 100 (paper §V)
-  double max_total_rotation_deg = 360.0;        // the cannula's rotation over one insertion
-  std::string robot_config;
-  std::uint32_t domain_id = 0;
-  std::string dds_config;    // path of a Cyclone XML file ("" = Cyclone's defaults)
-  std::string session_root;  // a session folder is created inside
-  std::string session_dir;   // or exactly this folder
-  // Replay instead of serving: publish a recorded session's states as they happened.
-  std::string replay_session;      // its folder (read only)
-  double replay_speed = 1.0;       // 1, 10, ... times real time; 0 = as fast as possible
-  std::uint64_t replay_until = 0;  // stop after this revision (0 = the whole journal)
-};
-
-// Loads `path` (server.yaml); errors name the file and key. CLI options override after.
-ServerOptions loadServerOptions(const std::string& path);
-// What is wrong with the controller or approval options ("controller.port: ..."), if anything.
-std::optional<std::string> checkControllerOptions(const ServerOptions& options);
 
 // Runs until `stop` becomes true; returns the exit code.
 int runServer(const ServerOptions& options, const std::atomic<bool>& stop);

@@ -16,6 +16,7 @@
 
 #include "ignav/config/robot_config.hpp"
 #include "ignav/registration/robot_phantom.hpp"
+#include "ignav/workflow/effect_order.hpp"
 #include "ignav/workflow/reducer.hpp"
 #include "support/phantom_ct.hpp"
 
@@ -44,9 +45,9 @@ ApprovalPolicy policy() {
   return p;
 }
 
-// Plays the server's part: stamps inputs with the time and a controller reading, sends halts to
-// the controller before anything else and moves after the step, and reports a finished move as
-// segment_done.
+// Plays the server's part: stamps inputs with the time and a controller reading, runs each step's
+// effects through workflow::executeStep (the server's own order: halts before anything else,
+// moves after the journal), and reports a finished move as segment_done.
 class Bench {
  public:
   explicit Bench(std::uint64_t first_request = 0) : sim_(axes()), request_(first_request) {
@@ -114,12 +115,8 @@ class Bench {
     in.time_s = t;
     if (needsControllerReading(in.kind) && !in.controller) in.controller = reading();
     Step step = reduce(s, in);
-    for (const auto& c : step.effects.controller)
-      if (c.isHalt()) execute(c);
-    journal.insert(journal.end(), step.effects.journal.begin(), step.effects.journal.end());
-    s = step.session;
-    for (const auto& c : step.effects.controller)
-      if (!c.isHalt()) execute(c);
+    Sink sink(*this);
+    executeStep(step, sink);  // the server's order (effect_order.hpp); step.session moved
     return step;
   }
   Reply send(Input in) {
@@ -182,6 +179,19 @@ class Bench {
         break;
     }
   }
+
+  // The server's part of a step with the simulation as the controller and a vector as the journal.
+  struct Sink final : EffectSink {
+    explicit Sink(Bench& bench) : b(bench) {}
+    void halt(const ControllerCommand& c) override { b.execute(c); }
+    bool journal(const std::vector<std::string>& records) override {
+      b.journal.insert(b.journal.end(), records.begin(), records.end());
+      return true;
+    }
+    void commit(Session&& session) override { b.s = std::move(session); }
+    void command(const ControllerCommand& c) override { b.execute(c); }
+    Bench& b;
+  };
 
   actuation::SimulatedController sim_;
   std::uint64_t request_ = 0;

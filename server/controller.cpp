@@ -1,0 +1,159 @@
+// The Server's side of the controller component (controller_component.hpp): starting it with the
+// driver the options name, handing it the reducer's commands, and turning what it reports
+// (readings, failed commands) into MotionState and reducer inputs. The event loop never calls a
+// driver.
+#include <spdlog/spdlog.h>
+
+#include <array>
+#include <utility>
+
+#include "ignav/actuation/galil.hpp"
+#include "server_core.hpp"
+
+namespace ignav::server {
+namespace {
+
+using workflow::Input;
+using workflow::InputKind;
+
+// The driver the options name; the controller component runs it (the simulation on the
+// component's clock). A recovered session's simulation starts where the journal left the motors.
+std::unique_ptr<actuation::MotorController> makeDriver(
+    const ControllerOptions& c, const std::optional<actuation::Steps>& place_at) {
+  if (c.kind == "galil") {
+    actuation::GalilOptions g;
+    g.host = c.host;
+    g.port = c.port;
+    g.timeout_ms = c.timeout_ms;
+    g.speed_steps_s = c.speed_steps_s;
+    g.acceleration_steps_s2 = c.acceleration_steps_s2;
+    return std::make_unique<actuation::GalilController>(g);
+  }
+  std::array<actuation::SimulatedAxis, 3> axes{};
+  for (auto& a : axes) {
+    a.speed_steps_s = c.speed_steps_s;
+    a.acceleration_steps_s2 = c.acceleration_steps_s2;
+  }
+  auto sim = std::make_unique<actuation::SimulatedController>(axes);
+  if (place_at) (void)sim->placeAt(*place_at);
+  return sim;
+}
+
+}  // namespace
+
+// Started (and its first connection tried) before the first input. Inputs that need a reading
+// wait for that first attempt, within a bound.
+void Server::startController(bool home, const std::optional<actuation::Steps>& place_at) {
+  ControllerComponentOptions co;
+  co.name = controller_name_;
+  co.active_period = std::chrono::milliseconds(options_.controller.control_period_ms);
+  co.home_on_first_connect = home;
+  component_ = std::make_unique<ControllerComponent>(makeDriver(options_.controller, place_at), co,
+                                                     [this] { waitset_.trigger(); });
+  component_->start();
+  // Connect, set up (4 replies), home, read (3): each within the driver's timeout.
+  const auto bound = std::chrono::milliseconds(10 * options_.controller.timeout_ms + 1000);
+  if (!component_->waitForFirstReading(bound)) {
+    spdlog::error("controller {}: no answer within {} ms; going on without it", controller_name_,
+                  bound.count());
+  }
+  (void)component_->take();  // the first reading is the latest: nothing to judge yet
+  last_reading_ = latestReading().status;
+  if (last_reading_.state == actuation::ControllerState::kDisconnected) {
+    spdlog::error("controller {}: {}", controller_name_, last_reading_.fault);
+  }
+}
+
+ControllerReading Server::latestReading() const {
+  if (component_) return component_->latest();
+  ControllerReading r;
+  r.status.fault = "no controller";
+  return r;
+}
+
+// A controller command from the reducer, to the component's mailbox. Its failure comes back as
+// an event (takeControllerEvents). The one place a workflow command becomes a motor command: a
+// move goes out only if it is exactly one move of an intact approval
+// (ControllerCommand::releasable); anything else halts the robot and becomes a fault.
+void Server::runController(const workflow::ControllerCommand& c,
+                           const std::optional<actuation::Steps>& expect_from) {
+  if (!component_) return;
+  if (!c.releasable()) {
+    refused_move_ = "refused to send a move that is not exactly what was approved";
+    spdlog::critical("{}", refused_move_);
+    last_submitted_ = component_->submit({workflow::ControllerAction::kAbort, {}});
+    return;
+  }
+  const std::uint64_t seq = component_->submit({c.action(), c.increments()}, expect_from);
+  last_submitted_ = seq;
+  if (c.action() == workflow::ControllerAction::kMove) move_seq_ = seq;
+}
+
+// What the controller component reported since last time: readings are published (and shown to
+// Slicer), a finished move or a fault becomes the reducer's input.
+bool Server::takeControllerEvents() {
+  if (!component_) return true;
+  if (!refused_move_.empty()) {
+    Input fault;
+    fault.kind = InputKind::kControllerFault;
+    fault.controller = component_->latest().status;
+    fault.controller->state = actuation::ControllerState::kFault;
+    fault.controller->fault = std::exchange(refused_move_, std::string());
+    if (!step(fault)) return false;
+  }
+  for (auto& ev : component_->take()) {
+    if (ev.kind == ControllerEvent::Kind::kCommandFailed) {
+      // A command that failed: a controller_fault input. The reducer answers a fault with a
+      // halt; a halt that fails for the reason just reported (the controller is gone) must not
+      // report it again, or the two feed each other without end (docs/RELIABILITY.md, R1).
+      Input fault;
+      fault.kind = InputKind::kControllerFault;
+      fault.controller = ev.reading.status;
+      fault.controller->fault = ev.why;
+      if (fault.controller->state == actuation::ControllerState::kIdle ||
+          fault.controller->state == actuation::ControllerState::kMoving) {
+        fault.controller->state = actuation::ControllerState::kFault;
+      }
+      if (fault.controller->fault == last_fault_reported_) continue;
+      last_fault_reported_ = fault.controller->fault;
+      if (!step(std::move(fault))) return false;
+      continue;
+    }
+    if (!onReading(ev.reading)) return false;
+  }
+  return true;
+}
+
+bool Server::onReading(const ControllerReading& reading) {
+  const auto before = last_reading_;
+  const auto& r = reading.status;
+  last_reading_ = r;
+  const bool changed =
+      r.state != before.state || r.position != before.position || r.fault != before.fault;
+  if (changed) publishMotion();
+  if (igtl_) igtl_->onReading(session_, r, before);
+  const bool moving = r.state == actuation::ControllerState::kMoving;
+  const bool bad = r.state == actuation::ControllerState::kDisconnected ||
+                   r.state == actuation::ControllerState::kFault;
+  // A segment is done on a reading taken after its move was sent, at rest (or on a fault).
+  if (session_.phase == workflow::Phase::kMoving && session_.motion && !moving &&
+      (bad || reading.after_command >= move_seq_)) {
+    if (bad) last_fault_reported_ = r.fault;
+    Input done;
+    done.kind = InputKind::kSegmentDone;
+    done.controller = r;
+    return step(std::move(done));
+  }
+  if (!bad) {
+    last_fault_reported_.clear();
+    return true;
+  }
+  if (r.fault == last_fault_reported_) return true;
+  last_fault_reported_ = r.fault;
+  Input fault;
+  fault.kind = InputKind::kControllerFault;
+  fault.controller = r;
+  return step(std::move(fault));
+}
+
+}  // namespace ignav::server

@@ -1,0 +1,122 @@
+#include "igtl_bridge.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <utility>
+
+namespace ignav::server {
+
+using workflow::Input;
+
+std::unique_ptr<IgtlBridge> IgtlBridge::start(const OpenIgtlinkOptions& g,
+                                              std::function<void()> wake) {
+  IgtlListenerOptions lo;
+  lo.address = g.address;
+  lo.port = g.port;
+  lo.timeout_s = g.timeout_s;
+  auto listener = std::make_unique<IgtlListener>(lo, std::move(wake));
+  auto port = listener->start();
+  if (!port) {
+    spdlog::error("{}; the server runs without OpenIGTLink", port.error().message);
+    return nullptr;
+  }
+  return std::unique_ptr<IgtlBridge>(new IgtlBridge(g, std::move(listener), *port));
+}
+
+IgtlBridge::IgtlBridge(const OpenIgtlinkOptions& g, std::unique_ptr<IgtlListener> listener,
+                       int port)
+    // Request ids never repeat across restarts (the core answers a repeated one from the journal).
+    : bridge_(igtl::BrpOptions{g.allow_motion_approval}, static_cast<std::uint64_t>(wallS() * 1e6)),
+      port_(port),
+      listener_(std::move(listener)) {
+  spdlog::info("OpenIGTLink (BRP workphase protocol) listening on {}:{}", g.address, port_);
+  if (g.allow_motion_approval) {
+    safety_notice_ = fmt::format(
+        "motion approval over OpenIGTLink is ON ({}:{}): OpenIGTLink is unauthenticated, so "
+        "whoever can connect there can release motion",
+        g.address, port_);
+    spdlog::warn("!!! {} !!!", safety_notice_);
+  }
+}
+
+bool IgtlBridge::serve(const workflow::Session& session, const actuation::Steps& position,
+                       const std::function<bool(Input)>& run,
+                       const std::function<void()>& clients_changed, std::size_t& handled) {
+  for (auto& ev : listener_->take()) {
+    ++handled;
+    switch (ev.kind) {
+      case IgtlEvent::Kind::kConnected:
+        send(bridge_.onConnected(ev.client, session));
+        clients_changed();
+        break;
+      case IgtlEvent::Kind::kDisconnected:
+        bridge_.onDisconnected(ev.client);
+        spdlog::warn("OpenIGTLink client {} ({}) gone: {}", ev.client, ev.peer, ev.error);
+        clients_changed();
+        break;
+      case IgtlEvent::Kind::kBadMessage:
+        spdlog::warn("OpenIGTLink client {} ({}): {}", ev.client, ev.peer, ev.error);
+        listener_->send(ev.client,
+                        igtl::statusMessage("BAD_MESSAGE", igtl::StatusCode::kUnknownInstruction,
+                                            ev.error, "bad_message"));
+        break;
+      case IgtlEvent::Kind::kMessage:
+        // Queries may come many times a second: logged only when debugging.
+        spdlog::log(
+            ev.message.type.rfind("GET_", 0) == 0 ? spdlog::level::debug : spdlog::level::info,
+            "OpenIGTLink client {}: {}({}){}", ev.client, ev.message.type, ev.message.device_name,
+            ev.message.text.empty() ? "" : " \"" + ev.message.text.substr(0, 64) + "\"");
+        send(bridge_.onMessage(ev.client, ev.message, session, position));
+        break;
+    }
+    // The inputs of one message run before the next message is looked at.
+    while (!inputs_.empty()) {
+      Input in = std::move(inputs_.front());
+      inputs_.pop_front();
+      if (!run(std::move(in))) return false;
+    }
+  }
+  return true;
+}
+
+void IgtlBridge::onState(const workflow::Session& session) {
+  send(bridge_.onState(session));
+}
+
+void IgtlBridge::onPosition(const workflow::Session& session, const actuation::Steps& position) {
+  send(bridge_.onPosition(session, position));
+}
+
+void IgtlBridge::onReading(const workflow::Session& session, const actuation::ControllerStatus& r,
+                           const actuation::ControllerStatus& before) {
+  const bool moving = r.state == actuation::ControllerState::kMoving;
+  if (listener_->clientCount() > 0 && r.position != last_steps_ &&
+      (moving || before.state == actuation::ControllerState::kMoving) &&
+      (!moving || Clock::now() - last_position_ >= std::chrono::milliseconds(50))) {
+    last_position_ = Clock::now();
+    last_steps_ = r.position;
+    send(bridge_.onPosition(session, r.position));
+  }
+}
+
+bool IgtlBridge::reply(const workflow::Reply& r, const workflow::Session& session) {
+  if (r.client_id != igtl::kBridgeClientId) return false;
+  if (!r.accepted) spdlog::warn("rejected (OpenIGTLink): {}", r.message);
+  send(bridge_.onReply(r, session));
+  return true;
+}
+
+void IgtlBridge::send(igtl::BrpOutput out) {
+  for (const auto& m : out.messages) {
+    if (m.client == 0) {
+      listener_->broadcast(m.message);
+    } else {
+      listener_->send(m.client, m.message);
+    }
+  }
+  for (auto& in : out.inputs)
+    inputs_.push_back(std::move(in));
+}
+
+}  // namespace ignav::server

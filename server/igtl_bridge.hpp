@@ -1,0 +1,65 @@
+// The OpenIGTLink bridge for 3D Slicer (docs/OPENIGTLINK.md): the listener's thread does the
+// sockets (igtl_listener.hpp), igtl::BrpBridge translates, and the inputs it makes go through the
+// reducer like any client's, on the event thread, which alone calls this class.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "clock.hpp"
+#include "ignav/actuation/controller.hpp"
+#include "ignav/igtl/brp.hpp"
+#include "igtl_listener.hpp"
+#include "server_options.hpp"
+
+namespace ignav::server {
+
+class IgtlBridge {
+ public:
+  // Listens as `options` say; `wake` is called from the listener's thread when something came.
+  // Never fatal: null when it cannot listen (logged); the server then runs without it.
+  static std::unique_ptr<IgtlBridge> start(const OpenIgtlinkOptions& options,
+                                           std::function<void()> wake);
+
+  int port() const { return port_; }
+  std::size_t clientCount() const { return listener_->clientCount(); }
+  // "" unless a weakened safeguard must be said (motion approval over OpenIGTLink).
+  const std::string& safetyNotice() const { return safety_notice_; }
+
+  // What the clients sent, answered from `session` (read again after each input: it is the
+  // event thread's, which `run` changes) and `position` (the motors' latest). The inputs a
+  // message makes go to `run` before the next message is looked at; false from `run` stops
+  // everything and is returned. `clients_changed` when a client came or went. Counts the events.
+  bool serve(const workflow::Session& session, const actuation::Steps& position,
+             const std::function<bool(workflow::Input)>& run,
+             const std::function<void()>& clients_changed, std::size_t& handled);
+
+  // After every step (and every replayed record).
+  void onState(const workflow::Session& session);
+  // The motors' position, told as it is (a replayed record).
+  void onPosition(const workflow::Session& session, const actuation::Steps& position);
+  // A new reading: Slicer sees the tip move (at most every 50 ms, and where it comes to rest).
+  void onReading(const workflow::Session& session, const actuation::ControllerStatus& now,
+                 const actuation::ControllerStatus& before);
+  // The core's reply to one of the bridge's inputs, told to its client; false for anyone else's.
+  bool reply(const workflow::Reply& reply, const workflow::Session& session);
+
+ private:
+  IgtlBridge(const OpenIgtlinkOptions& options, std::unique_ptr<IgtlListener> listener, int port);
+  void send(igtl::BrpOutput out);
+
+  igtl::BrpBridge bridge_;
+  std::deque<workflow::Input> inputs_;  // the bridge's inputs, run in order after its message
+  std::string safety_notice_;
+  Clock::time_point last_position_;
+  actuation::Steps last_steps_;
+  int port_ = 0;
+  std::unique_ptr<IgtlListener> listener_;  // last: its thread stops first
+};
+
+}  // namespace ignav::server

@@ -1,0 +1,116 @@
+// runServer: from the options to a running Server. Loads the robot and the tissue profile, then
+// either replays a recorded session (read only) or opens the session folder, recovers its journal
+// (a record torn by a crash is cut off) and serves.
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <ctime>
+#include <filesystem>
+
+#include "ignav/igtl/brp.hpp"
+#include "server.hpp"
+#include "server_core.hpp"
+
+namespace ignav::server {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string sessionName() {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char buf[64];
+  std::strftime(buf, sizeof buf, "%Y%m%dT%H%M%SZ", &tm);
+  return std::string(buf) + "-" + std::to_string(::getpid());
+}
+
+}  // namespace
+
+int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
+  ServerOptions options = given;
+  // A site that lets OpenIGTLink release motion makes the bridge an approver (by its reserved id).
+  if (options.openigtlink.enabled && options.openigtlink.allow_motion_approval) {
+    options.approvers.push_back(igtl::kBridgeClientId);
+  }
+  auto robot = config::loadRobot(options.robot_config);
+  if (!robot) {
+    spdlog::error("{}", robot.error().message);
+    return 2;
+  }
+  if (!options.tissue_name.empty()) {
+    auto profiles = config::loadTissueProfiles(options.tissue_profiles);
+    auto profile = profiles ? config::tissueProfile(*profiles, options.tissue_name)
+                            : Expected<config::TissueProfile>(profiles.error());
+    if (!profile) {
+      spdlog::error("{}", profile.error().message);
+      return 2;
+    }
+    options.tissue = std::move(profile).value();
+  }
+  if (!options.replay_session.empty()) {
+    // Read only: a torn last record is left out, not cut off the file.
+    const fs::path dir(options.replay_session);
+    const std::string journal_path = (dir / "journal.jsonl").string();
+    if (!fs::exists(journal_path)) {
+      spdlog::error("{}: no journal in this folder", journal_path);
+      return 2;
+    }
+    auto contents = journal::readJournal(journal_path);
+    if (!contents) {
+      spdlog::error("{}", contents.error().message);
+      return 2;
+    }
+    if (contents->torn_tail)
+      spdlog::warn("{}: the last record was cut short; left out", journal_path);
+    try {
+      Server server(options, std::make_shared<const config::Robot>(std::move(robot).value()), dir,
+                    std::nullopt);
+      return server.replay(stop, contents->lines);
+    } catch (const protocol::DdsError& e) {
+      spdlog::error("DDS: {}", e.what());
+      return 1;
+    }
+  }
+  fs::path dir = options.session_dir.empty()
+                     ? fs::path(options.session_root.empty() ? "sessions" : options.session_root) /
+                           sessionName()
+                     : fs::path(options.session_dir);
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) {
+    spdlog::error("{}: cannot create the session folder: {}", dir.string(), ec.message());
+    return 2;
+  }
+  // An existing session is recovered from its journal; a write torn by a crash is cut off.
+  const std::string journal_path = (dir / "journal.jsonl").string();
+  auto contents = journal::readJournal(journal_path);
+  if (!contents) {
+    spdlog::error("{}", contents.error().message);
+    return 2;
+  }
+  if (contents->torn_tail) {
+    spdlog::warn("{}: the last record was cut short (a crash while writing); dropped",
+                 journal_path);
+    fs::resize_file(journal_path, contents->valid_bytes, ec);
+    if (ec) {
+      spdlog::error("{}: cannot drop the torn record: {}", journal_path, ec.message());
+      return 2;
+    }
+  }
+  auto journal = journal::Journal::open(journal_path);
+  if (!journal) {
+    spdlog::error("{}", journal.error().message);
+    return 2;
+  }
+  try {
+    Server server(options, std::make_shared<const config::Robot>(std::move(robot).value()), dir,
+                  std::move(journal).value());
+    return server.run(stop, contents->lines);
+  } catch (const protocol::DdsError& e) {
+    spdlog::error("DDS: {}", e.what());
+    return 1;
+  }
+}
+
+}  // namespace ignav::server

@@ -1,0 +1,131 @@
+// The Server: the event thread's object. It owns the session (the only writer), the journal and
+// the DDS readers, runs the event loop and steps every input through the reducer. Its methods sit
+// in three files by concern:
+//   server.cpp      construction, the event loop, recovery, replay, inputs held for a reading;
+//   step.cpp        one input through the reducer and its effects (workflow::executeStep's
+//                   order: halts, journal, session, moves, state, replies, the rest);
+//   controller.cpp  the controller component: started, sent commands, its events as inputs.
+// What it hands to other threads: volume_loader.hpp, slices.hpp, reports.hpp,
+// controller_component.hpp, igtl_bridge.hpp. docs/ARCHITECTURE.md has the picture.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <deque>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "clock.hpp"
+#include "controller_component.hpp"
+#include "ignav/config/robot_config.hpp"
+#include "ignav/journal/journal.hpp"
+#include "ignav/protocol/dds.hpp"
+#include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/security.hpp"
+#include "ignav/workflow/session.hpp"
+#include "igtl_bridge.hpp"
+#include "reports.hpp"
+#include "server_options.hpp"
+#include "slices.hpp"
+#include "state_publisher.hpp"
+#include "volume_loader.hpp"
+
+namespace ignav::server {
+
+class Server {
+ public:
+  // Without a journal the server only replays (nothing is written).
+  Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robot,
+         std::filesystem::path session_dir, std::optional<journal::Journal> journal);
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  // Serves: a new session from its start, or the one `journal_lines` recover. Returns the exit
+  // code once `stop` is true (0), or at once when a step failed fatally (3) or recovery did (2).
+  int run(const std::atomic<bool>& stop, const std::vector<std::string>& journal_lines);
+  // Publishes a recorded session's states one record at a time, at the recorded pace divided by
+  // the speed (0: at once), then keeps serving them (and slices) until stopped. It drives no
+  // controller and takes no commands.
+  int replay(const std::atomic<bool>& stop, const std::vector<std::string>& lines);
+
+ private:
+  using Input = workflow::Input;
+  class Sink;  // step.cpp: one step's effects (a workflow::EffectSink)
+
+  // server.cpp
+  Status recover(const std::vector<std::string>& lines);
+  void serveReadOnly(Clock::time_point until, const std::atomic<bool>& stop);
+  std::size_t takeCommands(bool& failed);
+  bool step(Input in);
+  bool waitsForReading(const Input& in) const;
+  bool releaseHeld();
+  void refuseHeld(const char* code, const std::string& why);
+  bool reservedClientId(const char* client_id, std::uint64_t request_id);
+  std::optional<workflow::Reply> checkPath(const Input& in) const;
+  Input withSender(Input in, const char* role, dds_entity_t reader, dds_instance_handle_t from);
+  void publishEverything();
+  Expected<workflow::LoadedCt> reloadCt(const std::string& source);
+
+  // step.cpp
+  bool stepNow(Input in);
+  void replaceSession(workflow::Session&& session);
+  const Reports::Snapshot& snapshot();  // the session as it is now, shared read only
+  void sendReply(const workflow::Reply& r);
+  void refuseUnjournaled(const Input& in, const workflow::Effects& effects);
+  void crashPoint(const char* where, std::uint64_t revision) const;
+  Readings readings() const { return {last_reading_, loader_.progress()}; }
+  void publishMotion() { state_.publishMotion(session_, last_reading_); }
+  void publishHealth();
+
+  // controller.cpp
+  void startController(bool home, const std::optional<actuation::Steps>& place_at);
+  ControllerReading latestReading() const;
+  void runController(const workflow::ControllerCommand& c,
+                     const std::optional<actuation::Steps>& expect_from);
+  bool takeControllerEvents();
+  bool onReading(const ControllerReading& reading);
+
+  ServerOptions options_;
+  const std::filesystem::path session_dir_;
+  const std::string controller_name_;
+  std::optional<protocol::SecurityIdentity> identity_;  // DDS Security on with it
+  protocol::Participant participant_;
+  protocol::Reader<ignav_msg_Command> commands_[3];  // by Role
+  protocol::Writer<ignav_msg_Reply> replies_;
+  protocol::Reader<ignav_msg_SliceRequest> slice_requests_;
+  protocol::Reader<ignav_msg_Approval> approvals_;
+  protocol::Reader<ignav_msg_EmergencyStop> emergency_stops_;
+  StatePublisher state_;
+  // The slices clients ask for, drawn on a thread of their own (it writes the replies).
+  Slices slices_;
+  std::optional<protocol::SenderIdentities> senders_;  // with DDS Security on
+  std::string journal_failure_;  // why the journal cannot be written ("" = it can)
+  std::set<workflow::InputKind> unjournaled_kinds_;
+  actuation::ControllerStatus last_reading_;  // the component's, as last taken (or replayed)
+  std::uint64_t move_seq_ = 0;                // the component's number of the last move sent
+  std::uint64_t last_submitted_ = 0;          // ... of the last command of any kind
+  std::deque<Input> held_;                    // inputs waiting for a fresh reading (step())
+  Clock::time_point held_since_;
+  std::string last_fault_reported_;
+  std::string refused_move_;  // a move runController would not send: a fault, reported next
+  protocol::WaitSet waitset_;
+  VolumeLoader loader_;
+  // The controller component (run() only; its threads wake the waitset, so it goes first).
+  std::unique_ptr<ControllerComponent> component_;
+  // The report and the Slicer files, on a thread of their own; drained when the server goes.
+  Reports reports_;
+  std::optional<journal::Journal> journal_;
+  std::string crash_at_;  // IGNAV_CRASH_AT (step.cpp)
+  workflow::Session session_;
+  Reports::Snapshot snapshot_;  // a copy of session_ once asked for (snapshot()), until it changes
+  std::pair<std::size_t, std::size_t> last_progress_{0, 0};
+  // The OpenIGTLink bridge (last: its thread stops before the waitset it wakes goes away).
+  std::unique_ptr<IgtlBridge> igtl_;
+};
+
+}  // namespace ignav::server

@@ -1,0 +1,205 @@
+#include "server_options.hpp"
+
+#include <fmt/format.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <filesystem>
+#include <stdexcept>
+
+#include "ignav/workflow/session.hpp"
+
+namespace ignav::server {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ConfigError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+std::string resolve(const fs::path& base, const std::string& p) {
+  if (p.empty() || fs::path(p).is_absolute()) return p;
+  return (base / p).lexically_normal().string();
+}
+
+}  // namespace
+
+std::optional<std::string> checkControllerOptions(const ServerOptions& o) {
+  const auto& c = o.controller;
+  if (c.kind != "simulated" && c.kind != "galil") {
+    return "controller.kind: '" + c.kind + "' is not simulated or galil";
+  }
+  if (c.port <= 0 || c.port > 65535) {
+    return fmt::format("controller.port: {} is not a TCP port", c.port);
+  }
+  if (!(c.speed_steps_s > 0) || !std::isfinite(c.speed_steps_s)) {
+    return fmt::format("controller.speed_steps_s: {} must be positive", c.speed_steps_s);
+  }
+  if (!(c.acceleration_steps_s2 > 0) || !std::isfinite(c.acceleration_steps_s2)) {
+    return fmt::format("controller.acceleration_steps_s2: {} must be positive",
+                       c.acceleration_steps_s2);
+  }
+  if (c.timeout_ms < 10 || c.timeout_ms > 60000) {
+    return fmt::format("controller.timeout_ms: {} is not within 10..60000", c.timeout_ms);
+  }
+  if (c.control_period_ms < 1 || c.control_period_ms > 1000) {
+    return fmt::format("controller.control_period_ms: {} is not within 1..1000",
+                       c.control_period_ms);
+  }
+  if (o.max_targets < 1 || o.max_targets > workflow::kMaxTargets) {
+    return fmt::format("planning.max_targets: {} is not within 1..{}", o.max_targets,
+                       workflow::kMaxTargets);
+  }
+  if (!(o.max_total_rotation_deg > 0) || o.max_total_rotation_deg > 360.0) {
+    return fmt::format("planning.max_total_rotation_deg: {} is not within (0, 360]",
+                       o.max_total_rotation_deg);
+  }
+  const auto& g = o.openigtlink;
+  if (g.port < 0 || g.port > 65535) {
+    return fmt::format("openigtlink.port: {} is not a TCP port (0..65535; 0 = any)", g.port);
+  }
+  if (!(g.timeout_s >= 0.5) || g.timeout_s > 3600.0) {
+    return fmt::format("openigtlink.timeout_s: {} s; must be within 0.5..3600", g.timeout_s);
+  }
+  if (!(o.approval_expiry_s > 0) || !std::isfinite(o.approval_expiry_s)) {
+    return fmt::format("approval.expiry_s: {} must be positive", o.approval_expiry_s);
+  }
+  return std::nullopt;
+}
+
+ServerOptions loadServerOptions(const std::string& path) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(path + ": " + e.what());
+  }
+  const fs::path base = fs::path(path).parent_path();
+  ServerOptions o;
+  const YAML::Node s = root["server"];
+  if (!s || !s.IsMap()) throw ConfigError(path + ": server: is missing");
+  for (const auto& kv : s) {
+    const std::string key = kv.first.Scalar();
+    if (key != "robot_config" && key != "dds" && key != "session_root" && key != "controller" &&
+        key != "approval" && key != "planning" && key != "tissue" && key != "security" &&
+        key != "openigtlink") {
+      throw ConfigError(path + ": server." + key +
+                        ": unknown key; expected robot_config, dds, session_root, controller, "
+                        "approval, planning, tissue, security, openigtlink");
+    }
+  }
+  try {
+    o.robot_config = resolve(base, s["robot_config"].as<std::string>());
+    if (s["session_root"]) o.session_root = resolve(base, s["session_root"].as<std::string>());
+    if (const YAML::Node d = s["dds"]) {
+      if (d["domain_id"]) o.domain_id = d["domain_id"].as<std::uint32_t>();
+      if (d["config"]) o.dds_config = resolve(base, d["config"].as<std::string>());
+    }
+    if (const YAML::Node c = s["controller"]) {
+      auto& co = o.controller;
+      for (const auto& kv : c) {
+        const std::string key = kv.first.Scalar();
+        if (key == "kind") {
+          co.kind = kv.second.as<std::string>();
+        } else if (key == "host") {
+          co.host = kv.second.as<std::string>();
+        } else if (key == "port") {
+          co.port = kv.second.as<int>();
+        } else if (key == "speed_steps_s") {
+          co.speed_steps_s = kv.second.as<double>();
+        } else if (key == "acceleration_steps_s2") {
+          co.acceleration_steps_s2 = kv.second.as<double>();
+        } else if (key == "control_period_ms") {
+          co.control_period_ms = kv.second.as<int>();
+        } else if (key == "timeout_ms") {
+          co.timeout_ms = kv.second.as<int>();
+        } else {
+          throw ConfigError(path + ": server.controller." + key +
+                            ": unknown key; expected kind, host, port, speed_steps_s, "
+                            "acceleration_steps_s2, control_period_ms, timeout_ms");
+        }
+      }
+    }
+    if (const YAML::Node t = s["tissue"]) {
+      for (const auto& kv : t) {
+        const std::string key = kv.first.Scalar();
+        if (key == "profiles") {
+          o.tissue_profiles = resolve(base, kv.second.as<std::string>());
+        } else if (key == "name") {
+          o.tissue_name = kv.second.as<std::string>();
+        } else {
+          throw ConfigError(path + ": server.tissue." + key +
+                            ": unknown key; expected profiles, name");
+        }
+      }
+    }
+    if (const YAML::Node pl = s["planning"]) {
+      for (const auto& kv : pl) {
+        const std::string key = kv.first.Scalar();
+        if (key == "max_targets") {
+          o.max_targets = kv.second.as<std::size_t>();
+        } else if (key == "max_total_rotation_deg") {
+          o.max_total_rotation_deg = kv.second.as<double>();
+        } else {
+          throw ConfigError(path + ": server.planning." + key +
+                            ": unknown key; expected max_targets, max_total_rotation_deg");
+        }
+      }
+    }
+    if (const YAML::Node sec = s["security"]) {
+      for (const auto& kv : sec) {
+        const std::string key = kv.first.Scalar();
+        if (key == "identity") {
+          const auto folder = kv.second.as<std::string>();
+          o.security.identity = folder.empty() ? "" : resolve(base, folder);
+        } else if (key == "plugins") {
+          o.security.plugins = kv.second.as<std::string>();
+        } else {
+          throw ConfigError(path + ": server.security." + key +
+                            ": unknown key; expected identity, plugins");
+        }
+      }
+    }
+    if (const YAML::Node g = s["openigtlink"]) {
+      auto& go = o.openigtlink;
+      for (const auto& kv : g) {
+        const std::string key = kv.first.Scalar();
+        if (key == "enabled") {
+          go.enabled = kv.second.as<bool>();
+        } else if (key == "address") {
+          go.address = kv.second.as<std::string>();
+        } else if (key == "port") {
+          go.port = kv.second.as<int>();
+        } else if (key == "timeout_s") {
+          go.timeout_s = kv.second.as<double>();
+        } else if (key == "allow_motion_approval") {
+          go.allow_motion_approval = kv.second.as<bool>();
+        } else {
+          throw ConfigError(path + ": server.openigtlink." + key +
+                            ": unknown key; expected enabled, address, port, timeout_s, "
+                            "allow_motion_approval");
+        }
+      }
+    }
+    if (const YAML::Node a = s["approval"]) {
+      for (const auto& kv : a) {
+        const std::string key = kv.first.Scalar();
+        if (key == "approvers") {
+          o.approvers = kv.second.as<std::vector<std::string>>();
+        } else if (key == "expiry_s") {
+          o.approval_expiry_s = kv.second.as<double>();
+        } else {
+          throw ConfigError(path + ": server.approval." + key +
+                            ": unknown key; expected approvers, expiry_s");
+        }
+      }
+    }
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(path + ": server: " + e.what());
+  }
+  if (auto bad = checkControllerOptions(o)) throw ConfigError(path + ": server." + *bad);
+  return o;
+}
+
+}  // namespace ignav::server

@@ -1,0 +1,71 @@
+// The server's options (server.yaml, then the command line): what they are, how server.yaml is
+// read, and what is checked (configs/server.yaml is the example; docs/PROTOCOL.md, "The server").
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "ignav/config/tissue_profiles.hpp"
+
+namespace ignav::server {
+
+// The motor controller the server drives (server.yaml `controller:`).
+struct ControllerOptions {
+  std::string kind = "simulated";  // simulated | galil
+  std::string host = "127.0.0.1";  // galil
+  int port = 23;                   // galil
+  double speed_steps_s = 2000.0;   // every motor (SP; the simulation's axes)
+  double acceleration_steps_s2 = 8000.0;
+  int control_period_ms = 10;  // how often a moving robot is polled and its state published
+  int timeout_ms = 1000;       // galil: connecting, and each reply; then it is a fault
+};
+
+// DDS Security (server.yaml `security:`, docs/SECURITY.md). Without an identity the server runs
+// unauthenticated and unencrypted, for local development only, and says so loudly.
+struct SecurityOptions {
+  std::string identity;  // an identity folder (configs/security/make-test-pki.sh writes them)
+  std::string plugins;   // folder of Cyclone's libdds_security_*.so ("" = Debian's)
+};
+
+// The OpenIGTLink bridge for 3D Slicer (server.yaml `openigtlink:`, docs/OPENIGTLINK.md).
+struct OpenIgtlinkOptions {
+  bool enabled = false;
+  std::string address = "127.0.0.1";  // loopback unless a site opens it
+  int port = 18944;                   // 0: any free port (printed on the ready line)
+  double timeout_s = 5.0;             // a dropped or stalled client is let go after this
+  // OpenIGTLink has no authentication: MOVE_TO_TARGET over it releases motion only if a site
+  // says so here (the server then says so loudly, in its log and in the workflow state).
+  bool allow_motion_approval = false;
+};
+
+struct ServerOptions {
+  ControllerOptions controller;
+  OpenIgtlinkOptions openigtlink;
+  SecurityOptions security;
+  std::vector<std::string> approvers;  // client ids allowed to approve motion
+  double approval_expiry_s = 120.0;
+  std::string tissue_profiles;                  // configs/tissues.yaml
+  std::string tissue_name;                      // "" = no deflection prediction
+  std::optional<config::TissueProfile> tissue;  // loaded by runServer
+  std::size_t max_targets = 100;                // per insertion, at most 100 (paper §V)
+  double max_total_rotation_deg = 360.0;        // the cannula's rotation over one insertion
+  std::string robot_config;
+  std::uint32_t domain_id = 0;
+  std::string dds_config;    // path of a Cyclone XML file ("" = Cyclone's defaults)
+  std::string session_root;  // a session folder is created inside
+  std::string session_dir;   // or exactly this folder
+  // Replay instead of serving: publish a recorded session's states as they happened.
+  std::string replay_session;      // its folder (read only)
+  double replay_speed = 1.0;       // 1, 10, ... times real time; 0 = as fast as possible
+  std::uint64_t replay_until = 0;  // stop after this revision (0 = the whole journal)
+};
+
+// Loads `path` (server.yaml); errors name the file and key. CLI options override after.
+ServerOptions loadServerOptions(const std::string& path);
+// What is wrong with the controller or approval options ("controller.port: ..."), if anything.
+std::optional<std::string> checkControllerOptions(const ServerOptions& options);
+
+}  // namespace ignav::server

@@ -1,0 +1,78 @@
+// The slices clients ask for (SliceRequest -> SliceReply, docs/PROTOCOL.md), rendered on a
+// thread of their own, the "slices" thread (issue 22.2): the event thread hands over the request
+// with an immutable snapshot of the session and never waits; the slices thread reslices the CT,
+// draws the overlays, encodes the PNG and writes the reply itself. docs/ARCHITECTURE.md draws it.
+//
+// Requests are answered in the order they came, one at a time, each from the session as it was
+// when the request was taken (as when the event thread drew them). The queue is bounded: a
+// request that finds kMaxQueued waiting is refused at once with a reply that says so (the client
+// asks again), never queued and never waited for. At destruction the slice being drawn is
+// finished and the ones still waiting are answered that the server is stopping.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <condition_variable>
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "ignav/protocol/dds.hpp"
+#include "ignav/protocol/messages.hpp"
+#include "ignav/workflow/session.hpp"
+
+namespace ignav::server {
+
+class Slices {
+ public:
+  using Snapshot = std::shared_ptr<const workflow::Session>;
+  // A few per client of a busy viewer (three views, each fetching ahead), for a few clients.
+  static constexpr std::size_t kMaxQueued = 32;
+
+  explicit Slices(const protocol::Participant& participant);
+  ~Slices();  // finishes the slice being drawn, refuses the rest, joins
+  Slices(const Slices&) = delete;
+  Slices& operator=(const Slices&) = delete;
+
+  // Queues `request`, to be drawn from `session`; refuses it at once if the queue is full.
+  void request(const ignav_msg_SliceRequest& request, Snapshot session);
+
+ private:
+  // The request, owned (the DDS sample's strings live only as long as the take).
+  struct Job {
+    Snapshot session;
+    std::string client_id, view;
+    std::uint64_t request_id = 0;
+    Eigen::Vector3d centre_lps = Eigen::Vector3d::Zero();
+    std::uint32_t size_px = 0;
+    double pixel_mm = 0.0, window = 0.0, level = 0.0;
+    bool overlays = false, region_only = false;
+  };
+  struct Result {
+    std::string client_id, message;
+    std::uint64_t request_id = 0;
+    bool ok = false;
+    std::uint32_t width = 0, height = 0;
+    Eigen::Matrix4d pixel_to_lps = Eigen::Matrix4d::Identity();
+    std::vector<std::uint8_t> png;
+  };
+
+  void loop();
+  Result render(const Job& job) const;
+  void send(Result& result) const;
+  void refuse(const Job& job, const std::string& why) const;
+
+  protocol::Writer<ignav_msg_SliceReply> replies_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<Job> queue_;
+  bool stopping_ = false;
+  std::uint64_t done_ = 0, refused_ = 0;  // for the log at shutdown
+  std::thread thread_;                    // last: it starts once everything above is built
+};
+
+}  // namespace ignav::server

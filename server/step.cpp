@@ -1,0 +1,182 @@
+// One input through the reducer, and its effects in the order DESIGN.md's safety invariants
+// require, which workflow::executeStep (effect_order.hpp) keeps: halts first, then the journal
+// (fdatasync), the new session, the other controller commands, the state topics, the replies,
+// and last the files for people (reports thread), a volume load and the OpenIGTLink bridge.
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <csignal>
+
+#include "ignav/workflow/effect_order.hpp"
+#include "ignav/workflow/reducer.hpp"
+#include "server_core.hpp"
+
+namespace ignav::server {
+
+using workflow::Input;
+using workflow::InputKind;
+using workflow::Session;
+
+// What the server does with one step's effects (called by workflow::executeStep, in its order).
+class Server::Sink final : public workflow::EffectSink {
+ public:
+  Sink(Server& server, const Input& in, const workflow::Step& step)
+      : s_(server),
+        in_(in),
+        effects_(step.effects),
+        revision_(step.session.revision),
+        phase_before_(server.session_.phase) {}
+
+  // Handed to the component's halt thread, which sends them at once (queued moves are dropped).
+  void halt(const workflow::ControllerCommand& c) override { s_.runController(c, std::nullopt); }
+
+  bool journal(const std::vector<std::string>& records) override {
+    s_.crashPoint("before_journal", revision_);
+    if (!s_.journal_failure_.empty()) return false;
+    for (const auto& line : records) {
+      if (auto ok = s_.journal_->append(line); !ok) {
+        // Nothing is published or acknowledged that the journal does not hold. The robot is
+        // halted (its arrivals could not be recorded) and every later change is refused until
+        // a restart recovers from the journal as it stands.
+        s_.journal_failure_ = ok.error().message;
+        spdlog::critical("{}: halting the robot and refusing every change until restarted",
+                         s_.journal_failure_);
+        s_.runController(workflow::ControllerCommand::stop(), std::nullopt);
+        s_.publishHealth();
+        return false;
+      }
+    }
+    s_.crashPoint("after_journal", revision_);
+    return true;
+  }
+
+  void unjournaled(const workflow::Effects& e) override { s_.refuseUnjournaled(in_, e); }
+
+  void commit(Session&& session) override {
+    s_.replaceSession(std::move(session));
+    const auto& e = effects_;
+    if (!e.journal.empty() || !e.replies.empty()) {
+      spdlog::info("{} from '{}'{} #{}: {} -> {}", workflow::toString(in_.kind), in_.client_id,
+                   in_.identity.empty() ? "" : " (" + in_.identity + ")", in_.request_id,
+                   e.replies.empty() || e.replies.front().accepted
+                       ? "accepted"
+                       : "rejected (" + e.replies.front().error_code + ")",
+                   workflow::toString(s_.session_.phase));
+    }
+  }
+
+  // A move is sent only if the robot is still at rest where its segment starts.
+  void command(const workflow::ControllerCommand& c) override {
+    const auto& motion = s_.session_.motion;
+    s_.runController(c,
+                     motion ? std::optional<actuation::Steps>(motion->segment_from) : std::nullopt);
+  }
+
+  void publish(const workflow::Effects& e) override {
+    s_.state_.publishEffects(s_.session_, e, s_.readings());
+  }
+
+  void reply(const workflow::Reply& r) override { s_.sendReply(r); }
+
+  // The files for people (Slicer exports, report slices, the report) on the reports thread:
+  // handed a snapshot of the session, never waited for. Then a volume load, then the bridge.
+  void finish(const workflow::Effects& e) override {
+    const Session& now = s_.session_;
+    auto& reports = s_.reports_;
+    if (in_.kind != InputKind::kQuery &&
+        (e.registration_changed || !e.targets_changed.empty() || !e.targets_removed.empty())) {
+      reports.exports(s_.snapshot());
+    }
+    if (now.phase != phase_before_) {
+      if (now.phase == workflow::Phase::kPlanLocked && in_.kind == InputKind::kLockPlan) {
+        reports.slices(s_.snapshot(), true, 0);
+      } else if (now.phase == workflow::Phase::kAtTarget) {
+        const workflow::Target* last = nullptr;  // the target just reached
+        for (const auto& t : now.targets) {
+          if (t.reached && (!last || t.reached_s > last->reached_s)) last = &t;
+        }
+        if (last) reports.slices(s_.snapshot(), false, last->id);
+      }
+    }
+    if (!e.journal.empty()) reports.report(s_.snapshot());
+    if (e.load_volume) s_.loader_.start(*e.load_volume, *now.robot, s_.session_dir_);
+    if (s_.igtl_) s_.igtl_->onState(now);
+  }
+
+ private:
+  Server& s_;
+  const Input& in_;
+  const workflow::Effects& effects_;
+  const std::uint64_t revision_;  // the step's
+  const workflow::Phase phase_before_;
+};
+
+bool Server::stepNow(Input in) {
+  in.time_s = wallS();
+  if (workflow::needsControllerReading(in.kind) && !in.controller) {
+    // The component's latest reading: taken after every command sent so far (step() held the
+    // input until then), or the last word before the connection went. A move it releases is
+    // checked again on a reading taken just before it is sent (ControllerComponent::execute).
+    in.controller = latestReading().status;
+    // An operator resetting or homing may have just reconnected the cable: try again now.
+    if ((in.kind == InputKind::kResetEmergency || in.kind == InputKind::kHome) &&
+        in.controller->state == actuation::ControllerState::kDisconnected && component_) {
+      component_->reconnectNow();
+    }
+  }
+  workflow::Step s = workflow::reduce(session_, in);
+  Sink sink(*this, in, s);
+  workflow::executeStep(s, sink);
+  return true;
+}
+
+void Server::replaceSession(Session&& session) {
+  session_ = std::move(session);
+  snapshot_.reset();
+}
+
+const Reports::Snapshot& Server::snapshot() {
+  if (!snapshot_) snapshot_ = std::make_shared<const Session>(session_);
+  return snapshot_;
+}
+
+void Server::sendReply(const workflow::Reply& r) {
+  if (igtl_ && igtl_->reply(r, session_)) return;
+  protocol::OwnedReply owned{r, {}};
+  replies_.write(owned.build());
+  if (!r.accepted) spdlog::warn("rejected: {}", r.message);
+}
+
+// An input whose journal record cannot be written: nothing of it happens (but the halts, which
+// ran first) and its sender is told why.
+void Server::refuseUnjournaled(const Input& in, const workflow::Effects& effects) {
+  for (const auto& r : effects.replies) {
+    sendReply({r.client_id, r.request_id, false, "journal_failed",
+               fmt::format("not done: the session journal cannot be written ({}){}; restart "
+                           "the server once the disk is fixed",
+                           journal_failure_,
+                           in.kind == InputKind::kEmergencyStop ? "; the robot WAS halted" : ""),
+               0, session_.revision});
+  }
+  // The server's own inputs (a finished move, say) come back every control period: say it once.
+  if (effects.replies.empty() && unjournaled_kinds_.insert(in.kind).second) {
+    spdlog::error("{} not recorded (journal failed): dropped", workflow::toString(in.kind));
+  }
+}
+
+// Fault injection for the crash tests: IGNAV_CRASH_AT=before_journal:REV or after_journal:REV
+// kills the server (SIGKILL, as a power loss) at that point of the step that makes revision REV.
+void Server::crashPoint(const char* where, std::uint64_t revision) const {
+  if (crash_at_.empty()) return;
+  if (crash_at_ == std::string(where) + ":" + std::to_string(revision)) {
+    spdlog::critical("IGNAV_CRASH_AT={}: killing the server", crash_at_);
+    spdlog::default_logger()->flush();
+    ::raise(SIGKILL);
+  }
+}
+
+void Server::publishHealth() {
+  state_.publishHealth(session_, {journal_failure_, igtl_ ? igtl_->clientCount() : 0});
+}
+
+}  // namespace ignav::server
