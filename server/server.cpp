@@ -233,7 +233,8 @@ std::size_t Server::takeCommands(bool& failed) {
         const std::string client = c.client_id ? c.client_id : "";
         spdlog::warn("command kind {} from '{}' (request {}) is not one of ours: refused", c.kind,
                      client.substr(0, 64), c.request_id);
-        sendReply({client, c.request_id, false, "unknown_command",
+        sendReply({client, c.request_id, false,
+                   workflow::toString(workflow::ReplyCode::kUnknownCommand),
                    fmt::format("command kind {} is not one of ours (docs/PROTOCOL.md lists "
                                "the kinds)",
                                c.kind),
@@ -298,7 +299,7 @@ void Server::publishEverything() {
 // emergency stop refuses what was held (it came after them and must not be undone by them).
 bool Server::step(Input in) {
   if (in.kind == InputKind::kEmergencyStop) {
-    refuseHeld("superseded",
+    refuseHeld(workflow::toString(workflow::ReplyCode::kSuperseded),
                "not done: an emergency stop came while this waited for a reading of the "
                "controller");
     return stepNow(std::move(in));
@@ -329,7 +330,8 @@ bool Server::releaseHeld() {
     if (waitsForReading(held_.front())) {
       if (Clock::now() - held_since_ < limit) return true;
       const Input& late = held_.front();
-      sendReply({late.client_id, late.request_id, false, "controller_unavailable",
+      sendReply({late.client_id, late.request_id, false,
+                 workflow::toString(workflow::ReplyCode::kControllerUnavailable),
                  fmt::format("not done: no reading of the controller came within {} ms after "
                              "its last command; try again",
                              limit.count()),
@@ -416,7 +418,7 @@ std::optional<workflow::Reply> Server::checkPath(const Input& in) const {
   return workflow::Reply{in.client_id,
                          in.request_id,
                          false,
-                         "bad_path",
+                         workflow::toString(workflow::ReplyCode::kBadPath),
                          in.path + ": no such file or folder on the server",
                          0,
                          session_.revision};

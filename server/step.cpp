@@ -151,7 +151,8 @@ void Server::sendReply(const workflow::Reply& r) {
 // ran first) and its sender is told why.
 void Server::refuseUnjournaled(const Input& in, const workflow::Effects& effects) {
   for (const auto& r : effects.replies) {
-    sendReply({r.client_id, r.request_id, false, "journal_failed",
+    sendReply({r.client_id, r.request_id, false,
+               workflow::toString(workflow::ReplyCode::kJournalFailed),
                fmt::format("not done: the session journal cannot be written ({}){}; restart "
                            "the server once the disk is fixed",
                            journal_failure_,

@@ -147,7 +147,7 @@ std::optional<Rejection> orderPlan(Session& s, std::string& summary) {
   }
   const double limit = s.policy.limits.max_total_rotation_rad;
   if (ordering.total_rotation_rad > limit + 1e-12) {
-    return Rejection{"rotation_limit",
+    return Rejection{ReplyCode::kRotationLimit,
                      fmt::format("this order turns the cannula {:.1f}° in all, more than {:.1f}°{}",
                                  ordering.total_rotation_rad * kRadToDeg, limit * kRadToDeg,
                                  s.order_fixed ? "; reorder the targets or let the server order "
@@ -178,13 +178,15 @@ std::optional<Rejection> orderPlan(Session& s, std::string& summary) {
 
 std::optional<Rejection> checkAtRest(const Input& in) {
   if (!in.controller || in.controller->state == actuation::ControllerState::kDisconnected) {
-    return Rejection{"controller_unavailable", "the controller does not answer" +
-                                                   (in.controller && !in.controller->fault.empty()
-                                                        ? ": " + in.controller->fault
-                                                        : std::string())};
+    return Rejection{
+        ReplyCode::kControllerUnavailable,
+        "the controller does not answer" + (in.controller && !in.controller->fault.empty()
+                                                ? ": " + in.controller->fault
+                                                : std::string())};
   }
   if (in.controller->state == actuation::ControllerState::kMoving) {
-    return Rejection{"controller_busy", "the robot is still moving; wait until it is at rest"};
+    return Rejection{ReplyCode::kControllerBusy,
+                     "the robot is still moving; wait until it is at rest"};
   }
   return std::nullopt;
 }
@@ -202,7 +204,7 @@ std::string describeMismatch(const actuation::Steps& reading, const actuation::S
 std::optional<Rejection> checkPosition(const Session& s, const actuation::Steps& reading) {
   if (!s.motion || !s.motion->interrupted) {
     if (reading == s.position) return std::nullopt;
-    return Rejection{"position_mismatch",
+    return Rejection{ReplyCode::kPositionMismatch,
                      "position check failed: " + describeMismatch(reading, s.position) +
                          "; bring the robot home and send home, then reset"};
   }
@@ -214,7 +216,7 @@ std::optional<Rejection> checkPosition(const Session& s, const actuation::Steps&
     const auto hi = std::max(from[a], from[a] + inc[a]);
     if (reading.motor[a] < lo || reading.motor[a] > hi) {
       return Rejection{
-          "position_mismatch",
+          ReplyCode::kPositionMismatch,
           fmt::format("position check failed: motor {} reads {} steps, off the interrupted {} "
                       "from {} to {}; bring the robot home and send home, then reset",
                       a + 1, reading.motor[a],
@@ -228,7 +230,8 @@ std::optional<Rejection> checkPosition(const Session& s, const actuation::Steps&
 namespace {
 
 std::optional<Rejection> checkApproval(const Session& s, const Input& in) {
-  if (!s.pending) return Rejection{"no_pending_approval", "no motion is waiting for approval"};
+  if (!s.pending)
+    return Rejection{ReplyCode::kNoPendingApproval, "no motion is waiting for approval"};
   const auto& p = *s.pending;
   const auto& approvers = s.policy.approvers;
   const auto listed = [&](const std::string& who) {
@@ -238,32 +241,35 @@ std::optional<Rejection> checkApproval(const Session& s, const Input& in) {
     std::string list;
     for (const auto& a : approvers)
       list += (list.empty() ? "" : ", ") + a;
-    return Rejection{"not_approver",
+    return Rejection{ReplyCode::kNotApprover,
                      fmt::format("client '{}'{} may not approve motion (approvers: {})",
                                  in.client_id, in.identity.empty() ? "" : " (" + in.identity + ")",
                                  list.empty() ? "none configured" : list)};
   }
   if (in.plan_id != p.plan_id) {
-    return Rejection{"stale_plan", fmt::format("plan {} is not the pending request; plan {} is",
-                                               in.plan_id, p.plan_id)};
+    return Rejection{
+        ReplyCode::kStalePlan,
+        fmt::format("plan {} is not the pending request; plan {} is", in.plan_id, p.plan_id)};
   }
   if (in.digest != p.digest) {
-    return Rejection{"wrong_digest",
+    return Rejection{ReplyCode::kWrongDigest,
                      fmt::format("the digest does not match plan {}: approve exactly what the "
                                  "request shows",
                                  p.plan_id)};
   }
   if (in.time_s > p.expires_s) {
-    return Rejection{"expired", fmt::format("plan {} expired {:.1f} s ago; request_approval for a "
-                                            "fresh one",
-                                            p.plan_id, in.time_s - p.expires_s)};
+    return Rejection{ReplyCode::kExpired,
+                     fmt::format("plan {} expired {:.1f} s ago; request_approval for a "
+                                 "fresh one",
+                                 p.plan_id, in.time_s - p.expires_s)};
   }
   if (auto busy = checkAtRest(in)) return busy;
   if (in.controller->state == actuation::ControllerState::kFault) {
-    return Rejection{"controller_fault", "the controller reports a fault: " + in.controller->fault};
+    return Rejection{ReplyCode::kControllerFault,
+                     "the controller reports a fault: " + in.controller->fault};
   }
   if (in.controller->position != p.from) {
-    return Rejection{"controller_changed",
+    return Rejection{ReplyCode::kControllerChanged,
                      fmt::format("the robot is not where plan {} starts: {}", p.plan_id,
                                  describeMismatch(in.controller->position, p.from))};
   }

@@ -6,12 +6,13 @@
 #include <string>
 #include <variant>
 
+#include "ignav/workflow/reply_codes.hpp"
 #include "ignav/workflow/session.hpp"
 
 namespace ignav::workflow::detail {
 
 struct Rejection {
-  std::string code;
+  ReplyCode code;
   std::string message;
 };
 

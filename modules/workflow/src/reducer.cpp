@@ -25,6 +25,13 @@ constexpr double kMaxCoordinate_mm = 1e6;
 
 using detail::Rejection;
 
+// modules/registration names its reasons; each is one of the reply codes (a test checks them).
+Rejection registrationRefusal(const Error& error) {
+  if (const auto code = replyCodeNamed(error.reason)) return Rejection{*code, error.message};
+  return Rejection{ReplyCode::kInternal,
+                   "registration refused (" + error.reason + "): " + error.message};
+}
+
 const Transition* findTransition(Phase phase, InputKind kind) {
   for (const auto& t : transitionTable()) {
     if (t.from == phase && t.input == kind) return &t;
@@ -77,13 +84,14 @@ std::size_t invalidUtf8At(const std::string& text) {
 std::optional<Rejection> checkText(const char* field, const std::string& text) {
   const std::size_t at = invalidUtf8At(text);
   if (at == std::string::npos) return std::nullopt;
-  return Rejection{"bad_text", fmt::format("{} is not UTF-8 text (byte {} is 0x{:02X})", field, at,
-                                           static_cast<unsigned char>(text[at]))};
+  return Rejection{ReplyCode::kBadText,
+                   fmt::format("{} is not UTF-8 text (byte {} is 0x{:02X})", field, at,
+                               static_cast<unsigned char>(text[at]))};
 }
 
 std::optional<Rejection> checkClient(const Input& in) {
   if (in.client_id.empty() || in.client_id.size() > kMaxIdLength) {
-    return Rejection{"bad_client_id",
+    return Rejection{ReplyCode::kBadClientId,
                      fmt::format("client_id must have 1 to {} characters", kMaxIdLength)};
   }
   return checkText("client_id", in.client_id);
@@ -91,45 +99,49 @@ std::optional<Rejection> checkClient(const Input& in) {
 
 std::optional<Rejection> checkShape(const Input& in) {
   if (in.path.size() > kMaxPathLength) {
-    return Rejection{"too_long", fmt::format("path has {} characters; at most {}", in.path.size(),
-                                             kMaxPathLength)};
+    return Rejection{ReplyCode::kTooLong, fmt::format("path has {} characters; at most {}",
+                                                      in.path.size(), kMaxPathLength)};
   }
   if (auto bad = checkText("path", in.path)) return bad;
   if (in.points.size() > kMaxTargets || in.ids.size() > kMaxTargets) {
-    return Rejection{"oversized", fmt::format("{} points and {} ids given; at most {} of each",
-                                              in.points.size(), in.ids.size(), kMaxTargets)};
+    return Rejection{ReplyCode::kOversized,
+                     fmt::format("{} points and {} ids given; at most {} of each", in.points.size(),
+                                 in.ids.size(), kMaxTargets)};
   }
   for (std::size_t i = 0; i < in.points.size(); ++i) {
     if (!in.points[i].allFinite()) {
-      return Rejection{"non_finite", fmt::format("points[{}] has a non-finite coordinate", i)};
+      return Rejection{ReplyCode::kNonFinite,
+                       fmt::format("points[{}] has a non-finite coordinate", i)};
     }
     // A kilometre is no place in a patient; far larger finite values once overran a message
     // buffer downstream (docs/RELIABILITY.md).
     if (in.points[i].cwiseAbs().maxCoeff() > kMaxCoordinate_mm) {
-      return Rejection{"out_of_range",
+      return Rejection{ReplyCode::kOutOfRange,
                        fmt::format("points[{}] has a coordinate of {:.4g} mm; at most ±{:.0f} mm",
                                    i, in.points[i].cwiseAbs().maxCoeff(), kMaxCoordinate_mm)};
     }
   }
   if (in.digest.size() > kMaxIdLength) {
-    return Rejection{"too_long", fmt::format("digest has {} characters; at most {}",
-                                             in.digest.size(), kMaxIdLength)};
+    return Rejection{ReplyCode::kTooLong, fmt::format("digest has {} characters; at most {}",
+                                                      in.digest.size(), kMaxIdLength)};
   }
   // The rest from the input table: what this kind carries, and nothing else.
   const InputSpec& spec = specOf(in.kind);
   const Arguments& a = spec.args;
   if (!a.path_is && !in.path.empty()) {
-    return Rejection{"bad_arguments", fmt::format("{} takes no path", spec.name)};
+    return Rejection{ReplyCode::kBadArguments, fmt::format("{} takes no path", spec.name)};
   }
   if (a.path_is && in.path.empty()) {
-    return Rejection{"bad_arguments", fmt::format("{} needs a path: {}", spec.name, a.path_is)};
+    return Rejection{ReplyCode::kBadArguments,
+                     fmt::format("{} needs a path: {}", spec.name, a.path_is)};
   }
   if (a.path_choices) {
     const std::string choices = std::string("|") + a.path_choices + "|";
     if (in.path.find('|') != std::string::npos ||
         choices.find("|" + in.path + "|") == std::string::npos) {
-      return Rejection{"bad_arguments", fmt::format("{}'s path is one of {}; got \"{}\"", spec.name,
-                                                    a.path_choices, in.path.substr(0, 64))};
+      return Rejection{ReplyCode::kBadArguments,
+                       fmt::format("{}'s path is one of {}; got \"{}\"", spec.name, a.path_choices,
+                                   in.path.substr(0, 64))};
     }
   }
   const bool points_ok = a.points == kAnyCount || in.points.size() == a.points;
@@ -138,15 +150,15 @@ std::optional<Rejection> checkShape(const Input& in) {
     auto count = [](std::size_t n) {
       return n == kAnyCount ? std::string("any number of") : std::to_string(n);
     };
-    return Rejection{"bad_arguments",
+    return Rejection{ReplyCode::kBadArguments,
                      fmt::format("{} takes {} point(s) and {} id(s); got {} and {}", spec.name,
                                  count(a.points), count(a.ids), in.points.size(), in.ids.size())};
   }
   if (a.matrix_is && !in.matrix) {
-    return Rejection{"bad_arguments", fmt::format("{} needs a 4x4 matrix", spec.name)};
+    return Rejection{ReplyCode::kBadArguments, fmt::format("{} needs a 4x4 matrix", spec.name)};
   }
   if (!a.matrix_is && in.matrix) {
-    return Rejection{"bad_arguments", fmt::format("{} takes no matrix", spec.name)};
+    return Rejection{ReplyCode::kBadArguments, fmt::format("{} takes no matrix", spec.name)};
   }
   return std::nullopt;
 }
@@ -165,7 +177,7 @@ std::optional<Rejection> checkInsideCt(const Session& s, const Eigen::Vector3d& 
   if (!s.ct.volume) return std::nullopt;
   const double outside_mm = s.ct.volume->geometry.outsideBy_mm(lps_mm);
   if (outside_mm <= 0.0) return std::nullopt;
-  return Rejection{"outside_volume",
+  return Rejection{ReplyCode::kOutsideVolume,
                    fmt::format("({:.1f}, {:.1f}, {:.1f}) mm LPS lies {:.1f} mm outside the loaded "
                                "CT ({}): only imaged tissue can be targeted",
                                lps_mm.x(), lps_mm.y(), lps_mm.z(), outside_mm, s.ct.source)};
@@ -261,7 +273,7 @@ std::optional<Rejection> adoptRegistration(Session& s, const std::vector<Eigen::
                                            robot.feature_points_mm.end());
   auto reg = registration::registerPoints(image, model, robot.config.registration.kind,
                                           robot.config.registration.limits);
-  if (!reg) return Rejection{reg.error().reason, reg.error().message};
+  if (!reg) return registrationRefusal(reg.error());
   s.registration = std::move(reg).value();
   s.registration_status = {
       "registered",
@@ -293,7 +305,7 @@ void adoptPolicy(Session& s, ApprovalPolicy policy) {
 // done instead.
 std::optional<Rejection> issueRequest(Session& s, const Input& in, Effects& e, Phase& to) {
   auto next = detail::nextRequest(s, in.time_s);
-  if (!next) return Rejection{"plan_failed", next.error().message};
+  if (!next) return Rejection{ReplyCode::kPlanFailed, next.error().message};
   e.approval_changed = true;
   if (!next->has_value()) {
     to = Phase::kDone;
@@ -357,7 +369,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       return std::nullopt;
     case InputKind::kLoadVolume:
       if (s.volume_status.status == "loading") {
-        return Rejection{"busy", "a volume is loading (" + s.volume_status.source + ")"};
+        return Rejection{ReplyCode::kBusy, "a volume is loading (" + s.volume_status.source + ")"};
       }
       s.ct = {};
       s.volume_status = {"loading", in.path, "loading " + in.path};
@@ -389,13 +401,13 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       note = s.registration_status.message;
       return std::nullopt;
     case InputKind::kAutoFiducials: {
-      if (!s.ct.volume) return Rejection{"no_volume", "no CT is loaded"};
+      if (!s.ct.volume) return Rejection{ReplyCode::kNoVolume, "no CT is loaded"};
       const std::vector<Eigen::Vector3d> model(s.robot->feature_points_mm.begin(),
                                                s.robot->feature_points_mm.end());
       auto found =
           registration::findFiducials(*s.ct.volume, s.robot->config.registration.fiducials, model);
-      if (!found) return Rejection{"bad_search", found.error().message};
-      if (!found->match) return Rejection{"no_match", found->summary};
+      if (!found) return Rejection{ReplyCode::kBadSearch, found.error().message};
+      if (!found->match) return Rejection{ReplyCode::kNoMatch, found->summary};
       std::vector<Eigen::Vector3d> image;
       for (std::size_t k : found->match->candidate) {
         image.push_back(found->candidates[k].centroid_lps_mm);
@@ -407,7 +419,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
     case InputKind::kSetRegistration: {
       auto reg =
           registration::registrationFromMatrix(*in.matrix, s.robot->config.registration.limits);
-      if (!reg) return Rejection{reg.error().reason, reg.error().message};
+      if (!reg) return registrationRefusal(reg.error());
       s.registration = std::move(reg).value();
       s.registration_status = {
           "registered",
@@ -421,7 +433,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
     }
     case InputKind::kAddTarget: {
       if (s.targets.size() >= s.policy.limits.max_targets) {
-        return Rejection{"too_many_targets",
+        return Rejection{ReplyCode::kTooManyTargets,
                          fmt::format("the plan already has {} targets, the most one insertion "
                                      "takes (planning.max_targets)",
                                      s.policy.limits.max_targets)};
@@ -442,7 +454,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
     }
     case InputKind::kMoveTarget: {
       Target* t = findTarget(s, in.ids[0]);
-      if (!t) return Rejection{"unknown_target", fmt::format("no target {}", in.ids[0])};
+      if (!t) return Rejection{ReplyCode::kUnknownTarget, fmt::format("no target {}", in.ids[0])};
       if (auto outside = checkInsideCt(s, in.points[0])) {
         outside->message = fmt::format("target {} cannot move there: {}", t->id, outside->message);
         return outside;
@@ -458,7 +470,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       auto it = std::find_if(s.targets.begin(), s.targets.end(),
                              [&](const Target& t) { return t.id == in.ids[0]; });
       if (it == s.targets.end()) {
-        return Rejection{"unknown_target", fmt::format("no target {}", in.ids[0])};
+        return Rejection{ReplyCode::kUnknownTarget, fmt::format("no target {}", in.ids[0])};
       }
       s.targets.erase(it);
       e.targets_removed.push_back(in.ids[0]);
@@ -478,7 +490,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       for (const auto& t : s.targets)
         have.insert(t.id);
       if (given != have || in.ids.size() != s.targets.size()) {
-        return Rejection{"bad_order",
+        return Rejection{ReplyCode::kBadOrder,
                          fmt::format("reorder_targets needs each of the {} target ids exactly once",
                                      s.targets.size())};
       }
@@ -492,7 +504,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       return std::nullopt;
     }
     case InputKind::kLockPlan: {
-      if (s.targets.empty()) return Rejection{"empty_plan", "the plan has no targets"};
+      if (s.targets.empty()) return Rejection{ReplyCode::kEmptyPlan, "the plan has no targets"};
       std::string outside;
       for (const auto& t : s.targets) {
         if (t.outside_volume && !t.reached) {
@@ -501,7 +513,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
         }
       }
       if (!outside.empty()) {
-        return Rejection{"outside_volume", "remove or move these first: " + outside};
+        return Rejection{ReplyCode::kOutsideVolume, "remove or move these first: " + outside};
       }
       std::string bad;
       for (const auto& t : s.targets) {
@@ -510,7 +522,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
         }
       }
       if (!bad.empty()) {
-        return Rejection{"unreachable_targets", "remove or move these first: " + bad};
+        return Rejection{ReplyCode::kUnreachableTargets, "remove or move these first: " + bad};
       }
       std::string order;
       if (auto rejected = detail::orderPlan(s, order)) return rejected;
@@ -518,14 +530,15 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
         e.targets_changed.push_back(t.id);
       if (auto rejected = issueRequest(s, in, e, to)) return rejected;
       if (!s.pending) {
-        return Rejection{"nothing_to_do", "every target was reached and the stylet is home"};
+        return Rejection{ReplyCode::kNothingToDo,
+                         "every target was reached and the stylet is home"};
       }
       note = order + "; waiting for approval of " + s.pending->summary;
       return std::nullopt;
     }
     case InputKind::kRequestApproval:
       if (auto rejected = issueRequest(s, in, e, to)) return rejected;
-      if (!s.pending) return Rejection{"nothing_to_do", "nothing is left to move"};
+      if (!s.pending) return Rejection{ReplyCode::kNothingToDo, "nothing is left to move"};
       note = s.pending->summary;
       return std::nullopt;
     case InputKind::kApprove: {
@@ -543,7 +556,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       return std::nullopt;
     }
     case InputKind::kSegmentDone: {
-      if (!s.motion) return Rejection{"internal", "no motion is under way"};
+      if (!s.motion) return Rejection{ReplyCode::kInternal, "no motion is under way"};
       ActiveMotion& m = *s.motion;
       const auto& move = m.request().moves[m.segment];
       const std::string fault = readingFault(in);
@@ -557,7 +570,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
         return std::nullopt;
       }
       if (in.controller->state == actuation::ControllerState::kMoving) {
-        return Rejection{"internal", "segment_done while the controller still moves"};
+        return Rejection{ReplyCode::kInternal, "segment_done while the controller still moves"};
       }
       actuation::Steps expected = m.segment_from;
       for (std::size_t a = 0; a < 3; ++a)
@@ -661,11 +674,11 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
     case InputKind::kCheckReady: {
       if (auto busy = detail::checkAtRest(in)) return busy;
       if (in.controller->state == actuation::ControllerState::kFault) {
-        return Rejection{"controller_fault",
+        return Rejection{ReplyCode::kControllerFault,
                          "the controller reports a fault: " + in.controller->fault};
       }
       if (in.path == "targeting" && !s.registration) {
-        return Rejection{"not_registered",
+        return Rejection{ReplyCode::kNotRegistered,
                          "no registration yet: register the image to the robot first"};
       }
       note = in.path == "robot" ? "the robot is ready" : "ready for targets";
@@ -676,7 +689,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
         // Back from manual control: where the hands left the motors becomes the position.
         if (auto busy = detail::checkAtRest(in)) return busy;
         if (in.controller->state == actuation::ControllerState::kFault) {
-          return Rejection{"controller_fault",
+          return Rejection{ReplyCode::kControllerFault,
                            "the controller reports a fault: " + in.controller->fault};
         }
         if (s.position != in.controller->position) e.motion_changed = true;
@@ -690,7 +703,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       if (to != Phase::kPlanLocked && to != Phase::kAtTarget) return std::nullopt;
       if (auto busy = detail::checkAtRest(in)) return busy;
       if (in.controller->state == actuation::ControllerState::kFault) {
-        return Rejection{"controller_fault",
+        return Rejection{ReplyCode::kControllerFault,
                          "the controller reports a fault: " + in.controller->fault +
                              "; emergency stop, then "
                              "reset"};
@@ -744,7 +757,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       note = fmt::format("server_time_unix_s={:.6f} revision={}", in.time_s, s.revision);
       return std::nullopt;
   }
-  return Rejection{"internal", "unhandled input"};
+  return Rejection{ReplyCode::kInternal, "unhandled input"};
 }
 
 json journalRecord(const Input& in, const Session& after) {
@@ -1035,7 +1048,7 @@ Step reduce(const Session& session, const Input& in) {
 
   auto reject = [&](const Rejection& r) {
     Step rejected{session, {}};
-    reply.error_code = r.code;
+    reply.error_code = toString(r.code);
     reply.message = r.message;
     reply.revision = session.revision;
     ++rejected.session.rejected;
@@ -1066,8 +1079,8 @@ Step reduce(const Session& session, const Input& in) {
       allowed += (allowed.empty() ? "" : ", ") + std::string(toString(k));
     }
     return reject(
-        {"wrong_phase", fmt::format("{} is not allowed in {} (allowed: {})", toString(in.kind),
-                                    toString(session.phase), allowed)});
+        {ReplyCode::kWrongPhase, fmt::format("{} is not allowed in {} (allowed: {})",
+                                             toString(in.kind), toString(session.phase), allowed)});
   }
   if (command) {
     if (auto bad = checkShape(in)) return reject(*bad);
@@ -1077,10 +1090,10 @@ Step reduce(const Session& session, const Input& in) {
   std::string note;
   if (auto bad = apply(s, in, e, new_id, to, note)) return reject(*bad);
   if (!declared(session.phase, in.kind, to)) {
-    return reject(
-        {"internal", fmt::format("{} would lead from {} to {}, which the table does not "
-                                 "declare",
-                                 toString(in.kind), toString(session.phase), toString(to))});
+    return reject({ReplyCode::kInternal,
+                   fmt::format("{} would lead from {} to {}, which the table does not "
+                               "declare",
+                               toString(in.kind), toString(session.phase), toString(to))});
   }
 
   const Phase before = s.phase;

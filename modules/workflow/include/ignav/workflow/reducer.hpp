@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "ignav/workflow/reply_codes.hpp"
 #include "ignav/workflow/session.hpp"
 
 namespace ignav::workflow {
