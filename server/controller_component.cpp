@@ -19,22 +19,6 @@ bool sameStatus(const actuation::ControllerStatus& a, const actuation::Controlle
          a.fault == b.fault;
 }
 
-const char* actionName(ControllerAction a) {
-  switch (a) {
-    case ControllerAction::kMove:
-      return "move";
-    case ControllerAction::kStop:
-      return "stop";
-    case ControllerAction::kAbort:
-      return "abort";
-    case ControllerAction::kHome:
-      return "home";
-    case ControllerAction::kClearFault:
-      return "clear_fault";
-  }
-  return "?";
-}
-
 }  // namespace
 
 const char* toString(Lifecycle lifecycle) {
@@ -330,8 +314,8 @@ void ControllerComponent::publish(ControllerReading reading, bool force_event) {
 }
 
 void ControllerComponent::failed(const Queued& q, const std::string& why) {
-  spdlog::error("controller {}: {} (command {}): {}", options_.name, actionName(q.command.action),
-                q.seq, why);
+  spdlog::error("controller {}: {} (command {}): {}", options_.name,
+                workflow::toString(q.command.action), q.seq, why);
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ControllerEvent e;

@@ -11,25 +11,9 @@
 namespace ignav::workflow {
 namespace {
 
-const char* name(ControllerAction a) {
-  switch (a) {
-    case ControllerAction::kMove:
-      return "move";
-    case ControllerAction::kStop:
-      return "stop";
-    case ControllerAction::kAbort:
-      return "abort";
-    case ControllerAction::kHome:
-      return "home";
-    case ControllerAction::kClearFault:
-      return "clear_fault";
-  }
-  return "?";
-}
-
 struct Recorder final : EffectSink {
   void halt(const ControllerCommand& c) override {
-    calls.push_back(std::string("halt ") + name(c.action()));
+    calls.push_back(std::string("halt ") + toString(c.action()));
   }
   bool journal(const std::vector<std::string>& records) override {
     calls.push_back("journal " + std::to_string(records.size()));
@@ -40,7 +24,7 @@ struct Recorder final : EffectSink {
     calls.push_back("commit " + std::to_string(session.revision));
   }
   void command(const ControllerCommand& c) override {
-    calls.push_back(std::string("command ") + name(c.action()));
+    calls.push_back(std::string("command ") + toString(c.action()));
   }
   void publish(const Effects&) override { calls.push_back("publish"); }
   void reply(const Reply& r) override { calls.push_back("reply " + std::to_string(r.request_id)); }

@@ -287,6 +287,22 @@ std::variant<ApprovedMotion, Rejection> ApprovalCheck::approve(const Session& s,
 
 namespace ignav::workflow {
 
+const char* toString(ControllerAction action) {
+  switch (action) {
+    case ControllerAction::kMove:
+      return "move";
+    case ControllerAction::kStop:
+      return "stop";
+    case ControllerAction::kAbort:
+      return "abort";
+    case ControllerAction::kHome:
+      return "home";
+    case ControllerAction::kClearFault:
+      return "clear_fault";
+  }
+  return "unknown";
+}
+
 bool ApprovedMotion::intact() const {
   return requestDigest(session_id_, request_) == request_.digest;
 }

@@ -244,6 +244,7 @@ struct Session {
 };
 
 enum class ControllerAction { kMove, kStop, kAbort, kHome, kClearFault };
+const char* toString(ControllerAction action);  // "move", "stop", ...
 
 // What the reducer asks of the controller. A move exists only as one move of an ApprovedMotion.
 class ControllerCommand {
