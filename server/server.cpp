@@ -77,6 +77,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
       slices_(participant_),
       waitset_(participant_),
       loader_(waitset_),
+      detector_(waitset_),
       reports_(session_dir_),
       journal_(std::move(journal)),
       crash_at_(std::getenv("IGNAV_CRASH_AT") ? std::getenv("IGNAV_CRASH_AT") : "") {
@@ -198,6 +199,10 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
       ++handled;
       if (!step(in)) return 3;
     }
+    for (auto& in : detector_.finished()) {
+      ++handled;
+      if (!step(std::move(in))) return 3;
+    }
     handled += takeCommands(failed);
     if (failed) return 3;
     // Slices are drawn on the slices thread, from the session as it is now.
@@ -270,8 +275,8 @@ Expected<workflow::LoadedCt> Server::reloadCt(const std::string& source) {
 }
 
 // Rebuilds the session by feeding the journal through the same reducer, checking each record's
-// revision and phase; nothing is published or journaled again, and no load pending at the crash
-// is lost (it is started again).
+// revision and phase; nothing is published or journaled again, and no load or marker detection
+// pending at the crash is lost (it is started again).
 Status Server::recover(const std::vector<std::string>& lines) {
   auto load_ct = [this](const std::string& source) { return reloadCt(source); };
   auto recovered =
@@ -280,6 +285,10 @@ Status Server::recover(const std::vector<std::string>& lines) {
   replaceSession(std::move(recovered).value());
   if (session_.volume_status.status == "loading") {
     loader_.start(session_.volume_status.source, *session_.robot, session_dir_);
+  }
+  if (auto job = workflow::pendingDetection(session_)) {
+    spdlog::info("marker detection #{} was under way: started again", job->job);
+    detector_.start(std::move(*job));
   }
   spdlog::info("recovered {} journal records: revision {}, phase {}, {} targets", lines.size(),
                session_.revision, workflow::toString(session_.phase), session_.targets.size());

@@ -5,8 +5,8 @@
 //   step.cpp        one input through the reducer and its effects (workflow::executeStep's
 //                   order: halts, journal, session, moves, state, replies, the rest);
 //   controller.cpp  the controller component: started, sent commands, its events as inputs.
-// What it hands to other threads: volume_loader.hpp, slices.hpp, reports.hpp,
-// controller_component.hpp, igtl_bridge.hpp. docs/ARCHITECTURE.md has the picture.
+// What it hands to other threads: volume_loader.hpp, fiducial_detector.hpp, slices.hpp,
+// reports.hpp, controller_component.hpp, igtl_bridge.hpp. docs/ARCHITECTURE.md has the picture.
 #pragma once
 
 #include <atomic>
@@ -22,6 +22,7 @@
 
 #include "clock.hpp"
 #include "controller_component.hpp"
+#include "fiducial_detector.hpp"
 #include "ignav/config/robot_config.hpp"
 #include "ignav/journal/journal.hpp"
 #include "ignav/protocol/dds.hpp"
@@ -115,6 +116,8 @@ class Server {
   std::string refused_move_;  // a move runController would not send: a fault, reported next
   protocol::WaitSet waitset_;
   VolumeLoader loader_;
+  // auto_fiducials' marker detections, on a thread of their own (it wakes the waitset).
+  FiducialDetector detector_;
   // The controller component (run() only; its threads wake the waitset, so it goes first).
   std::unique_ptr<ControllerComponent> component_;
   // The report and the Slicer files, on a thread of their own; drained when the server goes.

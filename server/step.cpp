@@ -1,7 +1,8 @@
 // One input through the reducer, and its effects in the order DESIGN.md's safety invariants
 // require, which workflow::executeStep (effect_order.hpp) keeps: halts first, then the journal
 // (fdatasync), the new session, the other controller commands, the state topics, the replies,
-// and last the files for people (reports thread), a volume load and the OpenIGTLink bridge.
+// and last the files for people (reports thread), a volume load, a marker detection (detector
+// thread) and the OpenIGTLink bridge.
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -79,7 +80,8 @@ class Server::Sink final : public workflow::EffectSink {
   void reply(const workflow::Reply& r) override { s_.sendReply(r); }
 
   // The files for people (Slicer exports, report slices, the report) on the reports thread:
-  // handed a snapshot of the session, never waited for. Then a volume load, then the bridge.
+  // handed a snapshot of the session, never waited for. Then a volume load or a marker detection
+  // (handed over, never waited for), then the bridge.
   void finish(const workflow::Effects& e) override {
     const Session& now = s_.session_;
     auto& reports = s_.reports_;
@@ -100,6 +102,7 @@ class Server::Sink final : public workflow::EffectSink {
     }
     if (!e.journal.empty()) reports.report(s_.snapshot());
     if (e.load_volume) s_.loader_.start(*e.load_volume, *now.robot, s_.session_dir_);
+    if (e.detect_fiducials) s_.detector_.start(*e.detect_fiducials);
     if (s_.igtl_) s_.igtl_->onState(now);
   }
 

@@ -25,7 +25,8 @@ TEST(RecoveryE2E, KilledServerComesBackWithEveryAcknowledgedChange) {
         [](const json& s) { return s.contains("volume") && s["volume"]["status"] == "loaded"; },
         60s);
     ASSERT_TRUE(c->send("auto_fiducials").accepted);
-    c->waitFor([](const json& s) { return s.contains("registration"); }, 5s);
+    c->waitFor([](const json& s) { return stateText(s, "registration", "status") == "registered"; },
+               30s);
     ASSERT_TRUE(c->send("add_target", {"", {lpsOf(c->state(), {8, 12, -175})}, {}}).accepted);
     retried = c->send("add_target", {"", {lpsOf(c->state(), {-10, 15, -190})}, {}}, 10s, 777);
     ASSERT_TRUE(retried.accepted);

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -90,15 +91,29 @@ inline double msOf(std::chrono::steady_clock::duration d) {
 // Another client asking `query` every `period` on its own thread, timing each answer.
 class QueryWatcher {
  public:
+  struct Sample {
+    std::chrono::steady_clock::time_point sent;
+    double ms = 0.0;  // until the reply came
+    bool answered = false;
+  };
+
   QueryWatcher(std::unique_ptr<protocol::Client> client, std::chrono::milliseconds period)
       : client_(std::move(client)) {
     thread_ = std::thread([this, period] {
       while (!stop_) {
         const auto t = std::chrono::steady_clock::now();
-        const bool ok = client_->send("query", {}, std::chrono::seconds(20)).accepted;
+        bool ok = false;
+        try {
+          ok = client_->send("query", {}, std::chrono::seconds(20)).accepted;
+        } catch (const protocol::Timeout&) {
+        }
         const double took = msOf(std::chrono::steady_clock::now() - t);
         if (ok) ++answered_;
         if (took > worst_ms_) worst_ms_ = took;
+        {
+          std::lock_guard<std::mutex> lock(mutex_);
+          samples_.push_back({t, took, ok});
+        }
         std::this_thread::sleep_for(period);
       }
     });
@@ -112,9 +127,16 @@ class QueryWatcher {
   }
   int answered() const { return answered_; }
   double worstMs() const { return worst_ms_; }
+  // Every query so far, in the order sent.
+  std::vector<Sample> samples() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return samples_;
+  }
 
  private:
   std::unique_ptr<protocol::Client> client_;
+  mutable std::mutex mutex_;
+  std::vector<Sample> samples_;
   std::atomic<bool> stop_{false};
   std::atomic<int> answered_{0};
   std::atomic<double> worst_ms_{0.0};

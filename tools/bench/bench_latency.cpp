@@ -59,6 +59,12 @@ int main(int argc, char** argv) {
   c.waitFor([](const json& s) { return s.contains("volume") && s["volume"]["status"] == "loaded"; },
             std::chrono::seconds(120));
   if (!c.send("auto_fiducials").accepted) return 4;
+  // Accepted when the detection starts; the registration follows (issue 22).
+  c.waitFor(
+      [](const json& s) {
+        return s.contains("registration") && s["registration"]["status"] == "registered";
+      },
+      std::chrono::seconds(60));
   const auto added = c.send("add_target", {"", {{0.0, 10.0, -30.0}}, {}});
   const std::string id = std::to_string(added.target_id);
 

@@ -450,6 +450,9 @@ int main(int argc, char** argv) {
   std::vector<std::string> fid_args;
   auto* fid = app.add_subcommand("fiducials", "'auto', or 'set X,Y,Z X,Y,Z X,Y,Z' (LPS)");
   fid->add_option("args", fid_args)->required();
+  double detect_wait_s = 120.0;
+  fid->add_option("--wait-s", detect_wait_s,
+                  "auto: how long to wait for the detection's outcome (default 120)");
   std::vector<std::string> target_args;
   auto* targets = app.add_subcommand("targets", "add X,Y,Z | rm ID | ls | clear | lock | unlock");
   targets->add_option("args", target_args)->required();
@@ -583,7 +586,36 @@ int main(int argc, char** argv) {
     if (*load)
       return send("load_volume", {load_path == "phantom" ? "phantom:" : load_path, {}, {}});
     if (*fid) {
-      if (fid_args[0] == "auto") return send("auto_fiducials");
+      if (fid_args[0] == "auto") {
+        // Accepted when the detection starts (issue 22); its outcome shows in RegistrationState,
+        // published before the reply: wait for the status to leave `detecting`.
+        const auto r = client.send("auto_fiducials");
+        if (!r.accepted || !as_json) printReply(r, as_json);
+        if (!r.accepted) return kExitRejected;
+        client.waitFor(
+            [&](const json& s) {
+              return s.contains("registration") && s.contains("workflow") &&
+                     s["workflow"].value("revision", std::uint64_t{0}) >= r.revision &&
+                     s["registration"].value("status", "") != "detecting";
+            },
+            std::chrono::seconds(static_cast<long>(detect_wait_s)));
+        const json& reg = client.state()["registration"];
+        const std::string outcome = reg.value("status", "");
+        const std::string message = reg.value("message", "");
+        // A failed detection leaves a registration from before in use; the message says so.
+        const bool registered =
+            outcome == "registered" && message.rfind("marker detection failed", 0) != 0;
+        if (as_json) {
+          std::cout << json{{"accepted", true},           {"message", r.message},
+                            {"request_id", r.request_id}, {"revision", r.revision},
+                            {"registered", registered},   {"registration", reg}}
+                           .dump()
+                    << "\n";
+        } else {
+          std::cout << "registration " << outcome << ": " << message << "\n";
+        }
+        return registered ? 0 : kExitRejected;
+      }
       if (fid_args[0] == "set" && fid_args.size() == 4) {
         return send("set_fiducials",
                     {"", {triple(fid_args[1]), triple(fid_args[2]), triple(fid_args[3])}, {}});

@@ -23,7 +23,9 @@ const std::vector<InputSpec> kInputs = {
      kNone.withPoints(3, "the image points (LPS) of cannula base, cannula tip, stylet tip"),
      "register the image to the robot with three clicked fiducials"},
     {I::kAutoFiducials, "auto_fiducials", 2, R::kPlanner, kCommand, kNone,
-     "find the robot's markers on the CT, match them and register"},
+     "find the robot's markers on the CT, match them and register, in the background: accepted "
+     "when the detection starts (RegistrationState detecting); the outcome shows in "
+     "RegistrationState (registered, or rejected with the reason)"},
     {I::kAddTarget, "add_target", 3, R::kPlanner, kCommand, kNone.withPoints(1, "the target (LPS)"),
      "add a target; the reply's target_id names it"},
     {I::kMoveTarget, "move_target", 4, R::kPlanner, kCommand,
@@ -78,6 +80,10 @@ const std::vector<InputSpec> kInputs = {
      "a load the server ran finished"},
     {I::kVolumeLoadFailed, "volume_load_failed", kNoWireKind, R::kApprover, kServer, kNone,
      "a load the server ran failed"},
+    {I::kFiducialsDetected, "fiducials_detected", kNoWireKind, R::kApprover, kServer, kNone,
+     "a marker detection the server ran matched the markers: their image points, to register"},
+    {I::kFiducialDetectionFailed, "fiducial_detection_failed", kNoWireKind, R::kApprover, kServer,
+     kNone, "a marker detection the server ran found no match (or could not search): why"},
     {I::kSegmentDone, "segment_done", kNoWireKind, R::kApprover, kServer | kNeedsReading, kNone,
      "the controller came to rest after a move the server sent"},
     {I::kControllerFault, "controller_fault", kNoWireKind, R::kApprover, kServer | kNeedsReading,

@@ -10,7 +10,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include "ignav/registration/fiducial_detection.hpp"
 #include "motion.hpp"
 
 namespace ignav::workflow {
@@ -285,6 +284,57 @@ std::optional<Rejection> adoptRegistration(Session& s, const std::vector<Eigen::
   return std::nullopt;
 }
 
+bool isDetectionResult(InputKind kind) {
+  return kind == InputKind::kFiducialsDetected || kind == InputKind::kFiducialDetectionFailed;
+}
+
+// A marker detection's outcome that registered nothing: a registration from before stays in use.
+void detectionFailed(Session& s, const std::string& why, Effects& e) {
+  if (s.registration) {
+    s.registration_status.status = "registered";
+    s.registration_status.message =
+        "marker detection failed: " + why + "; the registration from before stays in use";
+  } else {
+    s.registration_status = {"rejected", "marker detection failed: " + why, false};
+  }
+  e.registration_changed = true;
+}
+
+// A registration given by hand (or by matrix) while the markers were being detected: the
+// detection's result will be ignored. The note for the reply.
+std::string dropDetection(Session& s) {
+  if (s.detecting == 0) return "";
+  const auto job = s.detecting;
+  s.detecting = 0;
+  return fmt::format("; marker detection #{} under way is dropped (its result will be ignored)",
+                     job);
+}
+
+// Why a detection's outcome is not the one the session awaits (Session::detecting).
+std::string staleDetection(const Session& s, const Input& in) {
+  std::string why;
+  if (s.ct_revision > in.job) {
+    why = fmt::format("the CT it ran on is no longer loaded ({} was asked for at revision {})",
+                      s.volume_status.source, s.ct_revision);
+  } else if (s.detecting != 0) {
+    why = fmt::format("detection #{} is the one awaited", s.detecting);
+  } else {
+    why = "a registration was given meanwhile, or none was awaited";
+  }
+  return fmt::format("marker detection #{} on {} ignored, nothing registered: {}", in.job,
+                     in.path.empty() ? "an unnamed CT" : in.path, why);
+}
+
+// Registered on detected markers: out of registration into planning, or, while interrupted, back
+// to planning when resumed.
+Phase afterDetectionRegistered(Session& s) {
+  if (s.phase == Phase::kRegistration) return Phase::kPlanning;
+  if (isInterruption(s.phase) && s.resume_phase == Phase::kRegistration) {
+    s.resume_phase = Phase::kPlanning;
+  }
+  return s.phase;
+}
+
 void adoptPolicy(Session& s, ApprovalPolicy policy) {
   s.policy = std::move(policy);
   if (s.robot) {
@@ -372,9 +422,11 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
         return Rejection{ReplyCode::kBusy, "a volume is loading (" + s.volume_status.source + ")"};
       }
       s.ct = {};
+      s.ct_revision = s.revision + 1;  // this step's
       s.volume_status = {"loading", in.path, "loading " + in.path};
       s.registration.reset();
       s.registration_status = {};
+      s.detecting = 0;  // a detection on the CT before is ignored when it ends
       e.load_volume = in.path;
       e.volume_changed = e.registration_changed = true;
       evaluateAll(s, e);
@@ -398,24 +450,59 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
       return std::nullopt;
     case InputKind::kSetFiducials:
       if (auto bad = adoptRegistration(s, in.points, false, e)) return bad;
-      note = s.registration_status.message;
+      note = s.registration_status.message + dropDetection(s);
       return std::nullopt;
     case InputKind::kAutoFiducials: {
       if (!s.ct.volume) return Rejection{ReplyCode::kNoVolume, "no CT is loaded"};
-      const std::vector<Eigen::Vector3d> model(s.robot->feature_points_mm.begin(),
-                                               s.robot->feature_points_mm.end());
-      auto found =
-          registration::findFiducials(*s.ct.volume, s.robot->config.registration.fiducials, model);
-      if (!found) return Rejection{ReplyCode::kBadSearch, found.error().message};
-      if (!found->match) return Rejection{ReplyCode::kNoMatch, found->summary};
-      std::vector<Eigen::Vector3d> image;
-      for (std::size_t k : found->match->candidate) {
-        image.push_back(found->candidates[k].centroid_lps_mm);
+      if (in.journal_format == 1) {
+        // A format-1 journal's record (before issue 22): the detection ran within the step and
+        // registered at once. Replayed so: detected again on the reloaded CT, here.
+        s.detecting = s.revision + 1;
+        const Input found = detectFiducials(*pendingDetection(s));
+        s.detecting = 0;
+        if (found.kind != InputKind::kFiducialsDetected)
+          return Rejection{ReplyCode::kNoMatch, found.error};
+        if (auto bad = adoptRegistration(s, found.points, true, e)) return bad;
+        note = s.registration_status.message;
+        to = s.phase == Phase::kRegistration ? Phase::kPlanning : s.phase;
+        return std::nullopt;
       }
-      if (auto bad = adoptRegistration(s, image, true, e)) return bad;
-      note = s.registration_status.message;
+      if (s.detecting != 0) {
+        return Rejection{ReplyCode::kBusy,
+                         fmt::format("the markers are already being detected on the CT "
+                                     "({}; detection #{}): wait for RegistrationState "
+                                     "to show the outcome",
+                                     s.ct.source, s.detecting)};
+      }
+      // The detection runs on the server's detector thread; its outcome comes back as
+      // fiducials_detected or fiducial_detection_failed, naming this step's revision.
+      s.detecting = s.revision + 1;
+      s.registration_status.status = "detecting";
+      s.registration_status.message = fmt::format(
+          "detecting the robot's markers on the CT ({}){}", s.ct.source,
+          s.registration ? "; the registration from before stays in use until then" : "");
+      e.detect_fiducials = pendingDetection(s);
+      e.registration_changed = true;
+      note = fmt::format(
+          "marker detection #{} started on the CT ({}): RegistrationState shows detecting, then "
+          "the outcome (registered, or rejected with the reason)",
+          s.detecting, s.ct.source);
       return std::nullopt;
     }
+    case InputKind::kFiducialsDetected:
+      s.detecting = 0;
+      if (auto bad = adoptRegistration(s, in.points, true, e)) {
+        detectionFailed(s, "the markers found do not register: " + bad->message, e);
+        to = s.phase;
+        return std::nullopt;
+      }
+      to = afterDetectionRegistered(s);
+      return std::nullopt;
+    case InputKind::kFiducialDetectionFailed:
+      s.detecting = 0;
+      detectionFailed(s, in.error, e);
+      to = s.phase;
+      return std::nullopt;
     case InputKind::kSetRegistration: {
       auto reg =
           registration::registrationFromMatrix(*in.matrix, s.robot->config.registration.limits);
@@ -428,7 +515,7 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
           false};
       e.registration_changed = true;
       evaluateAll(s, e);
-      note = s.registration_status.message;
+      note = s.registration_status.message + dropDetection(s);
       return std::nullopt;
     }
     case InputKind::kAddTarget: {
@@ -505,6 +592,13 @@ std::optional<Rejection> apply(Session& s, const Input& in, Effects& e, std::uin
     }
     case InputKind::kLockPlan: {
       if (s.targets.empty()) return Rejection{ReplyCode::kEmptyPlan, "the plan has no targets"};
+      if (s.detecting != 0) {
+        return Rejection{ReplyCode::kBusy,
+                         fmt::format("the markers are being detected on the CT "
+                                     "(detection #{}) and the registration may change: "
+                                     "lock once RegistrationState shows the outcome",
+                                     s.detecting)};
+      }
       std::string outside;
       for (const auto& t : s.targets) {
         if (t.outside_volume && !t.reached) {
@@ -785,6 +879,8 @@ json journalRecord(const Input& in, const Session& after) {
     record["dims"] = {g.dims[0], g.dims[1], g.dims[2]};
   }
   if (!in.error.empty()) record["error"] = in.error;
+  if (in.job != 0) record["job"] = in.job;
+  if (!in.summary.empty()) record["summary"] = in.summary;
   if (in.policy) {
     record["policy"] = {{"approvers", in.policy->approvers},
                         {"expiry_s", in.policy->expiry_s},
@@ -905,11 +1001,13 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
   auto bad = [](const std::string& why) { return makeError(ErrorCode::kFormat, why); };
   if (r.is_discarded() || !r.is_object()) return bad("not a JSON object");
   try {
-    if (integer(r, "v", 0) != kJournalFormat) {
+    const int format = integer(r, "v", 0);
+    if (format < kOldestJournalFormat || format > kJournalFormat) {
       return bad("format version " + r.value("v", json(0)).dump() + ", this build reads " +
-                 std::to_string(kJournalFormat));
+                 std::to_string(kOldestJournalFormat) + " to " + std::to_string(kJournalFormat));
     }
     JournalEntry e;
+    e.input.journal_format = format;
     bool known = false;
     e.input.kind = inputKindFromName(r.at("input").get<std::string>(), known);
     if (!known) return bad("unknown input '" + r.at("input").get<std::string>() + "'");
@@ -929,6 +1027,8 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
       e.input.ids.push_back(integer<std::uint32_t>(id, "ids"));
     }
     e.input.error = r.value("error", "");
+    e.input.job = integer(r, "job", std::uint64_t{0});
+    e.input.summary = r.value("summary", "");
     e.input.loaded.source = r.value("source", "");
     e.input.loaded.description = r.value("description", "");
     e.input.plan_id = integer(r, "plan_id", std::uint64_t{0});
@@ -1071,6 +1171,11 @@ Step reduce(const Session& session, const Input& in) {
         return again;
       }
     }
+  }
+  // A detection's outcome counts only if it is the one awaited: not one on a CT replaced since,
+  // nor one a registration given by hand made moot. Wherever it arrives, it changes nothing then.
+  if (isDetectionResult(in.kind) && (session.detecting == 0 || in.job != session.detecting)) {
+    return reject({ReplyCode::kStaleDetection, staleDetection(session, in)});
   }
   const Transition* t = findTransition(session.phase, in.kind);
   if (!t) {

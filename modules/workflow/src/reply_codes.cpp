@@ -27,7 +27,9 @@ const std::vector<ReplyCodeSpec> kCodes = {
      "a command on the topic of a role below its own; also a DDS client using the client id "
      "`openigtlink`, which belongs to the OpenIGTLink bridge (docs/OPENIGTLINK.md)"},
     {C::kBadPath, "bad_path", "the server cannot see the path"},
-    {C::kBusy, "busy", "a volume is already loading"},
+    {C::kBusy, "busy",
+     "a volume is already loading; or the markers are being detected (a second auto_fiducials, "
+     "or lock_plan while the registration may still change)"},
     {C::kUnknownTarget, "unknown_target", "\"no target 999\""},
     {C::kOutsideVolume, "outside_volume",
      "`add_target` or `move_target` to a point outside the loaded CT's imaged box (every voxel "
@@ -66,6 +68,10 @@ const std::vector<ReplyCodeSpec> kCodes = {
      "than 1e-4)"},
     {C::kMirror, "mirror", "`set_registration`: the matrix mirrors (RAS and LPS mixed up?)"},
     {C::kNotRegistered, "not_registered", "`check_ready targeting` before any registration"},
+    {C::kStaleDetection, "stale_detection",
+     "a marker detection's result for a CT or a request no longer current (another CT loaded, or "
+     "set_fiducials / set_registration came meanwhile): ignored, nothing changes. A server "
+     "input, logged; no client sends it"},
     {C::kNoPendingApproval, "no_pending_approval", "nothing waits for approval"},
     {C::kStalePlan, "stale_plan",
      "the plan id is not the pending one (any change since killed it)"},

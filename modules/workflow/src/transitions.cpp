@@ -52,13 +52,22 @@ std::vector<Transition> buildTable() {
       {P::kImaging, I::kVolumeLoadFailed, P::kImaging, "load failed"},
       {P::kRegistration, I::kLoadVolume, P::kImaging, "another CT"},
       {P::kRegistration, I::kSetFiducials, P::kPlanning, "3 points registered"},
-      {P::kRegistration, I::kAutoFiducials, P::kPlanning, "markers found, registered"},
+      // auto_fiducials starts a marker detection on the server's detector thread; its outcome
+      // comes back as fiducials_detected or fiducial_detection_failed. (A format-1 journal's
+      // auto_fiducials detected and registered within its step: the second row, replay only.)
+      {P::kRegistration, I::kAutoFiducials, P::kRegistration, "detect the markers"},
+      {P::kRegistration, I::kAutoFiducials, P::kPlanning, "format-1 journal: registered at once"},
+      {P::kRegistration, I::kFiducialsDetected, P::kPlanning, "markers found, registered"},
+      {P::kRegistration, I::kFiducialsDetected, P::kRegistration, "markers do not register"},
+      {P::kRegistration, I::kFiducialDetectionFailed, P::kRegistration, "no markers matched"},
       {P::kImaging, I::kSetRegistration, P::kPlanning, "registered elsewhere (no CT here)"},
       {P::kRegistration, I::kSetRegistration, P::kPlanning, "registered elsewhere"},
       {P::kPlanning, I::kSetRegistration, P::kPlanning, "re-register"},
       {P::kPlanning, I::kLoadVolume, P::kImaging, "another CT"},
       {P::kPlanning, I::kSetFiducials, P::kPlanning, "re-register"},
-      {P::kPlanning, I::kAutoFiducials, P::kPlanning, "re-register"},
+      {P::kPlanning, I::kAutoFiducials, P::kPlanning, "re-detect the markers"},
+      {P::kPlanning, I::kFiducialsDetected, P::kPlanning, "re-registered, or the old stays"},
+      {P::kPlanning, I::kFiducialDetectionFailed, P::kPlanning, "no match: the old stays"},
       {P::kPlanning, I::kAddTarget, P::kPlanning, "click"},
       {P::kPlanning, I::kMoveTarget, P::kPlanning, "drag"},
       {P::kPlanning, I::kRemoveTarget, P::kPlanning, "remove"},
@@ -92,6 +101,12 @@ std::vector<Transition> buildTable() {
       {P::kManual, I::kVolumeLoaded, P::kManual, "CT loaded"},
       {P::kManual, I::kVolumeLoadFailed, P::kManual, "load failed"},
   };
+  // A marker detection started in registration or planning may end while interrupted: its outcome
+  // is kept (resume then returns to planning if it registered); the phase stays.
+  for (Phase p : {P::kStopped, P::kEmergency, P::kFault, P::kManual}) {
+    t.push_back({p, I::kFiducialsDetected, p, "markers found, registered"});
+    t.push_back({p, I::kFiducialDetectionFailed, p, "no markers matched"});
+  }
   // resume returns to the phase the first interruption left (a move in flight: plan_locked, to be
   // approved again), or to done when nothing is left to move. Interruptions taken while
   // interrupted (manual after stop, emergency in manual) keep that phase (issue 27).
@@ -157,8 +172,11 @@ std::string mermaidDiagram() {
     // Self-loops on (almost) every phase, noted once.
     if ((specOf(t.input).traits & kEveryPhase) || t.input == InputKind::kCheckReady) continue;
     // The server's own inputs that leave a phase as it is: noted once, not drawn per phase.
+    const bool detection_result =
+        t.input == InputKind::kFiducialsDetected || t.input == InputKind::kFiducialDetectionFailed;
     const bool server_self_loop =
-        (t.input == InputKind::kControllerFault || t.input == InputKind::kServerRestarted) &&
+        (t.input == InputKind::kControllerFault || t.input == InputKind::kServerRestarted ||
+         (detection_result && isInterruption(t.from))) &&
         t.from == t.to;
     if (server_self_loop) continue;
     // resume's destinations are drawn once, as the phase the interruption left.
@@ -176,7 +194,8 @@ std::string mermaidDiagram() {
          "; check_ready in every phase but moving, emergency, fault and manual\n";
   out +=
       "  note right of fault: controller_fault and server_restarted leave the other phases "
-      "as they are\n";
+      "as they are; a marker detection's outcome (fiducials_detected, "
+      "fiducial_detection_failed) is kept in stopped, emergency, fault and manual\n";
   return out;
 }
 

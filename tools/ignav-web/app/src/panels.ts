@@ -337,8 +337,11 @@ export class Panels {
     let ok = false;
     if (answer.type === "reply") {
       ok = answer.accepted;
+      // auto_fiducials is accepted when the marker detection starts; its outcome shows in the
+      // registration panel (status detecting, then registered or rejected), the reply says so.
+      const background = answer.accepted && what === "auto_fiducials" ? `: ${answer.message}` : "";
       text = answer.accepted
-        ? `${what}: accepted${answer.target_id ? ` (target ${answer.target_id})` : ""}`
+        ? `${what}: accepted${answer.target_id ? ` (target ${answer.target_id})` : ""}${background}`
         : `${what}: rejected: ${answer.error_code}: ${answer.message}`;
     } else if (answer.type === "error") {
       text = `${what}: failed: ${answer.code}: ${answer.message}`;

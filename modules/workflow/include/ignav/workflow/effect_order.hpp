@@ -10,7 +10,7 @@
 //      the input that released them;
 //   5. the changed state is published;
 //   6. the replies;
-//   7. the rest (files for people, a volume load, bridges): finish().
+//   7. the rest (files for people, a volume load, a marker detection, bridges): finish().
 //
 // Pure: no threads, no I/O here; the sink does the work.
 #pragma once

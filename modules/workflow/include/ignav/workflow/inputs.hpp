@@ -42,6 +42,8 @@ enum class InputKind {
   kConfigLoaded,
   kVolumeLoaded,
   kVolumeLoadFailed,
+  kFiducialsDetected,
+  kFiducialDetectionFailed,
   kSegmentDone,
   kControllerFault,
   kServerRestarted,

@@ -52,11 +52,28 @@ std::string sha256Hex(const std::string& text);
 // Deterministic: the same inputs in the same order give the same sessions and effects.
 Step reduce(const Session& session, const Input& input);
 
+// The marker detection `session` awaits (Session::detecting), to run again after a crash; none
+// when it awaits none.
+std::optional<FiducialDetectionJob> pendingDetection(const Session& session);
+// Runs a marker detection (registration::findFiducials: up to seconds on a large CT; the server
+// runs it off its event thread) and returns the input that brings its outcome back to the
+// reducer: fiducials_detected with the matched image points, or fiducial_detection_failed.
+Input detectFiducials(const FiducialDetectionJob& job);
+
 // The session journal: one JSON object per line, per accepted input that changes the session:
-//   {"v": 1, "revision": N, "t": Unix seconds, "input": "add_target", "phase": after,
-//    "client_id", "request_id", "path", "points", "ids", "error", "source", "description"}
+//   {"v": 2, "revision": N, "t": Unix seconds, "input": "add_target", "phase": after,
+//    "client_id", "request_id", "path", "points", "ids", "error", "source", "description",
+//    "job", "summary"}
 // Revisions run 1, 2, 3 ... with no gaps, so they double as the record's sequence number.
-constexpr int kJournalFormat = 1;
+//
+// Format 2 (issue 22): auto_fiducials only starts a marker detection; its outcome is a record of
+// its own, fiducials_detected (with the matched image points, so replay registers from them
+// without detecting again) or fiducial_detection_failed. Format 1 records are still read: a
+// format-1 auto_fiducials detected and registered within its own step, and replays so (the
+// detection runs again on the reloaded CT, inside that step). A journal may hold format-1 records
+// followed by format-2 ones (a session recorded before the upgrade and continued after it).
+constexpr int kJournalFormat = 2;
+constexpr int kOldestJournalFormat = 1;
 
 struct JournalEntry {
   Input input;  // for volume_loaded, the caller loads input.loaded.source again

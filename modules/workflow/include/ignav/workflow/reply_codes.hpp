@@ -48,6 +48,7 @@ enum class ReplyCode {
   kNotSimilarity,
   kMirror,
   kNotRegistered,
+  kStaleDetection,
   // Approval.
   kNoPendingApproval,
   kStalePlan,

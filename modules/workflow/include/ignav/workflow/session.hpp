@@ -18,6 +18,7 @@
 #include "ignav/config/tissue_profiles.hpp"
 #include "ignav/kinematics/solver.hpp"
 #include "ignav/planning/insertion_plan.hpp"
+#include "ignav/registration/fiducial_detection.hpp"
 #include "ignav/registration/point_registration.hpp"
 #include "ignav/volume/volume.hpp"
 #include "ignav/workflow/inputs.hpp"
@@ -90,8 +91,16 @@ struct Input {
   std::string path;
   std::vector<Eigen::Vector3d> points;
   std::vector<std::uint32_t> ids;
-  LoadedCt loaded;            // kVolumeLoaded
-  std::string error;          // kVolumeLoadFailed
+  LoadedCt loaded;    // kVolumeLoaded
+  std::string error;  // kVolumeLoadFailed, kFiducialDetectionFailed
+  // kFiducialsDetected, kFiducialDetectionFailed: the detection they answer (the revision of the
+  // auto_fiducials that asked for it); `path` is the CT it ran on, and `points` the matched
+  // markers' image points (LPS, in the robot's feature point order).
+  std::uint64_t job = 0;
+  std::string summary;  // kFiducialsDetected: what the detection found, for a person
+  // Replayed from a journal record: that record's format ("v"); 0 when live. A format-1
+  // auto_fiducials detected and registered within its own step (before issue 22).
+  int journal_format = 0;
   std::uint64_t plan_id = 0;  // kApprove
   std::string digest;         // kApprove
   // kSetRegistration: p_robot = matrix * p_lps (homogeneous; rotation, translation, scale).
@@ -209,7 +218,10 @@ struct VolumeStatus {
 };
 
 struct RegistrationStatus {
-  std::string status = "none";  // none | registered | rejected
+  // none | detecting (auto_fiducials: the markers are being detected in the background; a
+  // registration from before stays in use meanwhile) | registered | rejected (the last attempt
+  // failed and there is no registration)
+  std::string status = "none";
   std::string message;
   bool auto_detected = false;
 };
@@ -226,6 +238,12 @@ struct Session {
   VolumeStatus volume_status;
   std::optional<registration::Registration> registration;
   RegistrationStatus registration_status;
+  // The marker detection under way (auto_fiducials): its job, the revision of the auto_fiducials
+  // that asked for it; 0 when none is. A new CT or a registration given meanwhile drops it (its
+  // result is then ignored).
+  std::uint64_t detecting = 0;
+  // The revision of the load_volume that asked for the CT loaded (or loading) now.
+  std::uint64_t ct_revision = 0;
   std::vector<Target> targets;  // in planned order
   std::uint32_t next_target_id = 1;
   bool order_fixed = false;  // reorder_targets was used: lock_plan keeps the user's order
@@ -275,8 +293,18 @@ class ControllerCommand {
   std::size_t segment_ = 0;
 };
 
+// A marker detection for the server to run off the event thread (auto_fiducials): everything it
+// needs, immutable, and the job its result must name. workflow::detectFiducials() runs it.
+struct FiducialDetectionJob {
+  std::uint64_t job = 0;
+  std::shared_ptr<const volume::Volume> volume;
+  std::string ct_source;
+  registration::FiducialSearch search;
+  std::vector<Eigen::Vector3d> model_mm;  // the robot's feature points, in their order
+};
+
 // What the server must do after a step, in this order: append the journal records (durably),
-// publish the changed state, send the replies, start the volume load.
+// publish the changed state, send the replies, start the volume load or the marker detection.
 struct Effects {
   std::vector<std::string> journal;  // JSON lines
   bool workflow_changed = false;
@@ -287,6 +315,8 @@ struct Effects {
   std::vector<std::uint32_t> targets_removed;
   std::vector<Reply> replies;
   std::optional<std::string> load_volume;  // path to load, then feed kVolumeLoaded/Failed
+  // A marker detection to run, then feed kFiducialsDetected/kFiducialDetectionFailed.
+  std::optional<FiducialDetectionJob> detect_fiducials;
   bool approval_changed = false;
   bool motion_changed = false;
   // Halts (stop, abort) go to the controller before anything else, even the journal (DESIGN.md
