@@ -88,30 +88,6 @@ dds_return_t check(dds_return_t rc, const char* what) {
   return rc;
 }
 
-const char* toString(Role role) {
-  switch (role) {
-    case Role::kViewer:
-      return "viewer";
-    case Role::kPlanner:
-      return "planner";
-    case Role::kApprover:
-      return "approver";
-  }
-  return "?";
-}
-
-const char* commandTopic(Role role) {
-  switch (role) {
-    case Role::kViewer:
-      return topic::kCommandViewer;
-    case Role::kPlanner:
-      return topic::kCommandPlanner;
-    case Role::kApprover:
-      return topic::kCommandApprover;
-  }
-  return topic::kCommandViewer;
-}
-
 std::string readConfigFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw DdsError(path + ": cannot read the DDS configuration");

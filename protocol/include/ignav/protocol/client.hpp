@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "ignav/protocol/dds.hpp"
+#include "ignav/protocol/errors.hpp"
 #include "ignav/protocol/security.hpp"
 #include "ignav/workflow/session.hpp"
 
@@ -43,10 +44,6 @@ struct SliceResult {
   std::uint32_t width = 0, height = 0;
   Eigen::Matrix4d pixel_to_lps = Eigen::Matrix4d::Identity();
   std::vector<std::uint8_t> png;
-};
-
-struct Timeout : std::runtime_error {
-  using std::runtime_error::runtime_error;
 };
 
 class Client {
