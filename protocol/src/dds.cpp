@@ -1,6 +1,8 @@
-#include "ignav/protocol/dds.hpp"
+#include "ignav/protocol/wire/dds.hpp"
 
+#include "ignav/protocol/config.hpp"
 #include "ignav/protocol/security.hpp"
+#include "ignav/protocol/wire/security.hpp"
 
 #include <fstream>
 #include <map>
