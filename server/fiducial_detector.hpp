@@ -18,7 +18,7 @@
 #include <thread>
 #include <vector>
 
-#include "ignav/protocol/dds.hpp"
+#include "ignav/protocol/wire/dds.hpp"
 #include "ignav/workflow/session.hpp"
 
 namespace ignav::server {

@@ -68,8 +68,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
                 {participant_, &ignav_msg_Command_desc, topic::kCommandPlanner, Qos::kRequest},
                 {participant_, &ignav_msg_Command_desc, topic::kCommandApprover, Qos::kRequest}},
       replies_(participant_, &ignav_msg_Reply_desc, topic::kReply, Qos::kRequest),
-      slice_requests_(participant_, &ignav_msg_SliceRequest_desc, topic::kSliceRequest,
-                      Qos::kRequest),
+      slice_requests_(participant_),
       approvals_(participant_, &ignav_msg_Approval_desc, topic::kApproval, Qos::kRequest),
       emergency_stops_(participant_, &ignav_msg_EmergencyStop_desc, topic::kEmergencyStop,
                        Qos::kRequest),
@@ -207,7 +206,7 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
     if (failed) return 3;
     // Slices are drawn on the slices thread, from the session as it is now.
     handled += slice_requests_.take(
-        [&](const ignav_msg_SliceRequest& r) { slices_.request(r, snapshot()); });
+        [&](const protocol::SliceRequest& r) { slices_.request(r, snapshot()); });
     if (!takeControllerEvents()) return 3;
     if (!releaseHeld()) return 3;
     if (handled > 0) last_event = Clock::now();
@@ -383,7 +382,7 @@ void Server::serveReadOnly(Clock::time_point until, const std::atomic<bool>& sto
     approvals_.take([&](const ignav_msg_Approval& a) { refuse(a.client_id, a.request_id); });
     emergency_stops_.take(
         [&](const ignav_msg_EmergencyStop& e) { refuse(e.client_id, e.request_id); });
-    slice_requests_.take([&](const ignav_msg_SliceRequest& r) { slices_.request(r, snapshot()); });
+    slice_requests_.take([&](const protocol::SliceRequest& r) { slices_.request(r, snapshot()); });
     std::size_t handled = 0;
     if (igtl_) {
       // The bridge answers; every input it makes is refused.

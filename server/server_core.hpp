@@ -25,9 +25,10 @@
 #include "fiducial_detector.hpp"
 #include "ignav/config/robot_config.hpp"
 #include "ignav/journal/journal.hpp"
-#include "ignav/protocol/dds.hpp"
-#include "ignav/protocol/messages.hpp"
 #include "ignav/protocol/security.hpp"
+#include "ignav/protocol/wire/dds.hpp"
+#include "ignav/protocol/wire/messages.hpp"
+#include "ignav/protocol/wire/security.hpp"
 #include "ignav/workflow/session.hpp"
 #include "igtl_bridge.hpp"
 #include "reports.hpp"
@@ -98,7 +99,7 @@ class Server {
   protocol::Participant participant_;
   protocol::Reader<ignav_msg_Command> commands_[3];  // by Role
   protocol::Writer<ignav_msg_Reply> replies_;
-  protocol::Reader<ignav_msg_SliceRequest> slice_requests_;
+  protocol::TopicReader<protocol::SliceRequest> slice_requests_;
   protocol::Reader<ignav_msg_Approval> approvals_;
   protocol::Reader<ignav_msg_EmergencyStop> emergency_stops_;
   StatePublisher state_;

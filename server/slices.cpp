@@ -16,8 +16,7 @@ namespace ignav::server {
 using namespace ignav::protocol;
 
 Slices::Slices(const Participant& participant)
-    : replies_(participant, &ignav_msg_SliceReply_desc, topic::kSliceReply, Qos::kRequest),
-      thread_([this] { loop(); }) {}
+    : replies_(participant), thread_([this] { loop(); }) {}
 
 Slices::~Slices() {
   std::deque<Job> left;
@@ -39,13 +38,13 @@ Slices::~Slices() {
                left.size());
 }
 
-void Slices::request(const ignav_msg_SliceRequest& r, Snapshot session) {
+void Slices::request(const SliceRequest& r, Snapshot session) {
   Job job;
   job.session = std::move(session);
-  job.client_id = r.client_id ? r.client_id : "";
-  job.view = r.view ? r.view : "";
+  job.client_id = r.client_id;
+  job.view = r.view;
   job.request_id = r.request_id;
-  job.centre_lps = fromMsg(r.centre_lps);
+  job.centre_lps = toEigen(r.centre_lps);
   job.size_px = r.size_px;
   job.pixel_mm = r.pixel_mm;
   job.window = r.window;
@@ -145,15 +144,15 @@ void Slices::refuse(const Job& job, const std::string& why) const {
 }
 
 void Slices::send(Result& s) const {
-  ignav_msg_SliceReply r{};
-  r.client_id = cstr(s.client_id);
+  SliceReply r;
+  r.client_id = std::move(s.client_id);
   r.request_id = s.request_id;
   r.ok = s.ok;
-  r.message = cstr(s.message);
+  r.message = std::move(s.message);
   r.width = s.width;
   r.height = s.height;
-  toRowMajor(s.pixel_to_lps, r.pixel_to_lps);
-  viewSequence(r.png, s.png);
+  r.pixel_to_lps = toRowMajor(s.pixel_to_lps);
+  r.png = std::move(s.png);
   replies_.write(r);
 }
 

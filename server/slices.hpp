@@ -21,8 +21,8 @@
 #include <string>
 #include <thread>
 
-#include "ignav/protocol/dds.hpp"
-#include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/types.hpp"
+#include "ignav/protocol/wire/messages.hpp"
 #include "ignav/workflow/session.hpp"
 
 namespace ignav::server {
@@ -39,10 +39,9 @@ class Slices {
   Slices& operator=(const Slices&) = delete;
 
   // Queues `request`, to be drawn from `session`; refuses it at once if the queue is full.
-  void request(const ignav_msg_SliceRequest& request, Snapshot session);
+  void request(const protocol::SliceRequest& request, Snapshot session);
 
  private:
-  // The request, owned (the DDS sample's strings live only as long as the take).
   struct Job {
     Snapshot session;
     std::string client_id, view;
@@ -66,7 +65,7 @@ class Slices {
   void send(Result& result) const;
   void refuse(const Job& job, const std::string& why) const;
 
-  protocol::Writer<ignav_msg_SliceReply> replies_;
+  protocol::TopicWriter<protocol::SliceReply> replies_;
   std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<Job> queue_;

@@ -1,7 +1,8 @@
 // The state topics (docs/PROTOCOL.md): WorkflowState, RobotState, VolumeState, RegistrationState,
 // TargetState, ApprovalState, MotionState and Health, written from a Session and what the server
-// knows beside it (the controller's reading, a load's progress). The event thread's own: it is
-// the only caller, right after a step's journal record (effect_order.hpp).
+// knows beside it (the controller's reading, a load's progress): each as its value (protocol's
+// types.hpp), which protocol converts and writes. The event thread's own: it is the only caller,
+// right after a step's journal record (effect_order.hpp).
 #pragma once
 
 #include <cstddef>
@@ -12,8 +13,8 @@
 
 #include "clock.hpp"
 #include "ignav/actuation/controller.hpp"
-#include "ignav/protocol/dds.hpp"
-#include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/types.hpp"
+#include "ignav/protocol/wire/messages.hpp"
 #include "ignav/volume/volume.hpp"
 #include "ignav/workflow/session.hpp"
 
@@ -57,14 +58,14 @@ class StatePublisher {
  private:
   double uptimeS() const;
 
-  protocol::Writer<ignav_msg_WorkflowState> workflow_;
-  protocol::Writer<ignav_msg_RobotState> robot_;
-  protocol::Writer<ignav_msg_VolumeState> volume_;
-  protocol::Writer<ignav_msg_RegistrationState> registration_;
-  protocol::Writer<ignav_msg_TargetState> target_;
-  protocol::Writer<ignav_msg_Health> health_;
-  protocol::Writer<ignav_msg_ApprovalState> approval_;
-  protocol::Writer<ignav_msg_MotionState> motion_;
+  protocol::TopicWriter<protocol::WorkflowState> workflow_;
+  protocol::TopicWriter<protocol::RobotState> robot_;
+  protocol::TopicWriter<protocol::VolumeState> volume_;
+  protocol::TopicWriter<protocol::RegistrationState> registration_;
+  protocol::TopicWriter<protocol::TargetState> target_;
+  protocol::TopicWriter<protocol::Health> health_;
+  protocol::TopicWriter<protocol::ApprovalState> approval_;
+  protocol::TopicWriter<protocol::MotionState> motion_;
   const std::string controller_name_;
   const std::string session_dir_;
   const Clock::time_point started_;

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "ignav/config/robot_config.hpp"
-#include "ignav/protocol/dds.hpp"
+#include "ignav/protocol/wire/dds.hpp"
 #include "ignav/workflow/session.hpp"
 
 namespace ignav::server {

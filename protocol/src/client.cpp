@@ -2,7 +2,8 @@
 
 #include <thread>
 
-#include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/json_view.hpp"
+#include "ignav/protocol/wire/messages.hpp"
 
 namespace ignav::protocol {
 namespace {
@@ -13,19 +14,11 @@ using Clock = std::chrono::steady_clock;
 std::string str(const char* s) {
   return s ? s : "";
 }
-json point(const ignav_msg_Point3& p) {
-  return {p.x, p.y, p.z};
-}
-template <typename Seq>
-json points(const Seq& seq) {
-  json out = json::array();
-  for (std::uint32_t i = 0; i < seq._length; ++i)
-    out.push_back(point(seq._buffer[i]));
-  return out;
-}
-template <std::size_t N>
-json array(const double (&a)[N]) {
-  return json(std::vector<double>(a, a + N));
+
+// Drains a state topic's reader into its JSON view in `state[key]`; returns how many were taken.
+template <typename T>
+std::size_t mirror(const TopicReader<T>& reader, json& state, const char* key) {
+  return reader.take([&](const T& value) { state[key] = value; });
 }
 
 }  // namespace
@@ -63,18 +56,18 @@ struct Client::Impl {
   Participant participant;
   OptionalWriter<ignav_msg_Command> commands[3];  // by Role
   Reader<ignav_msg_Reply> replies;
-  Writer<ignav_msg_SliceRequest> slice_requests;
-  Reader<ignav_msg_SliceReply> slice_replies;
-  Reader<ignav_msg_WorkflowState> workflow;
-  Reader<ignav_msg_RobotState> robot;
-  Reader<ignav_msg_VolumeState> volume;
-  Reader<ignav_msg_RegistrationState> registration;
-  Reader<ignav_msg_TargetState> target;
-  Reader<ignav_msg_Health> health;
+  TopicWriter<SliceRequest> slice_requests;
+  TopicReader<SliceReply> slice_replies;
+  TopicReader<WorkflowState> workflow;
+  TopicReader<RobotState> robot;
+  TopicReader<VolumeState> volume;
+  TopicReader<RegistrationState> registration;
+  TopicReader<TargetState> target;
+  TopicReader<Health> health;
   OptionalWriter<ignav_msg_Approval> approvals;
-  Writer<ignav_msg_EmergencyStop> emergency_stops;
-  Reader<ignav_msg_ApprovalState> approval;
-  Reader<ignav_msg_MotionState> motion;
+  TopicWriter<EmergencyStop> emergency_stops;
+  TopicReader<ApprovalState> approval;
+  TopicReader<MotionState> motion;
   WaitSet waitset;
 
   template <typename T>
@@ -92,22 +85,18 @@ struct Client::Impl {
                  {participant, &ignav_msg_Command_desc, topic::kCommandApprover}},
         replies(participant, &ignav_msg_Reply_desc, topic::kReply, Qos::kRequest,
                 &mine<ignav_msg_Reply>, &client_id),
-        slice_requests(participant, &ignav_msg_SliceRequest_desc, topic::kSliceRequest,
-                       Qos::kRequest),
-        slice_replies(participant, &ignav_msg_SliceReply_desc, topic::kSliceReply, Qos::kRequest,
-                      &mine<ignav_msg_SliceReply>, &client_id),
-        workflow(participant, &ignav_msg_WorkflowState_desc, topic::kWorkflow, Qos::kState),
-        robot(participant, &ignav_msg_RobotState_desc, topic::kRobot, Qos::kState),
-        volume(participant, &ignav_msg_VolumeState_desc, topic::kVolume, Qos::kState),
-        registration(participant, &ignav_msg_RegistrationState_desc, topic::kRegistration,
-                     Qos::kState),
-        target(participant, &ignav_msg_TargetState_desc, topic::kTarget, Qos::kState),
-        health(participant, &ignav_msg_Health_desc, topic::kHealth, Qos::kState),
+        slice_requests(participant),
+        slice_replies(participant, &mine<ignav_msg_SliceReply>, &client_id),
+        workflow(participant),
+        robot(participant),
+        volume(participant),
+        registration(participant),
+        target(participant),
+        health(participant),
         approvals(participant, &ignav_msg_Approval_desc, topic::kApproval),
-        emergency_stops(participant, &ignav_msg_EmergencyStop_desc, topic::kEmergencyStop,
-                        Qos::kRequest),
-        approval(participant, &ignav_msg_ApprovalState_desc, topic::kApprovalState, Qos::kState),
-        motion(participant, &ignav_msg_MotionState_desc, topic::kMotion, Qos::kState),
+        emergency_stops(participant),
+        approval(participant),
+        motion(participant),
         waitset(participant) {
     waitset.attach(replies.handle());
     waitset.attach(slice_replies.handle());
@@ -179,21 +168,15 @@ workflow::Reply Client::setRegistration(const Eigen::Matrix4d& image_to_robot,
 workflow::Reply Client::approve(std::uint64_t plan_id, const std::string& digest,
                                 std::chrono::milliseconds timeout, std::uint64_t request_id) {
   if (request_id == 0) request_id = next_request_++;
-  ignav_msg_Approval a{};
-  a.client_id = cstr(client_id_);
-  a.request_id = request_id;
-  a.plan_id = plan_id;
-  a.digest = cstr(digest);
-  impl_->approvals.get("approving needs the approver role").write(a);
+  const Approval approval{client_id_, request_id, plan_id, digest};
+  Owned<ignav_msg_Approval> owned;
+  impl_->approvals.get("approving needs the approver role").write(toMsg(approval, owned));
   return awaitReply(request_id, "approve", timeout);
 }
 
 workflow::Reply Client::emergencyStop(std::chrono::milliseconds timeout) {
   const std::uint64_t request_id = next_request_++;
-  ignav_msg_EmergencyStop e{};
-  e.client_id = cstr(client_id_);
-  e.request_id = request_id;
-  impl_->emergency_stops.write(e);
+  impl_->emergency_stops.write(EmergencyStop{client_id_, request_id});
   return awaitReply(request_id, "emergency_stop", timeout);
 }
 
@@ -224,11 +207,11 @@ workflow::Reply Client::awaitReply(std::uint64_t request_id, const std::string& 
 
 SliceResult Client::slice(const SliceArgs& args, std::chrono::milliseconds timeout) {
   const std::uint64_t request_id = next_request_++;
-  ignav_msg_SliceRequest req{};
-  req.client_id = cstr(client_id_);
+  SliceRequest req;
+  req.client_id = client_id_;
   req.request_id = request_id;
-  req.view = cstr(args.view);
-  req.centre_lps = toMsg(args.centre_lps);
+  req.view = args.view;
+  req.centre_lps = toPoint3(args.centre_lps);
   req.size_px = args.size_px;
   req.pixel_mm = args.pixel_mm;
   req.window = args.window;
@@ -239,15 +222,15 @@ SliceResult Client::slice(const SliceArgs& args, std::chrono::milliseconds timeo
   const auto end = Clock::now() + timeout;
   std::optional<SliceResult> mine;
   while (!mine) {
-    impl_->slice_replies.take([&](const ignav_msg_SliceReply& r) {
-      if (str(r.client_id) != client_id_ || r.request_id != request_id) return;
+    impl_->slice_replies.take([&](const SliceReply& r) {
+      if (r.client_id != client_id_ || r.request_id != request_id) return;
       SliceResult s;
       s.ok = r.ok;
-      s.message = str(r.message);
+      s.message = r.message;
       s.width = r.width;
       s.height = r.height;
       s.pixel_to_lps = fromRowMajor(r.pixel_to_lps);
-      s.png.assign(r.png._buffer, r.png._buffer + r.png._length);
+      s.png = r.png;
       mine = std::move(s);
     });
     if (mine) break;
@@ -263,130 +246,19 @@ std::vector<std::string> Client::poll() {
   auto note = [&](const char* name, std::size_t n) {
     if (n > 0) changed.emplace_back(name);
   };
-  note("workflow", impl_->workflow.take([&](const ignav_msg_WorkflowState& w) {
-    json allowed = json::array();
-    for (std::uint32_t i = 0; i < w.allowed_commands._length; ++i) {
-      allowed.push_back(str(w.allowed_commands._buffer[i]));
-    }
-    state_["workflow"] = {
-        {"session_id", str(w.session_id)}, {"phase", str(w.phase)},
-        {"allowed_commands", allowed},     {"revision", w.revision},
-        {"last_event", str(w.last_event)}, {"safety_notice", str(w.safety_notice)}};
-  }));
-  note("robot", impl_->robot.take([&](const ignav_msg_RobotState& r) {
-    state_["robot"] = {{"name", str(r.name)},
-                       {"config_path", str(r.config_path)},
-                       {"r_min_mm", r.r_min_mm},
-                       {"r_max_mm", r.r_max_mm},
-                       {"feasible_volume_cm3", r.feasible_volume_cm3},
-                       {"tissue", str(r.tissue)},
-                       {"feature_points_robot", points(r.feature_points_robot)}};
-  }));
-  note("volume", impl_->volume.take([&](const ignav_msg_VolumeState& v) {
-    state_["volume"] = {{"status", str(v.status)},
-                        {"source", str(v.source)},
-                        {"message", str(v.message)},
-                        {"dims", {v.dims[0], v.dims[1], v.dims[2]}},
-                        {"spacing_mm", array(v.spacing_mm)},
-                        {"ijk_to_lps", array(v.ijk_to_lps)},
-                        {"hu_min", v.hu_min},
-                        {"hu_max", v.hu_max},
-                        {"progress", {v.progress_done, v.progress_total}}};
-  }));
-  note("registration", impl_->registration.take([&](const ignav_msg_RegistrationState& r) {
-    json residuals = json::array();
-    for (std::uint32_t i = 0; i < r.residuals_mm._length; ++i) {
-      residuals.push_back(r.residuals_mm._buffer[i]);
-    }
-    state_["registration"] = {{"status", str(r.status)},
-                              {"message", str(r.message)},
-                              {"kind", str(r.kind)},
-                              {"image_points", points(r.image_points)},
-                              {"robot_points", points(r.robot_points)},
-                              {"image_to_robot", array(r.image_to_robot)},
-                              {"scale", r.scale},
-                              {"fre_mm", r.fre_mm},
-                              {"residuals_mm", residuals},
-                              {"auto_detected", r.auto_detected}};
-  }));
-  note("target", impl_->target.takeWithState([&](const ignav_msg_TargetState& t, bool alive) {
-    const std::string id = std::to_string(t.id);
-    if (!alive) {
-      state_["targets"].erase(id);
-      return;
-    }
-    state_["targets"][id] = {
-        {"id", t.id},
-        {"lps", point(t.lps)},
-        {"robot", point(t.robot)},
-        {"registered", t.registered},
-        {"reachable", t.reachable},
-        {"reach", str(t.reach)},
-        {"message", str(t.message)},
-        {"joints", {t.theta_c_rad, t.z_c_mm, t.z_s_mm}},
-        {"steps", {t.steps[0], t.steps[1], t.steps[2]}},
-        {"tre_mm", t.tre_mm},
-        {"tre_warning", t.tre_warning},
-        {"order", t.order},
-        {"predicted_deviation_mm", t.deviation_predicted ? json(t.predicted_deviation_mm) : json()},
-        {"status", str(t.status)},
-        {"outside_volume", t.outside_volume},
-        {"path_warning", str(t.path_warning)},
-        {"path_lps", points(t.path_lps)}};
-  }));
-  note("approval", impl_->approval.take([&](const ignav_msg_ApprovalState& a) {
-    json moves = json::array();
-    for (std::uint32_t i = 0; i < a.moves._length; ++i) {
-      const auto& m = a.moves._buffer[i];
-      moves.push_back({{"kind", str(m.kind)},
-                       {"steps", {m.steps[0], m.steps[1], m.steps[2]}},
-                       {"duration_s", m.duration_s}});
-    }
-    json approvers = json::array();
-    for (std::uint32_t i = 0; i < a.approvers._length; ++i)
-      approvers.push_back(str(a.approvers._buffer[i]));
-    state_["approval"] = {{"status", str(a.status)},
-                          {"plan_id", a.plan_id},
-                          {"digest", str(a.digest)},
-                          {"target_id", a.target_id},
-                          {"summary", str(a.summary)},
-                          {"from_steps", {a.from_steps[0], a.from_steps[1], a.from_steps[2]}},
-                          {"moves", moves},
-                          {"duration_s", a.duration_s},
-                          {"tre_mm", a.tre_mm},
-                          {"expires_in_s", a.expires_in_s},
-                          {"expires_at_unix_s", a.expires_at_unix_s},
-                          {"approvers", approvers}};
-  }));
-  note("motion", impl_->motion.take([&](const ignav_msg_MotionState& m) {
-    state_["motion"] = {
-        {"controller", str(m.controller)},
-        {"state", str(m.state)},
-        {"fault", str(m.fault)},
-        {"plan_id", m.plan_id},
-        {"target_id", m.target_id},
-        {"move_index", m.move_index},
-        {"move_count", m.move_count},
-        {"move_kind", str(m.move_kind)},
-        {"steps", {m.steps[0], m.steps[1], m.steps[2]}},
-        {"goal_steps", {m.goal_steps[0], m.goal_steps[1], m.goal_steps[2]}},
-        {"verified_steps", {m.verified_steps[0], m.verified_steps[1], m.verified_steps[2]}},
-        {"joints", {m.theta_c_rad, m.z_c_mm, m.z_s_mm}},
-        {"tip_robot", point(m.tip_robot)},
-        {"tip_lps", m.tip_lps_valid ? point(m.tip_lps) : json()},
-        {"uptime_s", m.uptime_s}};
-  }));
-  note("health", impl_->health.take([&](const ignav_msg_Health& h) {
-    state_["health"] = {{"version", str(h.version)},
-                        {"session_id", str(h.session_id)},
-                        {"session_dir", str(h.session_dir)},
-                        {"uptime_s", h.uptime_s},
-                        {"commands_accepted", h.commands_accepted},
-                        {"commands_rejected", h.commands_rejected},
-                        {"journal", str(h.journal)},
-                        {"igtl_clients", h.igtl_clients},
-                        {"server_time_unix_s", h.server_time_unix_s}};
-  }));
+  // Each topic's JSON view (json_view.hpp); targets as a map by id, a disposed one removed.
+  note("workflow", mirror(impl_->workflow, state_, "workflow"));
+  note("robot", mirror(impl_->robot, state_, "robot"));
+  note("volume", mirror(impl_->volume, state_, "volume"));
+  note("registration", mirror(impl_->registration, state_, "registration"));
+  note("target", impl_->target.takeWithState(
+                     [&](const TargetState& t) { state_["targets"][std::to_string(t.id)] = t; },
+                     [&](const ignav_msg_TargetState& gone) {
+                       state_["targets"].erase(std::to_string(gone.id));
+                     }));
+  note("approval", mirror(impl_->approval, state_, "approval"));
+  note("motion", mirror(impl_->motion, state_, "motion"));
+  note("health", mirror(impl_->health, state_, "health"));
   return changed;
 }
 

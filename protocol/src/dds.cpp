@@ -1,6 +1,8 @@
-#include "ignav/protocol/dds.hpp"
+#include "ignav/protocol/wire/dds.hpp"
 
+#include "ignav/protocol/config.hpp"
 #include "ignav/protocol/security.hpp"
+#include "ignav/protocol/wire/security.hpp"
 
 #include <fstream>
 #include <map>
@@ -86,30 +88,6 @@ dds_return_t check(dds_return_t rc, const char* what) {
   }
   if (rc < 0) throw DdsError(std::string(what) + ": " + dds_strretcode(rc));
   return rc;
-}
-
-const char* toString(Role role) {
-  switch (role) {
-    case Role::kViewer:
-      return "viewer";
-    case Role::kPlanner:
-      return "planner";
-    case Role::kApprover:
-      return "approver";
-  }
-  return "?";
-}
-
-const char* commandTopic(Role role) {
-  switch (role) {
-    case Role::kViewer:
-      return topic::kCommandViewer;
-    case Role::kPlanner:
-      return topic::kCommandPlanner;
-    case Role::kApprover:
-      return topic::kCommandApprover;
-  }
-  return topic::kCommandViewer;
 }
 
 std::string readConfigFile(const std::string& path) {

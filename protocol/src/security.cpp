@@ -1,4 +1,4 @@
-#include "ignav/protocol/security.hpp"
+#include "ignav/protocol/wire/security.hpp"
 
 #include <openssl/bio.h>
 #include <openssl/pem.h>
@@ -11,7 +11,7 @@
 #include <memory>
 #include <vector>
 
-#include "ignav/protocol/dds.hpp"
+#include "ignav/protocol/wire/dds.hpp"
 
 namespace ignav::protocol {
 namespace {

@@ -11,7 +11,7 @@
 #include <sstream>
 #include <thread>
 
-#include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/wire/messages.hpp"
 #include "server_process.hpp"
 #include "support/dmc_emulator.hpp"
 

@@ -11,8 +11,8 @@
 #include <sstream>
 #include <thread>
 
-#include "ignav/protocol/messages.hpp"
 #include "ignav/protocol/security.hpp"
+#include "ignav/protocol/wire/messages.hpp"
 #include "ignav/volume/phantom.hpp"
 #include "server_process.hpp"
 

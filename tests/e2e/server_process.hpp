@@ -27,7 +27,7 @@
 #include <Eigen/Geometry>
 
 #include "ignav/protocol/client.hpp"
-#include "ignav/protocol/dds.hpp"
+#include "ignav/protocol/config.hpp"
 
 extern char** environ;
 

@@ -10,7 +10,7 @@
 #include <thread>
 #include <vector>
 
-#include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/wire/messages.hpp"
 #include "server_process.hpp"
 
 namespace ignav::e2e {

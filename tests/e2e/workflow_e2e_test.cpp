@@ -15,7 +15,7 @@
 #include <thread>
 
 #include "ignav/config/robot_config.hpp"
-#include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/wire/messages.hpp"
 #include "ignav/registration/robot_phantom.hpp"
 #include "server_process.hpp"
 

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "fuzz_session.hpp"
-#include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/wire/messages.hpp"
 #include "ignav/workflow/reducer.hpp"
 
 namespace {

@@ -7,8 +7,8 @@
 #include <thread>
 #include <vector>
 
-#include "ignav/protocol/dds.hpp"
-#include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/wire/dds.hpp"
+#include "ignav/protocol/wire/messages.hpp"
 
 namespace ignav::protocol {
 namespace {

@@ -8,8 +8,10 @@
 #include <set>
 #include <sstream>
 
-#include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/commands.hpp"
+#include "ignav/protocol/config.hpp"
 #include "ignav/protocol/security.hpp"
+#include "ignav/workflow/inputs.hpp"
 
 namespace ignav::protocol {
 namespace {

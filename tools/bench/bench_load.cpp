@@ -36,8 +36,8 @@
 
 #include "ignav/config/robot_config.hpp"
 #include "ignav/protocol/client.hpp"
-#include "ignav/protocol/dds.hpp"
-#include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/wire/dds.hpp"
+#include "ignav/protocol/wire/messages.hpp"
 
 namespace {
 

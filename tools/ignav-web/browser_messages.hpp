@@ -12,7 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "ignav/protocol/client.hpp"
-#include "ignav/protocol/messages.hpp"
+#include "ignav/protocol/commands.hpp"
 #include "ignav/workflow/session.hpp"
 
 namespace ignav::web {

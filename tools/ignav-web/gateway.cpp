@@ -16,7 +16,6 @@
 
 #include "browser_messages.hpp"
 #include "ignav/protocol/client.hpp"
-#include "ignav/protocol/dds.hpp"
 
 namespace ignav::web {
 namespace {

@@ -10,7 +10,7 @@
 #include <thread>
 
 #include "gateway.hpp"
-#include "ignav/protocol/dds.hpp"
+#include "ignav/protocol/config.hpp"
 #include "ignav/protocol/security.hpp"
 
 namespace {

@@ -1,9 +1,11 @@
 // A DDS client of ignav-server: commands with exactly-one replies, slices, and the state topics
-// mirrored as JSON. ignavctl and the end-to-end tests are built on it.
+// mirrored as JSON (their JSON views, json_view.hpp). ignavctl, the web gateway and the
+// end-to-end tests are built on it. Includes no DDS: the C types stay in protocol/src.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -12,8 +14,12 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
-#include "ignav/protocol/dds.hpp"
+#include "ignav/protocol/commands.hpp"
+#include "ignav/protocol/config.hpp"
+#include "ignav/protocol/errors.hpp"
+#include "ignav/protocol/json_view.hpp"
 #include "ignav/protocol/security.hpp"
+#include "ignav/protocol/topics.hpp"
 #include "ignav/workflow/session.hpp"
 
 namespace ignav::protocol {
@@ -43,10 +49,6 @@ struct SliceResult {
   std::uint32_t width = 0, height = 0;
   Eigen::Matrix4d pixel_to_lps = Eigen::Matrix4d::Identity();
   std::vector<std::uint8_t> png;
-};
-
-struct Timeout : std::runtime_error {
-  using std::runtime_error::runtime_error;
 };
 
 class Client {

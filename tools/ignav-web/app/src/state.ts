@@ -1,6 +1,6 @@
-// The server's state as the gateway forwards it: protocol::Client::poll() (protocol/src/client.cpp)
-// gives the shapes, protocol/idl/ignav.idl the meaning of every field. Lengths in mm, angles in
-// rad, matrices row-major 4x4.
+// The server's state as the gateway forwards it: each topic's JSON view, from its field list in
+// protocol/include/ignav/protocol/types.hpp; protocol/idl/ignav.idl the meaning of every field.
+// Lengths in mm, angles in rad, matrices row-major 4x4.
 
 export type Vec3 = [number, number, number];
 

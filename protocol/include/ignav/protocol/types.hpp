@@ -1,0 +1,367 @@
+// A plain C++ value per topic (protocol/idl/ignav.idl says what each field means), and each
+// value's one list of fields. The list gives the JSON view (json_view.hpp) and the conversion to
+// and from the C sample (wire/messages.hpp): adding a field to a topic is the IDL, the member
+// here and its line in the list. Lengths in mm, angles in rad, matrices row-major 4x4.
+//
+// No DDS and no generated code: tools include this and link ignav::protocol_types alone.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ignav/protocol/fields.hpp"
+#include "ignav/protocol/topics.hpp"
+
+namespace ignav::protocol {
+
+// A point, [x, y, z] in the JSON view.
+struct Point3 {
+  double x = 0.0, y = 0.0, z = 0.0;
+};
+inline Point3 toPoint3(const Eigen::Vector3d& p) {
+  return {p.x(), p.y(), p.z()};
+}
+inline Eigen::Vector3d toEigen(const Point3& p) {
+  return {p.x, p.y, p.z};
+}
+template <typename Points>
+std::vector<Point3> toPoints3(const Points& points) {
+  std::vector<Point3> out;
+  out.reserve(points.size());
+  for (const auto& p : points)
+    out.push_back(toPoint3(p));
+  return out;
+}
+
+// A 4x4 matrix as 16 row-major numbers (as it travels and as the JSON view shows it).
+using RowMajor4 = std::array<double, 16>;
+inline RowMajor4 toRowMajor(const Eigen::Matrix4d& m) {
+  RowMajor4 out{};
+  for (int i = 0; i < 16; ++i)
+    out[static_cast<std::size_t>(i)] = m(i / 4, i % 4);
+  return out;
+}
+inline Eigen::Matrix4d fromRowMajor(const RowMajor4& a) {
+  Eigen::Matrix4d m;
+  for (int i = 0; i < 16; ++i)
+    m(i / 4, i % 4) = a[static_cast<std::size_t>(i)];
+  return m;
+}
+
+using MotorSteps = std::array<std::int64_t, 3>;  // per motor: θc, zc, zs
+using JointValues = std::array<double, 3>;       // θc rad, zc mm, zs mm
+
+// ---- requests and replies ----------------------------------------------------------------
+
+struct Approval {
+  std::string client_id;
+  std::uint64_t request_id = 0;
+  std::uint64_t plan_id = 0;
+  std::string digest;  // ApprovalState.digest, exactly
+};
+
+struct EmergencyStop {
+  std::string client_id;
+  std::uint64_t request_id = 0;
+};
+
+struct SliceRequest {
+  std::string client_id;
+  std::uint64_t request_id = 0;
+  std::string view;  // axial | coronal | sagittal
+  Point3 centre_lps;
+  std::uint32_t size_px = 0;  // 0: fit the volume
+  double pixel_mm = 0.0;      // 0: the finest spacing
+  double window = 0.0;        // <= 0: the CT preset
+  double level = 0.0;
+  bool overlays = false;     // fiducials, targets and the feasible region
+  bool region_only = false;  // with overlays: the feasible region only
+};
+
+struct SliceReply {
+  std::string client_id;
+  std::uint64_t request_id = 0;
+  bool ok = false;
+  std::string message;
+  std::uint32_t width = 0;
+  std::uint32_t height = 0;
+  RowMajor4 pixel_to_lps{};  // LPS = M * (u, v, 0, 1), u right, v down
+  std::vector<std::uint8_t> png;
+};
+
+// ---- state ---------------------------------------------------------------------------------
+
+struct WorkflowState {
+  std::string session_id;
+  std::string phase;
+  std::vector<std::string> allowed_commands;
+  std::uint64_t revision = 0;
+  std::string last_event;
+  std::string safety_notice;  // "" unless the site has weakened a safeguard
+};
+
+struct RobotState {
+  std::string name;
+  std::string config_path;
+  double r_min_mm = 0.0;
+  double r_max_mm = 0.0;
+  double cannula_travel_mm = 0.0;
+  double stylet_travel_mm = 0.0;
+  double feasible_volume_cm3 = 0.0;
+  std::vector<Point3> feature_points_robot;
+  std::string tissue;  // "" = none
+};
+
+struct VolumeState {
+  std::string status;  // none | loading | loaded | failed
+  std::string source;
+  std::string message;
+  std::array<std::uint32_t, 3> dims{};
+  std::array<double, 3> spacing_mm{};
+  RowMajor4 ijk_to_lps{};
+  double hu_min = 0.0;
+  double hu_max = 0.0;
+  std::array<std::uint64_t, 2> progress{};  // files read, of all (while loading)
+};
+
+struct RegistrationState {
+  std::string status;  // none | registered | rejected
+  std::string message;
+  std::string kind;  // similarity | rigid
+  std::vector<Point3> image_points;
+  std::vector<Point3> robot_points;
+  RowMajor4 image_to_robot{};
+  double scale = 0.0;
+  double fre_mm = 0.0;
+  std::vector<double> residuals_mm;
+  bool auto_detected = false;
+};
+
+struct TargetState {
+  std::uint32_t id = 0;
+  Point3 lps;
+  Point3 robot;
+  bool registered = false;
+  bool reachable = false;
+  std::string reach;  // reachable | inside_min_radius | beyond_max_radius | too_shallow | too_deep
+  std::string message;
+  JointValues joints{};
+  MotorSteps steps{};
+  double tre_mm = 0.0;
+  bool tre_warning = false;
+  std::uint32_t order = 0;
+  std::optional<double> predicted_deviation_mm;  // a model prediction, when there is one
+  std::string status;  // planned | reached | unreachable | unregistered | outside_volume
+  bool outside_volume = false;
+  std::string path_warning;
+  std::vector<Point3> path_lps;
+};
+
+struct PlannedMove {
+  std::string kind;  // retract_stylet | translate_cannula | rotate_cannula | deploy_stylet
+  MotorSteps steps{};
+  double duration_s = 0.0;
+};
+
+struct ApprovalState {
+  std::string status;  // none | pending
+  std::uint64_t plan_id = 0;
+  std::string digest;
+  std::uint32_t target_id = 0;  // 0: the final retraction of the stylet
+  std::string summary;
+  MotorSteps from_steps{};
+  std::vector<PlannedMove> moves;
+  double duration_s = 0.0;
+  double tre_mm = 0.0;
+  double expires_in_s = 0.0;       // at publication
+  double expires_at_unix_s = 0.0;  // the server's clock
+  std::vector<std::string> approvers;
+};
+
+struct MotionState {
+  std::string controller;  // simulated | galil host:port
+  std::string state;       // disconnected | idle | moving | fault
+  std::string fault;
+  std::uint64_t plan_id = 0;  // 0: none under way
+  std::uint32_t target_id = 0;
+  std::uint32_t move_index = 0;  // 1-based, of move_count
+  std::uint32_t move_count = 0;
+  std::string move_kind;
+  MotorSteps steps{};           // reported
+  MotorSteps goal_steps{};      // where the move under way ends
+  MotorSteps verified_steps{};  // last position the workflow verified
+  JointValues joints{};         // of the reported steps
+  Point3 tip_robot;
+  std::optional<Point3> tip_lps;  // with a registration
+  double uptime_s = 0.0;
+};
+
+struct Health {
+  std::string version;
+  std::string session_id;
+  std::string session_dir;
+  double uptime_s = 0.0;
+  std::uint64_t commands_accepted = 0;
+  std::uint64_t commands_rejected = 0;
+  std::string journal;  // "ok", or why the journal cannot be written
+  std::uint32_t igtl_clients = 0;
+  double server_time_unix_s = 0.0;
+};
+
+// ---- the fields of each: JSON name, member, C member(s) ------------------------------------
+
+template <>
+struct Fields<Approval> {
+  using T = Approval;
+  static constexpr auto list = std::make_tuple(IGNAV_FIELD(client_id), IGNAV_FIELD(request_id),
+                                               IGNAV_FIELD(plan_id), IGNAV_FIELD(digest));
+};
+
+template <>
+struct Fields<EmergencyStop> {
+  using T = EmergencyStop;
+  static constexpr auto list = std::make_tuple(IGNAV_FIELD(client_id), IGNAV_FIELD(request_id));
+};
+
+template <>
+struct Fields<SliceRequest> {
+  using T = SliceRequest;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(client_id), IGNAV_FIELD(request_id), IGNAV_FIELD(view), IGNAV_FIELD(centre_lps),
+      IGNAV_FIELD(size_px), IGNAV_FIELD(pixel_mm), IGNAV_FIELD(window), IGNAV_FIELD(level),
+      IGNAV_FIELD(overlays), IGNAV_FIELD(region_only));
+};
+
+template <>
+struct Fields<SliceReply> {
+  using T = SliceReply;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(client_id), IGNAV_FIELD(request_id), IGNAV_FIELD(ok), IGNAV_FIELD(message),
+      IGNAV_FIELD(width), IGNAV_FIELD(height), IGNAV_FIELD(pixel_to_lps), IGNAV_FIELD(png));
+};
+
+template <>
+struct Fields<WorkflowState> {
+  using T = WorkflowState;
+  static constexpr auto list =
+      std::make_tuple(IGNAV_FIELD(session_id), IGNAV_FIELD(phase), IGNAV_FIELD(allowed_commands),
+                      IGNAV_FIELD(revision), IGNAV_FIELD(last_event), IGNAV_FIELD(safety_notice));
+};
+
+template <>
+struct Fields<RobotState> {
+  using T = RobotState;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(name), IGNAV_FIELD(config_path), IGNAV_FIELD(r_min_mm), IGNAV_FIELD(r_max_mm),
+      IGNAV_FIELD(cannula_travel_mm), IGNAV_FIELD(stylet_travel_mm),
+      IGNAV_FIELD(feasible_volume_cm3), IGNAV_FIELD(feature_points_robot), IGNAV_FIELD(tissue));
+};
+
+template <>
+struct Fields<VolumeState> {
+  using T = VolumeState;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(status), IGNAV_FIELD(source), IGNAV_FIELD(message), IGNAV_FIELD(dims),
+      IGNAV_FIELD(spacing_mm), IGNAV_FIELD(ijk_to_lps), IGNAV_FIELD(hu_min), IGNAV_FIELD(hu_max),
+      field("progress", &T::progress,
+            [](auto& msg) { return std::tie(msg.progress_done, msg.progress_total); }));
+};
+
+template <>
+struct Fields<RegistrationState> {
+  using T = RegistrationState;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(status), IGNAV_FIELD(message), IGNAV_FIELD(kind), IGNAV_FIELD(image_points),
+      IGNAV_FIELD(robot_points), IGNAV_FIELD(image_to_robot), IGNAV_FIELD(scale),
+      IGNAV_FIELD(fre_mm), IGNAV_FIELD(residuals_mm), IGNAV_FIELD(auto_detected));
+};
+
+template <>
+struct Fields<TargetState> {
+  using T = TargetState;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(id), IGNAV_FIELD(lps), IGNAV_FIELD(robot), IGNAV_FIELD(registered),
+      IGNAV_FIELD(reachable), IGNAV_FIELD(reach), IGNAV_FIELD(message),
+      field("joints", &T::joints,
+            [](auto& msg) { return std::tie(msg.theta_c_rad, msg.z_c_mm, msg.z_s_mm); }),
+      IGNAV_FIELD(steps), IGNAV_FIELD(tre_mm), IGNAV_FIELD(tre_warning), IGNAV_FIELD(order),
+      field(
+          "predicted_deviation_mm", &T::predicted_deviation_mm,
+          [](auto& msg) { return std::tie(msg.predicted_deviation_mm, msg.deviation_predicted); }),
+      IGNAV_FIELD(status), IGNAV_FIELD(outside_volume), IGNAV_FIELD(path_warning),
+      IGNAV_FIELD(path_lps));
+};
+
+template <>
+struct Fields<PlannedMove> {
+  using T = PlannedMove;
+  static constexpr auto list =
+      std::make_tuple(IGNAV_FIELD(kind), IGNAV_FIELD(steps), IGNAV_FIELD(duration_s));
+};
+
+template <>
+struct Fields<ApprovalState> {
+  using T = ApprovalState;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(status), IGNAV_FIELD(plan_id), IGNAV_FIELD(digest), IGNAV_FIELD(target_id),
+      IGNAV_FIELD(summary), IGNAV_FIELD(from_steps), IGNAV_FIELD(moves), IGNAV_FIELD(duration_s),
+      IGNAV_FIELD(tre_mm), IGNAV_FIELD(expires_in_s), IGNAV_FIELD(expires_at_unix_s),
+      IGNAV_FIELD(approvers));
+};
+
+template <>
+struct Fields<MotionState> {
+  using T = MotionState;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(controller), IGNAV_FIELD(state), IGNAV_FIELD(fault), IGNAV_FIELD(plan_id),
+      IGNAV_FIELD(target_id), IGNAV_FIELD(move_index), IGNAV_FIELD(move_count),
+      IGNAV_FIELD(move_kind), IGNAV_FIELD(steps), IGNAV_FIELD(goal_steps),
+      IGNAV_FIELD(verified_steps),
+      field("joints", &T::joints,
+            [](auto& msg) { return std::tie(msg.theta_c_rad, msg.z_c_mm, msg.z_s_mm); }),
+      IGNAV_FIELD(tip_robot),
+      field("tip_lps", &T::tip_lps,
+            [](auto& msg) { return std::tie(msg.tip_lps, msg.tip_lps_valid); }),
+      IGNAV_FIELD(uptime_s));
+};
+
+template <>
+struct Fields<Health> {
+  using T = Health;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(version), IGNAV_FIELD(session_id), IGNAV_FIELD(session_dir),
+      IGNAV_FIELD(uptime_s), IGNAV_FIELD(commands_accepted), IGNAV_FIELD(commands_rejected),
+      IGNAV_FIELD(journal), IGNAV_FIELD(igtl_clients), IGNAV_FIELD(server_time_unix_s));
+};
+
+// ---- which topic each travels on -----------------------------------------------------------
+
+template <typename T>
+struct TopicOf {};
+#define IGNAV_TOPIC_OF(Type, name_, qos_)      \
+  template <>                                  \
+  struct TopicOf<Type> {                       \
+    static constexpr const char* name = name_; \
+    static constexpr Qos qos = qos_;           \
+  }
+IGNAV_TOPIC_OF(Approval, topic::kApproval, Qos::kRequest);
+IGNAV_TOPIC_OF(EmergencyStop, topic::kEmergencyStop, Qos::kRequest);
+IGNAV_TOPIC_OF(SliceRequest, topic::kSliceRequest, Qos::kRequest);
+IGNAV_TOPIC_OF(SliceReply, topic::kSliceReply, Qos::kRequest);
+IGNAV_TOPIC_OF(WorkflowState, topic::kWorkflow, Qos::kState);
+IGNAV_TOPIC_OF(RobotState, topic::kRobot, Qos::kState);
+IGNAV_TOPIC_OF(VolumeState, topic::kVolume, Qos::kState);
+IGNAV_TOPIC_OF(RegistrationState, topic::kRegistration, Qos::kState);
+IGNAV_TOPIC_OF(TargetState, topic::kTarget, Qos::kState);
+IGNAV_TOPIC_OF(ApprovalState, topic::kApprovalState, Qos::kState);
+IGNAV_TOPIC_OF(MotionState, topic::kMotion, Qos::kState);
+IGNAV_TOPIC_OF(Health, topic::kHealth, Qos::kState);
+#undef IGNAV_TOPIC_OF
+
+}  // namespace ignav::protocol
