@@ -239,14 +239,8 @@ TEST(DetectionE2E, AnOutcomeForACtNoLongerLoadedIsIgnoredAndTheNextDetectionRegi
 
   // Offline, ignav-plan re-derives the session from the journal, without detecting again.
   EXPECT_EQ(server.stop(), 0);
-  const std::string cmd = std::string(IGNAV_PLAN_EXE) + " replay " + server.sessionDir().string() +
-                          " --verify --robot " IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml";
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  while (std::size_t n = fread(buf, 1, sizeof buf, p))
-    out.append(buf, n);
-  ASSERT_EQ(pclose(p), 0) << out;
+  const auto [status, out] = replayVerified(server.sessionDir());
+  ASSERT_EQ(status, 0) << out;
   EXPECT_TRUE(json::parse(out)["verified"].get<bool>()) << out;
   std::filesystem::remove_all(folder);
 }

@@ -323,10 +323,8 @@ TEST(FaultE2E, KilledUnderLoadLosesNoAcknowledgedChange) {
     }
   }
   EXPECT_EQ(server.stop(), 0);
-  const std::string cmd = std::string(IGNAV_PLAN_EXE) + " replay " + server.sessionDir().string() +
-                          " --verify --robot " IGNAV_SOURCE_DIR
-                          "/configs/robots/torabi2014.yaml > /dev/null";
-  EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  const auto [status, out] = replayVerified(server.sessionDir());
+  EXPECT_EQ(status, 0) << out;
 }
 
 }  // namespace

@@ -62,14 +62,8 @@ TEST(RecoveryE2E, KilledServerComesBackWithEveryAcknowledgedChange) {
 
   // Offline, ignav-plan re-derives the same session from the journal and checks every record.
   EXPECT_EQ(server.stop(), 0);
-  const std::string cmd = std::string(IGNAV_PLAN_EXE) + " replay " + server.sessionDir().string() +
-                          " --verify --robot " IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml";
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  while (std::size_t n = fread(buf, 1, sizeof buf, p))
-    out.append(buf, n);
-  ASSERT_EQ(pclose(p), 0) << out;
+  const auto [status, out] = replayVerified(server.sessionDir());
+  ASSERT_EQ(status, 0) << out;
   const json replay = json::parse(out);
   EXPECT_TRUE(replay["verified"].get<bool>());
   ASSERT_EQ(replay["targets"].size(), 3u);

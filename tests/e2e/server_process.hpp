@@ -15,6 +15,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -22,6 +23,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -82,6 +84,22 @@ constexpr bool kSanitized = false;
 #endif
 #else
 constexpr bool kSanitized = false;
+#endif
+
+#ifdef IGNAV_PLAN_EXE
+// `ignav-plan replay --verify` over a stopped server's session folder, which re-derives the session
+// from its journal offline: its exit status and what it printed (JSON).
+inline std::pair<int, std::string> replayVerified(const std::filesystem::path& session_dir) {
+  const std::string cmd = std::string(IGNAV_PLAN_EXE) + " replay " + session_dir.string() +
+                          " --verify --robot " IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml";
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return {-1, "cannot run " + cmd};
+  std::string out;
+  char buf[4096];
+  while (std::size_t n = fread(buf, 1, sizeof buf, p))
+    out.append(buf, n);
+  return {pclose(p), out};
+}
 #endif
 
 inline double msOf(std::chrono::steady_clock::duration d) {
