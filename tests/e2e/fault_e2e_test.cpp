@@ -201,22 +201,13 @@ TEST(FaultE2E, AnEmergencyStopFromASenderThatExitsAtOnceIsStillTaken) {
   op->waitFor([](const json& s) { return stateText(s, "volume", "status") == "loaded"; }, 60s);
   // Another console keeps the server's loop busy with large slices, so that the sender is gone
   // before the loop comes round to take its stop.
-  std::atomic<bool> busy{true};
-  std::thread viewer([&] {
+  LoopInBackground viewer([&](const std::atomic<bool>& busy) {
     auto v = server.client("viewer");
     protocol::SliceArgs big;
     big.size_px = 1024;
     while (busy)
       (void)v->slice(big, 10s);
   });
-  struct Join {
-    std::atomic<bool>& busy;
-    std::thread& t;
-    ~Join() {
-      busy = false;
-      t.join();
-    }
-  } join{busy, viewer};
   const std::string xml = protocol::readConfigFile(IGNAV_SOURCE_DIR "/configs/dds/loopback.xml");
   for (int round = 0; round < 20; ++round) {
     SCOPED_TRACE("round " + std::to_string(round));

@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <sstream>
@@ -105,6 +106,24 @@ inline std::pair<int, std::string> replayVerified(const std::filesystem::path& s
 inline double msOf(std::chrono::steady_clock::duration d) {
   return std::chrono::duration<double, std::milli>(d).count();
 }
+
+// A loop on a thread of its own for as long as this is in scope: `body` loops while the flag it
+// is given holds; leaving the scope clears it and joins.
+class LoopInBackground {
+ public:
+  explicit LoopInBackground(std::function<void(const std::atomic<bool>& running)> body)
+      : thread_([this, body = std::move(body)] { body(running_); }) {}
+  ~LoopInBackground() {
+    running_ = false;
+    thread_.join();
+  }
+  LoopInBackground(const LoopInBackground&) = delete;
+  LoopInBackground& operator=(const LoopInBackground&) = delete;
+
+ private:
+  std::atomic<bool> running_{true};  // before thread_: set before the thread starts
+  std::thread thread_;
+};
 
 // Another client asking `query` every `period` on its own thread, timing each answer.
 class QueryWatcher {

@@ -34,10 +34,9 @@ TEST(SlicesE2E, CommandsAreAnsweredAtOnceWhileAnotherClientAsksForTheLargestSlic
   ServerProcess server(122);
   auto op = server.client("operator");
   loadPhantom(*op);
-  std::atomic<bool> busy{true};
   std::atomic<int> drawn{0};
   std::atomic<double> slowest_slice_ms{0.0};
-  std::thread viewer([&] {
+  LoopInBackground viewer([&](const std::atomic<bool>& busy) {
     auto v = server.client("viewer");
     protocol::SliceArgs big;
     big.size_px = 2048;  // the largest allowed: about 0.2 s each here
@@ -50,14 +49,6 @@ TEST(SlicesE2E, CommandsAreAnsweredAtOnceWhileAnotherClientAsksForTheLargestSlic
       if (ms > slowest_slice_ms) slowest_slice_ms = ms;
     }
   });
-  struct Join {
-    std::atomic<bool>& busy;
-    std::thread& t;
-    ~Join() {
-      busy = false;
-      t.join();
-    }
-  } join{busy, viewer};
   while (drawn == 0)
     std::this_thread::sleep_for(10ms);
   // Another client's queries, every 20 ms, each timed.
