@@ -62,6 +62,18 @@ struct MovingOverProxy {
     ASSERT_TRUE(approveShown(*op).accepted);
     ASSERT_TRUE(proxy.waitFor("BG", approved, 10s)) << "the move never started";
   }
+
+  // An emergency stop: AB on the wire and the reply back within the bounds above.
+  void emergencyStopGoesOutAtOnce() {
+    const auto sent = Clock::now();
+    const auto stop = op->emergencyStop(10s);
+    const auto answered = Clock::now();
+    ASSERT_TRUE(stop.accepted) << stop.message;
+    const auto ab = proxy.waitFor("AB", sent, 5s);
+    ASSERT_TRUE(ab) << "AB never reached the controller";
+    EXPECT_LT(msOf(*ab - sent), msOf(kWire)) << "AB reached the controller late";
+    EXPECT_LT(msOf(answered - sent), msOf(kReply)) << "the emergency stop was answered late";
+  }
 };
 
 TEST(SlowControllerE2E, EmergencyStopMidMoveGoesOutAtOnceWhileEveryReplyTakes900ms) {
@@ -76,14 +88,7 @@ TEST(SlowControllerE2E, EmergencyStopMidMoveGoesOutAtOnceWhileEveryReplyTakes900
   const json goal = op->state()["motion"]["goal_steps"];
   std::this_thread::sleep_for(1200ms);
 
-  const auto sent = Clock::now();
-  const auto stop = op->emergencyStop(10s);
-  const auto answered = Clock::now();
-  ASSERT_TRUE(stop.accepted) << stop.message;
-  const auto ab = proxy.waitFor("AB", sent, 5s);
-  ASSERT_TRUE(ab) << "AB never reached the controller";
-  EXPECT_LT(msOf(*ab - sent), msOf(kWire)) << "AB reached the controller late";
-  EXPECT_LT(msOf(answered - sent), msOf(kReply)) << "the emergency stop was answered late";
+  ASSERT_NO_FATAL_FAILURE(rig.emergencyStopGoesOutAtOnce());
   op->waitFor([](const json& s) { return phaseIs(s, "emergency"); }, 2s);
   // A reset sent at once checks the position on a reading taken after the AB (seconds away), not
   // on the last one, which still shows the robot at rest where the move began. (It once did: the
@@ -117,14 +122,7 @@ TEST(SlowControllerE2E, WithTheControllerSilentTheStopIsSentTheServerAnswersAndT
   const auto silent = Clock::now();
   std::this_thread::sleep_for(200ms);
 
-  const auto sent = Clock::now();
-  const auto stop = op->emergencyStop(10s);
-  const auto answered = Clock::now();
-  ASSERT_TRUE(stop.accepted) << stop.message;
-  const auto ab = proxy.waitFor("AB", sent, 5s);
-  ASSERT_TRUE(ab) << "AB never reached the controller";
-  EXPECT_LT(msOf(*ab - sent), msOf(kWire)) << "AB reached the controller late";
-  EXPECT_LT(msOf(answered - sent), msOf(kReply)) << "the emergency stop was answered late";
+  ASSERT_NO_FATAL_FAILURE(rig.emergencyStopGoesOutAtOnce());
 
   // The reply that never came is a fault within the driver's timeout (1 s; the poll in flight
   // when the link went silent was sent at most then), reported as the controller's state.

@@ -16,11 +16,7 @@ namespace {
 using workflow::InputKind;
 using workflow::Phase;
 
-std::shared_ptr<const config::Robot> paperRobot() {
-  static const auto robot = std::make_shared<const config::Robot>(
-      config::loadRobot(IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml").value());
-  return robot;
-}
+using test::paperRobot;
 
 // The server's part: inputs through the reducer (stamped with a robot at rest at its position),
 // replies back to the bridge, states after every step; every message to the client collected.

@@ -12,15 +12,12 @@
 #include "ignav/registration/robot_phantom.hpp"
 #include "ignav/volume/phantom.hpp"
 #include "ignav/workflow/reducer.hpp"
+#include "support/phantom_ct.hpp"
 
 namespace ignav::workflow {
 namespace {
 
-std::shared_ptr<const config::Robot> paperRobot() {
-  static const auto robot = std::make_shared<const config::Robot>(
-      config::loadRobot(IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml").value());
-  return robot;
-}
+using test::paperRobot;
 
 const registration::RobotPhantom& truth() {
   static const registration::RobotPhantom phantom =

@@ -30,11 +30,7 @@ using actuation::Steps;
 constexpr double kSpeed = 20000.0;  // steps/s: ten times the default, so moves take ~0.5 s
 constexpr double kAcceleration = 200000.0;
 
-std::shared_ptr<const config::Robot> paperRobot() {
-  static const auto robot = std::make_shared<const config::Robot>(
-      config::loadRobot(IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml").value());
-  return robot;
-}
+using test::paperRobot;
 
 ApprovalPolicy policy() {
   ApprovalPolicy p;

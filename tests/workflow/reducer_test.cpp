@@ -16,11 +16,7 @@
 namespace ignav::workflow {
 namespace {
 
-std::shared_ptr<const config::Robot> paperRobot() {
-  static const auto robot = std::make_shared<const config::Robot>(
-      config::loadRobot(IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml").value());
-  return robot;
-}
+using test::paperRobot;
 
 Input command(InputKind kind, std::uint64_t request, std::vector<Eigen::Vector3d> points = {},
               std::vector<std::uint32_t> ids = {}) {
