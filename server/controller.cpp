@@ -59,6 +59,7 @@ void Server::startController(bool home, const std::optional<actuation::Steps>& p
   }
   (void)component_->take();  // the first reading is the latest: nothing to judge yet
   last_reading_ = latestReading().status;
+  lifecycle_ = latestReading().lifecycle;
   if (last_reading_.state == actuation::ControllerState::kDisconnected) {
     spdlog::error("controller {}: {}", controller_name_, last_reading_.fault);
   }
@@ -128,8 +129,9 @@ bool Server::onReading(const ControllerReading& reading) {
   const auto before = last_reading_;
   const auto& r = reading.status;
   last_reading_ = r;
-  const bool changed =
-      r.state != before.state || r.position != before.position || r.fault != before.fault;
+  const bool changed = r.state != before.state || r.position != before.position ||
+                       r.fault != before.fault || reading.lifecycle != lifecycle_;
+  lifecycle_ = reading.lifecycle;
   if (changed) publishMotion();
   if (igtl_) igtl_->onReading(session_, r, before);
   const bool moving = r.state == actuation::ControllerState::kMoving;

@@ -238,15 +238,15 @@ void ControllerComponent::connectOnce() {
         first || backoff_ >= options_.reconnect_max ? spdlog::level::warn : spdlog::level::info,
         "controller {}: {}; next attempt in {} ms", options_.name, ok.error().message,
         std::max(backoff_, options_.reconnect_first).count());
+    setLifecycle(first ? Lifecycle::kConnecting : Lifecycle::kLost);
+    ControllerReading r = latest();  // the same reading, in its new lifecycle
     if (first) {
-      ControllerReading r;
       r.status.state = actuation::ControllerState::kDisconnected;
       r.status.fault = ok.error().message;
       r.after_command = completed();
       r.taken = Clock::now();
-      publish(std::move(r), true);
     }
-    setLifecycle(first ? Lifecycle::kConnecting : Lifecycle::kLost);
+    publish(std::move(r), first);
     backoff_ = std::clamp(backoff_ * 2, options_.reconnect_first, options_.reconnect_max);
     std::lock_guard<std::mutex> lock(mutex_);
     next_attempt_ = Clock::now() + backoff_;
@@ -269,8 +269,8 @@ void ControllerComponent::lost(const std::string& why) {
   r.status.fault = why;
   r.after_command = completed();
   r.taken = Clock::now();
-  publish(std::move(r), false);
   setLifecycle(Lifecycle::kLost);
+  publish(std::move(r), false);
   backoff_ = options_.reconnect_first;
   std::lock_guard<std::mutex> lock(mutex_);
   next_attempt_ = Clock::now() + backoff_;
@@ -300,8 +300,10 @@ void ControllerComponent::publish(ControllerReading reading, bool force_event) {
   bool event = force_event;
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    reading.lifecycle = lifecycle_;
     event = event || !sameStatus(reading.status, latest_.status) ||
-            reading.after_command != latest_.after_command;
+            reading.after_command != latest_.after_command ||
+            reading.lifecycle != latest_.lifecycle;
     latest_ = reading;
     if (event) {
       ControllerEvent e;

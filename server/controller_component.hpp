@@ -44,6 +44,9 @@ struct ControllerReading {
   // arrival, and a position check, are judged only on a reading taken after the commands before.
   std::uint64_t after_command = 0;
   std::chrono::steady_clock::time_point taken{};
+  // The component's lifecycle as this reading left it: a change of lifecycle alone is an event
+  // too, so that MotionState.lifecycle follows reconnection (issue 22).
+  Lifecycle lifecycle = Lifecycle::kUnconfigured;
 };
 
 struct ControllerEvent {

@@ -67,7 +67,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
       commands_{{participant_, &ignav_msg_Command_desc, topic::kCommandViewer, Qos::kRequest},
                 {participant_, &ignav_msg_Command_desc, topic::kCommandPlanner, Qos::kRequest},
                 {participant_, &ignav_msg_Command_desc, topic::kCommandApprover, Qos::kRequest}},
-      replies_(participant_, &ignav_msg_Reply_desc, topic::kReply, Qos::kRequest),
+      replies_(participant_),
       slice_requests_(participant_),
       approvals_(participant_, &ignav_msg_Approval_desc, topic::kApproval, Qos::kRequest),
       emergency_stops_(participant_, &ignav_msg_EmergencyStop_desc, topic::kEmergencyStop,
@@ -176,11 +176,11 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
     std::size_t handled = 0;
     bool failed = false;
     // Emergency stops first: the robot halts before anything else is looked at.
-    handled += emergency_stops_.takeFrom(
-        [&](const ignav_msg_EmergencyStop& e, dds_instance_handle_t from) {
-          if (!failed && !step(withSender(toInput(e), "any", emergency_stops_.handle(), from)))
-            failed = true;
-        });
+    handled += emergency_stops_.takeFrom([&](const ignav_msg_EmergencyStop& e,
+                                             dds_instance_handle_t from) {
+      if (!failed && !step(withSender(toInput(fromMsg(e)), "any", emergency_stops_.handle(), from)))
+        failed = true;
+    });
     // OpenIGTLink next: its EMERGENCY is an emergency stop too.
     if (!failed && igtl_ &&
         !igtl_->serve(
@@ -188,11 +188,13 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
             [this] { publishHealth(); }, handled)) {
       failed = true;
     }
-    handled += approvals_.takeFrom([&](const ignav_msg_Approval& a, dds_instance_handle_t from) {
-      if (failed) return;
-      if (reservedClientId(a.client_id, a.request_id)) return;
-      if (!step(withSender(toInput(a), "approver", approvals_.handle(), from))) failed = true;
-    });
+    handled +=
+        approvals_.takeFrom([&](const ignav_msg_Approval& sample, dds_instance_handle_t from) {
+          if (failed) return;
+          const protocol::Approval a = fromMsg(sample);
+          if (reservedClientId(a.client_id, a.request_id)) return;
+          if (!step(withSender(toInput(a), "approver", approvals_.handle(), from))) failed = true;
+        });
     if (failed) return 3;
     for (auto& in : loader_.finished()) {
       ++handled;
@@ -229,15 +231,15 @@ std::size_t Server::takeCommands(bool& failed) {
   std::size_t handled = 0;
   for (const Role role : kRoles) {
     const auto& reader = commands_[static_cast<int>(role)];
-    handled += reader.takeFrom([&](const ignav_msg_Command& c, dds_instance_handle_t from) {
+    handled += reader.takeFrom([&](const ignav_msg_Command& sample, dds_instance_handle_t from) {
       if (failed) return;
+      const protocol::Command c = commandOf(sample);
       if (reservedClientId(c.client_id, c.request_id)) return;
       auto in = toInput(c);
       if (!in) {
-        const std::string client = c.client_id ? c.client_id : "";
         spdlog::warn("command kind {} from '{}' (request {}) is not one of ours: refused", c.kind,
-                     client.substr(0, 64), c.request_id);
-        sendReply({client, c.request_id, false,
+                     c.client_id.substr(0, 64), c.request_id);
+        sendReply({c.client_id, c.request_id, false,
                    workflow::toString(workflow::ReplyCode::kUnknownCommand),
                    fmt::format("command kind {} is not one of ours (docs/PROTOCOL.md lists "
                                "the kinds)",
@@ -404,13 +406,11 @@ void Server::serveReadOnly(Clock::time_point until, const std::atomic<bool>& sto
 // The bridge's client id belongs to the bridge, whether it runs or not: a DDS client claiming it
 // is refused (it would otherwise borrow an approval right given to OpenIGTLink, which a session
 // keeps in its journaled policy across restarts).
-bool Server::reservedClientId(const char* client_id, std::uint64_t request_id) {
-  if (!client_id || std::string(client_id) != igtl::kBridgeClientId) return false;
-  OwnedReply owned{
-      {client_id, request_id, false, "not_permitted",
-       "client id 'openigtlink' is reserved for the OpenIGTLink bridge", 0, session_.revision},
-      {}};
-  replies_.write(owned.build());
+bool Server::reservedClientId(const std::string& client_id, std::uint64_t request_id) {
+  if (client_id != igtl::kBridgeClientId) return false;
+  replies_.write({client_id, request_id, false, "not_permitted",
+                  "client id 'openigtlink' is reserved for the OpenIGTLink bridge", 0,
+                  session_.revision});
   spdlog::warn("a DDS client used the reserved client id '{}': refused", client_id);
   return true;
 }

@@ -67,7 +67,7 @@ class Server {
   bool waitsForReading(const Input& in) const;
   bool releaseHeld();
   void refuseHeld(const char* code, const std::string& why);
-  bool reservedClientId(const char* client_id, std::uint64_t request_id);
+  bool reservedClientId(const std::string& client_id, std::uint64_t request_id);
   std::optional<workflow::Reply> checkPath(const Input& in) const;
   Input withSender(Input in, const char* role, dds_entity_t reader, dds_instance_handle_t from);
   void publishEverything();
@@ -80,8 +80,8 @@ class Server {
   void sendReply(const workflow::Reply& r);
   void refuseUnjournaled(const Input& in, const workflow::Effects& effects);
   void crashPoint(const char* where, std::uint64_t revision) const;
-  Readings readings() const { return {last_reading_, loader_.progress()}; }
-  void publishMotion() { state_.publishMotion(session_, last_reading_); }
+  Readings readings() const { return {last_reading_, toString(lifecycle_), loader_.progress()}; }
+  void publishMotion() { state_.publishMotion(session_, last_reading_, toString(lifecycle_)); }
   void publishHealth();
 
   // controller.cpp
@@ -98,7 +98,7 @@ class Server {
   std::optional<protocol::SecurityIdentity> identity_;  // DDS Security on with it
   protocol::Participant participant_;
   protocol::Reader<ignav_msg_Command> commands_[3];  // by Role
-  protocol::Writer<ignav_msg_Reply> replies_;
+  protocol::TopicWriter<protocol::Reply> replies_;
   protocol::TopicReader<protocol::SliceRequest> slice_requests_;
   protocol::Reader<ignav_msg_Approval> approvals_;
   protocol::Reader<ignav_msg_EmergencyStop> emergency_stops_;
@@ -108,10 +108,11 @@ class Server {
   std::optional<protocol::SenderIdentities> senders_;  // with DDS Security on
   std::string journal_failure_;  // why the journal cannot be written ("" = it can)
   std::set<workflow::InputKind> unjournaled_kinds_;
-  actuation::ControllerStatus last_reading_;  // the component's, as last taken (or replayed)
-  std::uint64_t move_seq_ = 0;                // the component's number of the last move sent
-  std::uint64_t last_submitted_ = 0;          // ... of the last command of any kind
-  std::deque<Input> held_;                    // inputs waiting for a fresh reading (step())
+  actuation::ControllerStatus last_reading_;        // the component's, as last taken (or replayed)
+  Lifecycle lifecycle_ = Lifecycle::kUnconfigured;  // the component's, as last taken
+  std::uint64_t move_seq_ = 0;                      // the component's number of the last move sent
+  std::uint64_t last_submitted_ = 0;                // ... of the last command of any kind
+  std::deque<Input> held_;                          // inputs waiting for a fresh reading (step())
   Clock::time_point held_since_;
   std::string last_fault_reported_;
   std::string refused_move_;  // a move runController would not send: a fault, reported next

@@ -53,7 +53,7 @@ void StatePublisher::publishEffects(const Session& s, const workflow::Effects& e
   for (auto id : e.targets_changed)
     publishTarget(s, id);
   if (e.approval_changed) publishApproval(s);
-  if (e.motion_changed || !e.controller.empty()) publishMotion(s, r.controller);
+  if (e.motion_changed || !e.controller.empty()) publishMotion(s, r.controller, r.lifecycle);
   if (e.workflow_changed) publishWorkflow(s);
 }
 
@@ -88,9 +88,11 @@ void StatePublisher::publishApproval(const Session& s) {
   approval_.write(a);
 }
 
-void StatePublisher::publishMotion(const Session& s, const actuation::ControllerStatus& r) {
+void StatePublisher::publishMotion(const Session& s, const actuation::ControllerStatus& r,
+                                   const char* lifecycle) {
   protocol::MotionState m;
   m.controller = controller_name_;
+  m.lifecycle = lifecycle;
   m.state = actuation::toString(r.state);
   m.fault = !s.fault.empty() ? s.fault : r.fault;
   m.steps = stepsOf(r.position);

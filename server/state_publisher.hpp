@@ -23,6 +23,7 @@ namespace ignav::server {
 // What the server knows beside the session.
 struct Readings {
   actuation::ControllerStatus controller;  // the latest reading taken (or replayed)
+  const char* lifecycle = "unconfigured";  // the controller component's (controller_component.hpp)
   std::pair<std::size_t, std::size_t> load_progress{0, 0};  // files read, in all (loading)
 };
 
@@ -52,7 +53,8 @@ class StatePublisher {
   void publishTarget(const workflow::Session& s, std::uint32_t id);
   void disposeTarget(std::uint32_t id);
   void publishApproval(const workflow::Session& s);
-  void publishMotion(const workflow::Session& s, const actuation::ControllerStatus& reading);
+  void publishMotion(const workflow::Session& s, const actuation::ControllerStatus& reading,
+                     const char* lifecycle);
   void publishHealth(const workflow::Session& s, const HealthFacts& facts);
 
  private:

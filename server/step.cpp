@@ -145,8 +145,7 @@ const Reports::Snapshot& Server::snapshot() {
 
 void Server::sendReply(const workflow::Reply& r) {
   if (igtl_ && igtl_->reply(r, session_)) return;
-  protocol::OwnedReply owned{r, {}};
-  replies_.write(owned.build());
+  replies_.write(protocol::toWire(r));
   if (!r.accepted) spdlog::warn("rejected: {}", r.message);
 }
 

@@ -15,10 +15,15 @@ std::string str(const char* s) {
   return s ? s : "";
 }
 
-// Drains a state topic's reader into its JSON view in `state[key]`; returns how many were taken.
+// Drains a state topic's reader into `kept` and its JSON view into `state[key]`; returns how many
+// were taken.
 template <typename T>
-std::size_t mirror(const TopicReader<T>& reader, json& state, const char* key) {
-  return reader.take([&](const T& value) { state[key] = value; });
+std::size_t drainInto(const TopicReader<T>& reader, std::optional<T>& kept, json& state,
+                      const char* key) {
+  return reader.take([&](const T& value) {
+    state[key] = value;
+    kept = value;
+  });
 }
 
 }  // namespace
@@ -136,37 +141,36 @@ bool Client::waitForServer(std::chrono::milliseconds timeout) {
   return false;
 }
 
-workflow::Reply Client::send(const std::string& command, const CommandArgs& args,
-                             std::chrono::milliseconds timeout, std::uint64_t request_id) {
+Reply Client::send(const std::string& command, const CommandArgs& args,
+                   std::chrono::milliseconds timeout, std::uint64_t request_id) {
   const auto kind = commandKindFromName(command);
   if (!kind) throw std::invalid_argument("unknown command '" + command + "'");
   if (request_id == 0) request_id = next_request_++;
-  OwnedCommand owned;
-  owned.client_id = client_id_;
-  owned.path = args.path;
-  for (const auto& p : args.points)
-    owned.points.push_back(toMsg(p));
-  owned.ids = args.ids;
-  if (args.matrix) {
-    for (int k = 0; k < 16; ++k)
-      owned.matrix[static_cast<std::size_t>(k)] = (*args.matrix)(k / 4, k % 4);
-  }
+  Command c;
+  c.client_id = client_id_;
+  c.request_id = request_id;
+  c.kind = *kind;
+  c.path = args.path;
+  c.points = toPoints3(args.points);
+  c.ids = args.ids;
+  if (args.matrix) c.matrix = toRowMajor(*args.matrix);
   const Role role = requiredRole(*kind);
+  Owned<ignav_msg_Command> owned;
   impl_->commands[static_cast<int>(role)]
       .get("'" + command + "' needs the " + toString(role) + " role")
-      .write(owned.build(request_id, *kind));
+      .write(toMsg(c, owned));
   return awaitReply(request_id, command, timeout);
 }
 
-workflow::Reply Client::setRegistration(const Eigen::Matrix4d& image_to_robot,
-                                        std::chrono::milliseconds timeout) {
+Reply Client::setRegistration(const Eigen::Matrix4d& image_to_robot,
+                              std::chrono::milliseconds timeout) {
   CommandArgs args;
   args.matrix = image_to_robot;
   return send("set_registration", args, timeout);
 }
 
-workflow::Reply Client::approve(std::uint64_t plan_id, const std::string& digest,
-                                std::chrono::milliseconds timeout, std::uint64_t request_id) {
+Reply Client::approve(std::uint64_t plan_id, const std::string& digest,
+                      std::chrono::milliseconds timeout, std::uint64_t request_id) {
   if (request_id == 0) request_id = next_request_++;
   const Approval approval{client_id_, request_id, plan_id, digest};
   Owned<ignav_msg_Approval> owned;
@@ -174,19 +178,19 @@ workflow::Reply Client::approve(std::uint64_t plan_id, const std::string& digest
   return awaitReply(request_id, "approve", timeout);
 }
 
-workflow::Reply Client::emergencyStop(std::chrono::milliseconds timeout) {
+Reply Client::emergencyStop(std::chrono::milliseconds timeout) {
   const std::uint64_t request_id = next_request_++;
   impl_->emergency_stops.write(EmergencyStop{client_id_, request_id});
   return awaitReply(request_id, "emergency_stop", timeout);
 }
 
-workflow::Reply Client::awaitReply(std::uint64_t request_id, const std::string& what,
-                                   std::chrono::milliseconds timeout) {
+Reply Client::awaitReply(std::uint64_t request_id, const std::string& what,
+                         std::chrono::milliseconds timeout) {
   const auto end = Clock::now() + timeout;
   // Poll for the first 2 ms before sleeping: a reply usually comes within that, and waking a
   // sleeping thread costs ~150 µs here (docs/PERFORMANCE.md).
   const auto spin_until = Clock::now() + reply_spin_;
-  std::optional<workflow::Reply> mine;
+  std::optional<Reply> mine;
   while (!mine) {
     impl_->replies.take([&](const ignav_msg_Reply& r) {
       if (str(r.client_id) == client_id_ && r.request_id == request_id) mine = fromMsg(r);
@@ -247,27 +251,37 @@ std::vector<std::string> Client::poll() {
     if (n > 0) changed.emplace_back(name);
   };
   // Each topic's JSON view (json_view.hpp); targets as a map by id, a disposed one removed.
-  note("workflow", mirror(impl_->workflow, state_, "workflow"));
-  note("robot", mirror(impl_->robot, state_, "robot"));
-  note("volume", mirror(impl_->volume, state_, "volume"));
-  note("registration", mirror(impl_->registration, state_, "registration"));
+  note("workflow", drainInto(impl_->workflow, mirror_.workflow, state_, "workflow"));
+  note("robot", drainInto(impl_->robot, mirror_.robot, state_, "robot"));
+  note("volume", drainInto(impl_->volume, mirror_.volume, state_, "volume"));
+  note("registration",
+       drainInto(impl_->registration, mirror_.registration, state_, "registration"));
   note("target", impl_->target.takeWithState(
-                     [&](const TargetState& t) { state_["targets"][std::to_string(t.id)] = t; },
+                     [&](const TargetState& t) {
+                       state_["targets"][std::to_string(t.id)] = t;
+                       mirror_.targets[t.id] = t;
+                     },
                      [&](const ignav_msg_TargetState& gone) {
                        state_["targets"].erase(std::to_string(gone.id));
+                       mirror_.targets.erase(gone.id);
                      }));
-  note("approval", mirror(impl_->approval, state_, "approval"));
-  note("motion", mirror(impl_->motion, state_, "motion"));
-  note("health", mirror(impl_->health, state_, "health"));
+  note("approval", drainInto(impl_->approval, mirror_.approval, state_, "approval"));
+  note("motion", drainInto(impl_->motion, mirror_.motion, state_, "motion"));
+  note("health", drainInto(impl_->health, mirror_.health, state_, "health"));
   return changed;
 }
 
 void Client::waitFor(const std::function<bool(const nlohmann::json&)>& done,
                      std::chrono::milliseconds timeout) {
+  waitUntil([&](const StateMirror&) { return done(state_); }, timeout);
+}
+
+void Client::waitUntil(const std::function<bool(const StateMirror&)>& done,
+                       std::chrono::milliseconds timeout) {
   const auto end = Clock::now() + timeout;
   for (;;) {
     poll();
-    if (done(state_)) return;
+    if (done(mirror_)) return;
     if (Clock::now() >= end) throw Timeout("the expected state did not arrive");
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }

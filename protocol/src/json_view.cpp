@@ -97,6 +97,8 @@ void from_json(const json& j, Point3& value) {
   void from_json(const json& j, Type& value) { \
     Json::get(j, value);                       \
   }
+IGNAV_PROTOCOL_JSON_VIEW(Command)
+IGNAV_PROTOCOL_JSON_VIEW(Reply)
 IGNAV_PROTOCOL_JSON_VIEW(Approval)
 IGNAV_PROTOCOL_JSON_VIEW(EmergencyStop)
 IGNAV_PROTOCOL_JSON_VIEW(SliceRequest)

@@ -183,13 +183,23 @@ TEST(ControllerComponent, ASilentControllerIsAFaultWithinTheTimeout) {
       [](const ControllerEvent& e) {
         return e.kind == ControllerEvent::Kind::kReading &&
                e.reading.status.state == ControllerState::kDisconnected &&
-               e.reading.status.fault.find("did not answer") != std::string::npos;
+               e.reading.status.fault.find("did not answer") != std::string::npos &&
+               e.reading.lifecycle == Lifecycle::kLost;  // the reading says it, not only a log
       },
       3s));
   // The poll in flight was sent at most one rest period (200 ms) after the silence began.
   EXPECT_LT(ms(Clock::now() - silent), 1000.0 + 200.0 + 300.0);
   EXPECT_NE(c.lifecycle(), Lifecycle::kActive);
   proxy.setSilent(false);
+  // Reconnected by itself: an event in the active lifecycle, with a reading of the robot.
+  EXPECT_TRUE(waitEvent(
+      c,
+      [](const ControllerEvent& e) {
+        return e.kind == ControllerEvent::Kind::kReading &&
+               e.reading.lifecycle == Lifecycle::kActive &&
+               e.reading.status.state != ControllerState::kDisconnected;
+      },
+      10s));
 }
 
 }  // namespace

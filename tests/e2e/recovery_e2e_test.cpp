@@ -17,7 +17,7 @@ using namespace std::chrono_literals;
 TEST(RecoveryE2E, KilledServerComesBackWithEveryAcknowledgedChange) {
   ServerProcess server(51);
   json before;
-  workflow::Reply retried;
+  protocol::Reply retried;
   {
     auto c = server.client("e2e-recover");
     ASSERT_TRUE(c->send("load_volume", {"phantom:", {}, {}}).accepted);

@@ -216,10 +216,13 @@ TEST(SecurityE2E, PermissionsRefuseTheWritersOfTheWrongRoleAndTheServerTheWrongT
     for (int i = 0; i < 1000 && (commands.matched() == 0 || replies.matched() == 0); ++i)
       std::this_thread::sleep_for(10ms);
     ASSERT_GT(commands.matched(), 0u);
-    protocol::OwnedCommand owned;
-    owned.client_id = "sneaky";
-    owned.path = "phantom:";
-    commands.write(owned.build(7, protocol::commandKindFromName("load_volume").value()));
+    protocol::Command sneaky;
+    sneaky.client_id = "sneaky";
+    sneaky.request_id = 7;
+    sneaky.kind = protocol::commandKindFromName("load_volume").value();
+    sneaky.path = "phantom:";
+    protocol::Owned<ignav_msg_Command> owned;
+    commands.write(protocol::toMsg(sneaky, owned));
     std::string code, message;
     for (int i = 0; i < 1000 && code.empty(); ++i) {
       replies.take([&](const ignav_msg_Reply& r) {

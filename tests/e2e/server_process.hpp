@@ -213,7 +213,7 @@ inline std::uint32_t lockedPlanTo(protocol::Client& c, const Eigen::Vector3d& ro
 }
 
 // Approves the request the approval state shows, exactly as shown.
-inline workflow::Reply approveShown(protocol::Client& c) {
+inline protocol::Reply approveShown(protocol::Client& c) {
   c.poll();
   const nlohmann::json& a = c.state()["approval"];
   return c.approve(a["plan_id"].get<std::uint64_t>(), a["digest"].get<std::string>());

@@ -43,7 +43,7 @@ Drive driveToDone(ServerProcess& server, Client& c, std::vector<std::uint64_t>& 
     }
     const std::string phase = s["workflow"]["phase"];
     if (phase == "done") return Drive::kDone;
-    std::optional<workflow::Reply> r;
+    std::optional<protocol::Reply> r;
     try {
       if (phase == "imaging" && (!s.contains("volume") || s["volume"]["status"] != "loading")) {
         r = c.send("load_volume", {"phantom:", {}, {}}, 1s);

@@ -57,6 +57,7 @@ struct MovingOverProxy {
     server = std::make_unique<ServerProcess>(domain, overProxy(proxy));
     op = server->client("operator");
     ASSERT_NO_FATAL_FAILURE(lockedPlanTo(*op, {-10, 15, -190}));
+    ASSERT_EQ(stateText(op->state(), "motion", "lifecycle"), "active");
     queries = std::make_unique<QueryWatcher>(server->client("watcher"), 50ms);
     const auto approved = Clock::now();
     ASSERT_TRUE(approveShown(*op).accepted);
@@ -132,6 +133,8 @@ TEST(SlowControllerE2E, WithTheControllerSilentTheStopIsSentTheServerAnswersAndT
                stateText(s, "motion", "fault").find("did not answer") != std::string::npos;
       },
       5s);
+  // The component's own lifecycle is on the wire too: lost, reconnecting in the background.
+  op->waitFor([](const json& s) { return stateText(s, "motion", "lifecycle") == "lost"; }, 5s);
   EXPECT_LT(msOf(Clock::now() - silent), 1000.0 + 700.0) << op->state()["motion"].dump();
   EXPECT_TRUE(phaseIs(op->state(), "emergency"));
   std::this_thread::sleep_for(500ms);  // queries go on, with the component reconnecting
@@ -139,6 +142,13 @@ TEST(SlowControllerE2E, WithTheControllerSilentTheStopIsSentTheServerAnswersAndT
   EXPECT_GT(queries.answered(), 10);
   EXPECT_LT(queries.worstMs(), msOf(kReply)) << "a query waited behind the controller";
   proxy.setSilent(false);
+  // Once the link answers again the component reconnects by itself (within its backoff).
+  op->waitFor(
+      [](const json& s) {
+        return stateText(s, "motion", "lifecycle") == "active" &&
+               stateText(s, "motion", "state") != "disconnected";
+      },
+      15s);
 }
 
 }  // namespace

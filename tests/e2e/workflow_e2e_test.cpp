@@ -249,10 +249,14 @@ TEST(WorkflowE2E, EveryRejectionNamesTheProblemAndChangesNothing) {
       std::this_thread::sleep_for(10ms);
     ASSERT_GT(commands.matched(), 0u);
     const std::int32_t kinds[] = {4096, 99, std::numeric_limits<std::int32_t>::max(), -1};
-    protocol::OwnedCommand owned;
-    owned.client_id = "odd-kinds";
-    for (std::size_t k = 0; k < std::size(kinds); ++k)
-      commands.write(owned.build(k + 1, kinds[k]));
+    for (std::size_t k = 0; k < std::size(kinds); ++k) {
+      protocol::Command odd;
+      odd.client_id = "odd-kinds";
+      odd.request_id = k + 1;
+      odd.kind = kinds[k];
+      protocol::Owned<ignav_msg_Command> owned;
+      commands.write(protocol::toMsg(odd, owned));
+    }
     std::map<std::uint64_t, std::vector<std::string>> answers;  // request id -> error codes
     for (int i = 0; i < 300 && answers.size() < std::size(kinds); ++i) {
       replies.take([&](const ignav_msg_Reply& r) {

@@ -70,7 +70,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       a.plan_id = session.pending && in.ConsumeBool() ? session.pending->plan_id
                                                       : in.ConsumeIntegral<std::uint64_t>();
       a.digest = protocol::cstr(digest);
-      input = protocol::toInput(a);
+      input = protocol::toInput(protocol::fromMsg(a));
     } else {
       ignav_msg_Command c{};
       std::string path = in.ConsumeBool() ? "phantom:" : fuzzedString(in);
@@ -90,7 +90,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       c.path = protocol::cstr(path);
       protocol::viewSequence(c.points, points);
       protocol::viewSequence(c.ids, ids);
-      input = protocol::toInput(c);
+      input = protocol::toInput(protocol::commandOf(c));
     }
     if (!input) continue;  // an unknown kind: the server answers "unknown_command"
     t += in.ConsumeFloatingPointInRange<double>(0.0, 200.0);

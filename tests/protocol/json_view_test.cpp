@@ -42,6 +42,7 @@ MotionState aMotion() {
   MotionState m;
   m.controller = "simulated";
   m.state = "moving";
+  m.lifecycle = "active";
   m.fault = "";
   m.plan_id = 42;
   m.target_id = 7;
@@ -95,7 +96,8 @@ TEST(JsonView, TargetIsWhatBrowsersRead) {
 
 TEST(JsonView, MotionIsWhatBrowsersRead) {
   const json expected = json::parse(R"({
-    "controller": "simulated", "state": "moving", "fault": "", "plan_id": 42, "target_id": 7,
+    "controller": "simulated", "state": "moving", "lifecycle": "active", "fault": "",
+    "plan_id": 42, "target_id": 7,
     "move_index": 2, "move_count": 4, "move_kind": "translate_cannula", "steps": [1, 2, 3],
     "goal_steps": [4, 5, 6], "verified_steps": [-1, -2, -3], "joints": [0.5, 10.0, 2.0],
     "tip_robot": [1, 2, 3], "tip_lps": [4, 5, 6], "uptime_s": 12.5})");

@@ -143,6 +143,19 @@ TEST(Wire, EveryTopicRoundTrips) {
   h.journal = "ok";
   h.igtl_clients = 2;
   expectWireRoundTrip(h);
+  m.lifecycle = "lost";
+  expectWireRoundTrip(m);
+  expectWireRoundTrip(Reply{"op", 4, false, "wrong_phase", "not now", 0, 12});
+  Command c;
+  c.client_id = "op";
+  c.request_id = 8;
+  c.kind = 7;
+  c.path = "/data/ct";
+  c.points = {{1, 2, 3}, {4, 5, 6}};
+  c.ids = {3, 1, 2};
+  c.matrix[0] = c.matrix[5] = c.matrix[10] = c.matrix[15] = 1.0;
+  c.matrix[3] = -12.5;
+  expectWireRoundTrip(c);
   expectWireRoundTrip(Approval{"op", 5, 3, "ab12"});
   expectWireRoundTrip(EmergencyStop{"op", 6});
   SliceRequest s;
@@ -161,11 +174,52 @@ TEST(Wire, EveryTopicRoundTrips) {
 TEST(Wire, ApprovalsConvertToTheWorkflowsInput) {
   const Approval approval{"op", 5, 3, "ab12"};
   Owned<ignav_msg_Approval> owned;
-  const auto in = toInput(toMsg(approval, owned));
+  const auto in = toInput(fromMsg(toMsg(approval, owned)));
   EXPECT_EQ(in.kind, ignav::workflow::InputKind::kApprove);
   EXPECT_EQ(in.client_id, "op");
   EXPECT_EQ(in.plan_id, 3u);
   EXPECT_EQ(in.digest, "ab12");
+}
+
+TEST(Wire, ACommandIsReadOnlyAsFarAsItsLimit) {
+  // 5000 points and ids on the wire: the server copies one past the most a command may carry.
+  std::vector<ignav_msg_Point3> points(5000, ignav_msg_Point3{1, 2, 3});
+  std::vector<std::uint32_t> ids(5000, 7);
+  ignav_msg_Command sample{};
+  std::string client = "op";
+  sample.client_id = cstr(client);
+  sample.kind = commandKindFromName("reorder_targets").value();
+  viewSequence(sample.points, points);
+  viewSequence(sample.ids, ids);
+  const Command c = commandOf(sample);
+  EXPECT_EQ(c.points.size(), kMaxCommandItemsRead);
+  EXPECT_EQ(c.ids.size(), kMaxCommandItemsRead);
+  const auto in = toInput(c);
+  ASSERT_TRUE(in);
+  EXPECT_EQ(in->kind, ignav::workflow::InputKind::kReorderTargets);
+  EXPECT_EQ(in->ids.size(), kMaxCommandItemsRead);
+}
+
+TEST(Wire, CommandsConvertToTheWorkflowsInputByTheirDeclaredArguments) {
+  Command c;
+  c.client_id = "op";
+  c.request_id = 3;
+  c.kind = commandKindFromName("set_registration").value();
+  for (int i = 0; i < 16; ++i)
+    c.matrix[static_cast<std::size_t>(i)] = i;
+  auto in = toInput(c);
+  ASSERT_TRUE(in);
+  ASSERT_TRUE(in->matrix);
+  EXPECT_EQ((*in->matrix)(1, 2), 6.0);  // row-major: row 1, column 2 is element 6
+  // The matrix is always on the wire; only a command that takes one gets it.
+  c.kind = commandKindFromName("add_target").value();
+  c.points = {{1, 2, 3}};
+  in = toInput(c);
+  ASSERT_TRUE(in);
+  EXPECT_FALSE(in->matrix);
+  EXPECT_EQ(in->points.at(0).z(), 3.0);
+  c.kind = 4096;  // no command has it
+  EXPECT_FALSE(toInput(c));
 }
 
 }  // namespace

@@ -148,7 +148,7 @@ TEST(BrowserMessages, OversizedMessagesAndSequencesAreRefused) {
 }
 
 TEST(BrowserMessages, RepliesSlicesAndErrorsForTheBrowser) {
-  workflow::Reply reply;
+  protocol::Reply reply;
   reply.accepted = false;
   reply.error_code = "wrong_phase";
   reply.message = "add_target is not allowed in phase imaging";

@@ -187,14 +187,11 @@ json stateMessage(const json& state, const std::vector<std::string>& changed) {
   return {{"type", "state"}, {"state", part}};
 }
 
-json replyMessage(std::uint64_t seq, const workflow::Reply& reply) {
-  return {{"type", "reply"},
-          {"seq", seq},
-          {"accepted", reply.accepted},
-          {"error_code", reply.error_code},
-          {"message", reply.message},
-          {"target_id", reply.target_id},
-          {"revision", reply.revision}};
+json replyMessage(std::uint64_t seq, const protocol::Reply& reply) {
+  json message = reply;  // its JSON view, from the Reply's one list of fields
+  message["type"] = "reply";
+  message["seq"] = seq;
+  return message;
 }
 
 json sliceMessage(std::uint64_t seq, const protocol::SliceResult& slice) {

@@ -58,7 +58,7 @@ nlohmann::json connectionMessage(bool server_matched);
 // `changed`: topic names as protocol::Client::poll() returns them ("target" is sent as the whole
 // "targets" map). Empty `changed`: the whole state.
 nlohmann::json stateMessage(const nlohmann::json& state, const std::vector<std::string>& changed);
-nlohmann::json replyMessage(std::uint64_t seq, const workflow::Reply& reply);
+nlohmann::json replyMessage(std::uint64_t seq, const protocol::Reply& reply);
 nlohmann::json sliceMessage(std::uint64_t seq, const protocol::SliceResult& slice);
 // code: bad_request | timeout | busy | no_server | failed
 nlohmann::json errorMessage(std::optional<std::uint64_t> seq, const std::string& code,

@@ -25,11 +25,23 @@
 #include <thread>
 
 #include "ignav/protocol/client.hpp"
+#include "ignav/workflow/inputs.hpp"
 
 namespace {
 
+using ignav::protocol::ApprovalState;
 using ignav::protocol::Client;
 using ignav::protocol::CommandArgs;
+using ignav::protocol::Health;
+using ignav::protocol::MotionState;
+using ignav::protocol::Point3;
+using ignav::protocol::RegistrationState;
+using ignav::protocol::RobotState;
+using ignav::protocol::StateMirror;
+using ignav::protocol::TargetState;
+using ignav::protocol::toEigen;
+using ignav::protocol::VolumeState;
+using ignav::protocol::WorkflowState;
 using nlohmann::json;
 using namespace std::chrono_literals;
 
@@ -71,10 +83,9 @@ Eigen::Matrix4d matrix16(const std::string& text) {
 }
 
 // `round_trip_ms` (< 0: not measured) is from writing the command to taking its reply.
-void printReply(const ignav::workflow::Reply& r, bool as_json, double round_trip_ms = -1.0) {
+void printReply(const ignav::protocol::Reply& r, bool as_json, double round_trip_ms = -1.0) {
   if (as_json) {
-    json out{{"accepted", r.accepted},   {"error_code", r.error_code}, {"message", r.message},
-             {"target_id", r.target_id}, {"request_id", r.request_id}, {"revision", r.revision}};
+    json out = r;  // its JSON view, from the Reply's one list of fields
     if (round_trip_ms >= 0) out["round_trip_ms"] = round_trip_ms;
     std::cout << out.dump() << "\n";
   } else if (r.accepted) {
@@ -123,90 +134,87 @@ CommandArgs commandArgs(const ignav::workflow::InputSpec& spec,
   return out;
 }
 
-std::string fmt3(const json& p) {
+std::string fmt3(const Point3& p) {
   char buf[96];
-  std::snprintf(buf, sizeof buf, "(%7.2f, %7.2f, %7.2f)", p[0].get<double>(), p[1].get<double>(),
-                p[2].get<double>());
+  std::snprintf(buf, sizeof buf, "(%7.2f, %7.2f, %7.2f)", p.x, p.y, p.z);
   return buf;
 }
 
-void printTargets(const json& state) {
+template <typename T, std::size_t N>
+std::string list(const std::array<T, N>& values) {
+  return json(values).dump();
+}
+
+// The printers read the mirrored values (StateMirror, protocol/types.hpp), not JSON by key: a
+// field renamed in the IDL is then a compile error here, not an empty column.
+void printTargets(const StateMirror& state) {
   std::printf("%-4s %-5s %-26s %-26s %-12s %8s %8s %8s %6s\n", "id", "order", "LPS (mm)",
               "robot (mm)", "status", "θc(deg)", "zc(mm)", "zs(mm)", "TRE");
-  std::vector<json> rows;
-  for (const auto& [id, t] : state["targets"].items())
-    rows.push_back(t);
+  std::vector<const TargetState*> rows;
+  for (const auto& [id, t] : state.targets)
+    rows.push_back(&t);
   std::sort(rows.begin(), rows.end(),
-            [](const json& a, const json& b) { return a["order"] < b["order"]; });
-  for (const auto& t : rows) {
-    std::printf("%-4u %-5u %-26s %-26s %-12s %8.2f %8.3f %8.3f %6.2f\n", t["id"].get<unsigned>(),
-                t["order"].get<unsigned>(), fmt3(t["lps"]).c_str(), fmt3(t["robot"]).c_str(),
-                t["status"].get<std::string>().c_str(), t["joints"][0].get<double>() * 180.0 / M_PI,
-                t["joints"][1].get<double>(), t["joints"][2].get<double>(),
-                t["tre_mm"].get<double>());
-    if (t["status"] != "planned" || !t.value("path_warning", "").empty())
-      std::printf("     %s\n", t["message"].get<std::string>().c_str());
+            [](const TargetState* a, const TargetState* b) { return a->order < b->order; });
+  for (const TargetState* t : rows) {
+    std::printf("%-4u %-5u %-26s %-26s %-12s %8.2f %8.3f %8.3f %6.2f\n", t->id, t->order,
+                fmt3(t->lps).c_str(), fmt3(t->robot).c_str(), t->status.c_str(),
+                t->joints[0] * 180.0 / M_PI, t->joints[1], t->joints[2], t->tre_mm);
+    if (t->status != "planned" || !t->path_warning.empty())
+      std::printf("     %s\n", t->message.c_str());
   }
 }
 
-void printApproval(const json& s) {
-  if (!s.contains("approval") || s["approval"]["status"] != "pending") {
+void printApproval(const StateMirror& s) {
+  if (!s.approval || s.approval->status != "pending") {
     std::cout << "no motion is waiting for approval\n";
     return;
   }
-  const json& a = s["approval"];
-  std::cout << a["summary"].get<std::string>() << "\n"
-            << "  plan " << a["plan_id"] << ", digest " << a["digest"].get<std::string>() << "\n"
-            << "  from steps " << a["from_steps"].dump() << ", expires in "
-            << static_cast<int>(a["expires_in_s"].get<double>()) << " s; approvers "
-            << a["approvers"].dump() << "\n";
-  for (const auto& m : a["moves"]) {
-    std::printf("  %-18s %s  %.2f s\n", m["kind"].get<std::string>().c_str(),
-                m["steps"].dump().c_str(), m["duration_s"].get<double>());
-  }
+  const ApprovalState& a = *s.approval;
+  std::cout << a.summary << "\n"
+            << "  plan " << a.plan_id << ", digest " << a.digest << "\n"
+            << "  from steps " << list(a.from_steps) << ", expires in "
+            << static_cast<int>(a.expires_in_s) << " s; approvers " << json(a.approvers).dump()
+            << "\n";
+  for (const auto& m : a.moves)
+    std::printf("  %-18s %s  %.2f s\n", m.kind.c_str(), list(m.steps).c_str(), m.duration_s);
 }
 
-void printMotion(const json& s) {
-  if (!s.contains("motion")) {
+void printMotion(const StateMirror& s) {
+  if (!s.motion) {
     std::cout << "no motion state yet\n";
     return;
   }
-  const json& m = s["motion"];
-  std::cout << "controller " << m["controller"].get<std::string>() << ": "
-            << m["state"].get<std::string>() << "\n"
-            << "  steps " << m["steps"].dump() << " (verified " << m["verified_steps"].dump()
-            << ")\n"
-            << "  joints θc " << m["joints"][0].get<double>() * 180.0 / M_PI << "°, zc "
-            << m["joints"][1] << " mm, zs " << m["joints"][2] << " mm\n"
-            << "  tip robot " << fmt3(m["tip_robot"])
-            << (m["tip_lps"].is_null() ? "" : ", LPS " + fmt3(m["tip_lps"])) << "\n";
-  if (m["plan_id"].get<std::uint64_t>() != 0) {
-    std::cout << "  plan " << m["plan_id"] << " to target " << m["target_id"] << ": move "
-              << m["move_index"] << " of " << m["move_count"] << " ("
-              << m["move_kind"].get<std::string>() << ") towards " << m["goal_steps"].dump()
+  const MotionState& m = *s.motion;
+  std::cout << "controller " << m.controller << ": " << m.state << " (link " << m.lifecycle << ")\n"
+            << "  steps " << list(m.steps) << " (verified " << list(m.verified_steps) << ")\n"
+            << "  joints θc " << m.joints[0] * 180.0 / M_PI << "°, zc " << m.joints[1] << " mm, zs "
+            << m.joints[2] << " mm\n"
+            << "  tip robot " << fmt3(m.tip_robot)
+            << (m.tip_lps ? ", LPS " + fmt3(*m.tip_lps) : std::string()) << "\n";
+  if (m.plan_id != 0) {
+    std::cout << "  plan " << m.plan_id << " to target " << m.target_id << ": move " << m.move_index
+              << " of " << m.move_count << " (" << m.move_kind << ") towards " << list(m.goal_steps)
               << "\n";
   }
-  if (!m["fault"].get<std::string>().empty()) {
-    std::cout << "  fault: " << m["fault"].get<std::string>() << "\n";
-  }
+  if (!m.fault.empty()) std::cout << "  fault: " << m.fault << "\n";
 }
 
-void printStatus(const json& s) {
-  const auto get = [&](const char* a, const char* b) {
-    return s.contains(a) && s[a].contains(b) ? s[a][b].dump() : std::string("-");
+void printStatus(const StateMirror& s) {
+  const auto or_dash = [](const auto& part, auto field) {
+    return part ? json((*part).*field).dump() : std::string("-");
   };
-  std::cout << "session      " << get("health", "session_dir") << "\n"
-            << "phase        " << get("workflow", "phase") << " (revision "
-            << get("workflow", "revision") << ")\n"
-            << "allowed      " << get("workflow", "allowed_commands") << "\n"
-            << "robot        " << get("robot", "name") << "\n"
-            << "volume       " << get("volume", "status") << " " << get("volume", "message") << "\n"
-            << "registration " << get("registration", "status") << " "
-            << get("registration", "message") << "\n"
-            << "targets      " << s["targets"].size() << "\n";
-  const std::string notice =
-      s.contains("workflow") ? s["workflow"].value("safety_notice", std::string()) : "";
-  if (!notice.empty()) std::cout << "SAFETY       " << notice << "\n";
+  std::cout << "session      " << or_dash(s.health, &Health::session_dir) << "\n"
+            << "phase        " << or_dash(s.workflow, &WorkflowState::phase) << " (revision "
+            << or_dash(s.workflow, &WorkflowState::revision) << ")\n"
+            << "allowed      " << or_dash(s.workflow, &WorkflowState::allowed_commands) << "\n"
+            << "robot        " << or_dash(s.robot, &RobotState::name) << "\n"
+            << "volume       " << or_dash(s.volume, &VolumeState::status) << " "
+            << or_dash(s.volume, &VolumeState::message) << "\n"
+            << "registration " << or_dash(s.registration, &RegistrationState::status) << " "
+            << or_dash(s.registration, &RegistrationState::message) << "\n"
+            << "targets      " << s.targets.size() << "\n";
+  if (s.workflow && !s.workflow->safety_notice.empty())
+    std::cout << "SAFETY       " << s.workflow->safety_notice << "\n";
 }
 
 Eigen::Vector3d jsonPoint(const json& p) {
@@ -215,12 +223,11 @@ Eigen::Vector3d jsonPoint(const json& p) {
 
 // Robot-frame points become LPS through the current registration (scripts plan in the robot
 // frame so they do not depend on where the phantom lies).
-Eigen::Vector3d robotToLps(const json& state, const Eigen::Vector3d& robot) {
-  if (!state.contains("registration") || state["registration"]["status"] != "registered") {
+Eigen::Vector3d robotToLps(const StateMirror& state, const Eigen::Vector3d& robot) {
+  if (!state.registration || state.registration->status != "registered") {
     throw UsageError("robot_mm needs a registration");
   }
-  const Eigen::Matrix4d m =
-      ignav::protocol::matrixFromState(state["registration"]["image_to_robot"]);
+  const Eigen::Matrix4d m = ignav::protocol::fromRowMajor(state.registration->image_to_robot);
   const Eigen::Vector4d lps = m.inverse() * robot.homogeneous();
   return lps.head<3>();
 }
@@ -290,13 +297,10 @@ int runScript(Client& client, const std::string& path, const std::string& out_di
   int index = 0;
   // Read your writes: the next step sees at least the state the last reply's revision names
   // (state topics and replies travel separately).
-  auto catchUp = [&](const ignav::workflow::Reply& r) {
+  auto catchUp = [&](const ignav::protocol::Reply& r) {
     if (!r.accepted) return;
-    client.waitFor(
-        [&](const json& s) {
-          return s.contains("workflow") &&
-                 s["workflow"]["revision"].get<std::uint64_t>() >= r.revision;
-        },
+    client.waitUntil(
+        [&](const StateMirror& s) { return s.workflow && s.workflow->revision >= r.revision; },
         std::chrono::seconds(10));
   };
   for (const auto& step_node : doc["steps"]) {
@@ -311,7 +315,7 @@ int runScript(Client& client, const std::string& path, const std::string& out_di
         args.points.push_back(jsonPoint(p));
       }
       for (const auto& p : step.value("robot_mm", json::array())) {
-        args.points.push_back(robotToLps(client.state(), jsonPoint(p)));
+        args.points.push_back(robotToLps(client.mirror(), jsonPoint(p)));
       }
       for (const auto& id : step.value("ids", json::array())) {
         args.ids.push_back(id.is_string() ? names.at(id.get<std::string>())
@@ -334,15 +338,15 @@ int runScript(Client& client, const std::string& path, const std::string& out_di
     } else if (step.contains("approve") || step.contains("emergency_stop")) {
       // approve: pending  approves what ApprovalState shows; {plan_id, digest} sends exactly
       // those (scripts use it to show that wrong ones are refused).
-      ignav::workflow::Reply reply;
+      ignav::protocol::Reply reply;
       if (step.contains("emergency_stop")) {
         reply = client.emergencyStop();
         std::cout << where << " emergency_stop: ";
       } else {
         const json a = step["approve"];
-        const json shown = client.state().value("approval", json::object());
-        std::uint64_t plan = shown.value("plan_id", std::uint64_t{0});
-        std::string digest = shown.value("digest", "");
+        const ApprovalState shown = client.mirror().approval.value_or(ApprovalState{});
+        std::uint64_t plan = shown.plan_id;
+        std::string digest = shown.digest;
         if (a.is_object()) {
           // Script numbers arrive as doubles (yamlToJson).
           if (a.contains("plan_id")) plan = static_cast<std::uint64_t>(a["plan_id"].get<double>());
@@ -386,9 +390,11 @@ int runScript(Client& client, const std::string& path, const std::string& out_di
       if (s.contains("lps")) {
         a.centre_lps = jsonPoint(s["lps"]);
       } else if (s.contains("target")) {
-        const auto id = std::to_string(names.at(s["target"].get<std::string>()));
-        const auto& p = client.state()["targets"][id]["lps"];
-        a.centre_lps = jsonPoint(p);
+        const auto id = names.at(s["target"].get<std::string>());
+        const auto& targets = client.mirror().targets;
+        const auto t = targets.find(id);
+        if (t == targets.end()) throw UsageError(where + ": no target " + std::to_string(id));
+        a.centre_lps = toEigen(t->second.lps);
       }
       a.size_px = s.value("size", 512u);
       a.pixel_mm = s.value("pixel_mm", 0.0);
@@ -573,7 +579,7 @@ int main(int argc, char** argv) {
       if (as_json) {
         std::cout << client.state().dump(2) << "\n";
       } else {
-        printStatus(client.state());
+        printStatus(client.mirror());
       }
       return 0;
     }
@@ -592,16 +598,15 @@ int main(int argc, char** argv) {
         const auto r = client.send("auto_fiducials");
         if (!r.accepted || !as_json) printReply(r, as_json);
         if (!r.accepted) return kExitRejected;
-        client.waitFor(
-            [&](const json& s) {
-              return s.contains("registration") && s.contains("workflow") &&
-                     s["workflow"].value("revision", std::uint64_t{0}) >= r.revision &&
-                     s["registration"].value("status", "") != "detecting";
+        client.waitUntil(
+            [&](const StateMirror& s) {
+              return s.registration && s.workflow && s.workflow->revision >= r.revision &&
+                     s.registration->status != "detecting";
             },
             std::chrono::seconds(static_cast<long>(detect_wait_s)));
-        const json& reg = client.state()["registration"];
-        const std::string outcome = reg.value("status", "");
-        const std::string message = reg.value("message", "");
+        const RegistrationState& reg = *client.mirror().registration;
+        const std::string& outcome = reg.status;
+        const std::string& message = reg.message;
         // A failed detection leaves a registration from before in use; the message says so.
         const bool registered =
             outcome == "registered" && message.rfind("marker detection failed", 0) != 0;
@@ -639,7 +644,7 @@ int main(int argc, char** argv) {
         if (as_json) {
           std::cout << client.state()["targets"].dump(2) << "\n";
         } else {
-          printTargets(client.state());
+          printTargets(client.mirror());
         }
         return 0;
       }
@@ -688,9 +693,9 @@ int main(int argc, char** argv) {
       if (as_json) {
         std::cout << client.state().value(topic, json()).dump(2) << "\n";
       } else if (*approval) {
-        printApproval(client.state());
+        printApproval(client.mirror());
       } else {
-        printMotion(client.state());
+        printMotion(client.mirror());
       }
       return 0;
     }
@@ -703,22 +708,19 @@ int main(int argc, char** argv) {
       // Each state topic's present arrives on its own after discovery: give the approval state
       // a moment before concluding that nothing is pending.
       try {
-        client.waitFor(
-            [](const json& s) {
-              return s.contains("approval") && s["approval"].value("status", "") == "pending";
-            },
-            2s);
+        client.waitUntil(
+            [](const StateMirror& s) { return s.approval && s.approval->status == "pending"; }, 2s);
       } catch (const ignav::protocol::Timeout&) {
       }
       if (approve_plan == 0) {
-        const json shown = client.state().value("approval", json::object());
-        if (shown.value("status", "") != "pending") {
+        const auto& shown = client.mirror().approval;
+        if (!shown || shown->status != "pending") {
           std::cerr << "ignavctl: no motion is waiting for approval\n";
           return kExitRejected;
         }
-        printApproval(client.state());
-        approve_plan = shown["plan_id"];
-        approve_digest = shown["digest"];
+        printApproval(client.mirror());
+        approve_plan = shown->plan_id;
+        approve_digest = shown->digest;
         if (!yes) {
           std::cout << "approve plan " << approve_plan << " as shown? [y/N] " << std::flush;
           std::string answer;

@@ -1,11 +1,13 @@
 // A DDS client of ignav-server: commands with exactly-one replies, slices, and the state topics
-// mirrored as JSON (their JSON views, json_view.hpp). ignavctl, the web gateway and the
-// end-to-end tests are built on it. Includes no DDS: the C types stay in protocol/src.
+// mirrored as values (mirror()) and as their JSON views (state(), json_view.hpp). ignavctl, the web
+// gateway and the end-to-end tests are built on it. Includes no DDS: the C types stay in
+// protocol/src.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -20,7 +22,7 @@
 #include "ignav/protocol/json_view.hpp"
 #include "ignav/protocol/security.hpp"
 #include "ignav/protocol/topics.hpp"
-#include "ignav/workflow/session.hpp"
+#include "ignav/protocol/types.hpp"
 
 namespace ignav::protocol {
 
@@ -51,6 +53,19 @@ struct SliceResult {
   std::vector<std::uint8_t> png;
 };
 
+// The state topics as their values: what poll() took last of each (absent: nothing yet), and
+// the targets by id (a disposed one removed). state() is the same, as JSON views.
+struct StateMirror {
+  std::optional<WorkflowState> workflow;
+  std::optional<RobotState> robot;
+  std::optional<VolumeState> volume;
+  std::optional<RegistrationState> registration;
+  std::map<std::uint32_t, TargetState> targets;
+  std::optional<ApprovalState> approval;
+  std::optional<MotionState> motion;
+  std::optional<Health> health;
+};
+
 class Client {
  public:
   // identity: DDS Security on, as that identity (security.hpp); the writers its permissions
@@ -67,18 +82,18 @@ class Client {
   // Until the server's command reader and reply writer are matched.
   bool waitForServer(std::chrono::milliseconds timeout);
   // Sends one command and waits for its reply (throws Timeout). request_id 0: the next one.
-  workflow::Reply send(const std::string& command, const CommandArgs& args = {},
-                       std::chrono::milliseconds timeout = std::chrono::seconds(30),
-                       std::uint64_t request_id = 0);
+  Reply send(const std::string& command, const CommandArgs& args = {},
+             std::chrono::milliseconds timeout = std::chrono::seconds(30),
+             std::uint64_t request_id = 0);
   // set_registration: a registration computed elsewhere, p_robot = image_to_robot * p_lps.
-  workflow::Reply setRegistration(const Eigen::Matrix4d& image_to_robot,
-                                  std::chrono::milliseconds timeout = std::chrono::seconds(30));
+  Reply setRegistration(const Eigen::Matrix4d& image_to_robot,
+                        std::chrono::milliseconds timeout = std::chrono::seconds(30));
   // Approves the pending motion (ApprovalState's plan id and digest) on the approval topic.
-  workflow::Reply approve(std::uint64_t plan_id, const std::string& digest,
-                          std::chrono::milliseconds timeout = std::chrono::seconds(30),
-                          std::uint64_t request_id = 0);
+  Reply approve(std::uint64_t plan_id, const std::string& digest,
+                std::chrono::milliseconds timeout = std::chrono::seconds(30),
+                std::uint64_t request_id = 0);
   // On the emergency-stop topic.
-  workflow::Reply emergencyStop(std::chrono::milliseconds timeout = std::chrono::seconds(30));
+  Reply emergencyStop(std::chrono::milliseconds timeout = std::chrono::seconds(30));
   SliceResult slice(const SliceArgs& args,
                     std::chrono::milliseconds timeout = std::chrono::seconds(30));
 
@@ -88,21 +103,26 @@ class Client {
   // Polls until `done(state())` holds (throws Timeout).
   void waitFor(const std::function<bool(const nlohmann::json&)>& done,
                std::chrono::milliseconds timeout);
+  // The same on the mirrored values.
+  void waitUntil(const std::function<bool(const StateMirror&)>& done,
+                 std::chrono::milliseconds timeout);
   const nlohmann::json& state() const { return state_; }
+  const StateMirror& mirror() const { return mirror_; }
   // Whether this identity's DDS Security permissions let it publish what `command` travels on (a
   // command name, or "approve"); always true without security. The server still judges it.
   bool mayPublish(const std::string& command) const;
   const std::string& clientId() const { return client_id_; }
 
  private:
-  workflow::Reply awaitReply(std::uint64_t request_id, const std::string& what,
-                             std::chrono::milliseconds timeout);
+  Reply awaitReply(std::uint64_t request_id, const std::string& what,
+                   std::chrono::milliseconds timeout);
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::string client_id_;
   std::uint64_t next_request_ = 0;  // set from the clock (see the constructor)
   std::chrono::microseconds reply_spin_ = std::chrono::milliseconds(2);
   nlohmann::json state_ = nlohmann::json::object();
+  StateMirror mirror_;
 };
 
 // A 4x4 matrix mirrored in state() as 16 row-major numbers (e.g. image_to_robot).

@@ -19,6 +19,8 @@ void from_json(const nlohmann::json& j, Point3& value);
 #define IGNAV_PROTOCOL_JSON_VIEW(Type)                \
   void to_json(nlohmann::json& j, const Type& value); \
   void from_json(const nlohmann::json& j, Type& value)
+IGNAV_PROTOCOL_JSON_VIEW(Command);
+IGNAV_PROTOCOL_JSON_VIEW(Reply);
 IGNAV_PROTOCOL_JSON_VIEW(Approval);
 IGNAV_PROTOCOL_JSON_VIEW(EmergencyStop);
 IGNAV_PROTOCOL_JSON_VIEW(SliceRequest);

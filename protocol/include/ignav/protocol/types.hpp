@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -58,6 +59,33 @@ using MotorSteps = std::array<std::int64_t, 3>;  // per motor: θc, zc, zs
 using JointValues = std::array<double, 3>;       // θc rad, zc mm, zs mm
 
 // ---- requests and replies ----------------------------------------------------------------
+
+// One command. `kind` is its number in docs/PROTOCOL.md's table of commands (workflow/inputs.hpp,
+// protocol/commands.hpp); it travels on the command topic of its least role.
+struct Command {
+  std::string client_id;
+  std::uint64_t request_id = 0;
+  std::int32_t kind = 0;
+  std::string path;
+  std::vector<Point3> points;
+  std::vector<std::uint32_t> ids;
+  RowMajor4 matrix{};  // set_registration: p_robot = M * p_lps
+};
+// The most points or ids the server copies out of a Command: one more than any command may carry
+// (planning.max_targets is at most 100), so that the workflow can name the oversize without the
+// server holding an oversized sequence.
+constexpr std::size_t kMaxCommandItemsRead = 101;
+
+// The one reply to a command, an approval or an emergency stop.
+struct Reply {
+  std::string client_id;
+  std::uint64_t request_id = 0;
+  bool accepted = false;
+  std::string error_code;       // "" when accepted (docs/PROTOCOL.md's table of codes)
+  std::string message;          // for a person: names the field, value and limit
+  std::uint32_t target_id = 0;  // add_target: the new id
+  std::uint64_t revision = 0;   // the workflow revision after the command
+};
 
 struct Approval {
   std::string client_id;
@@ -187,6 +215,7 @@ struct ApprovalState {
 struct MotionState {
   std::string controller;  // simulated | galil host:port
   std::string state;       // disconnected | idle | moving | fault
+  std::string lifecycle;   // unconfigured | connecting | active | lost | shut_down
   std::string fault;
   std::uint64_t plan_id = 0;  // 0: none under way
   std::uint32_t target_id = 0;
@@ -215,6 +244,22 @@ struct Health {
 };
 
 // ---- the fields of each: JSON name, member, C member(s) ------------------------------------
+
+template <>
+struct Fields<Command> {
+  using T = Command;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(client_id), IGNAV_FIELD(request_id), IGNAV_FIELD(kind), IGNAV_FIELD(path),
+      IGNAV_FIELD(points), IGNAV_FIELD(ids), IGNAV_FIELD(matrix));
+};
+
+template <>
+struct Fields<Reply> {
+  using T = Reply;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(client_id), IGNAV_FIELD(request_id), IGNAV_FIELD(accepted),
+      IGNAV_FIELD(error_code), IGNAV_FIELD(message), IGNAV_FIELD(target_id), IGNAV_FIELD(revision));
+};
 
 template <>
 struct Fields<Approval> {
@@ -319,9 +364,9 @@ template <>
 struct Fields<MotionState> {
   using T = MotionState;
   static constexpr auto list = std::make_tuple(
-      IGNAV_FIELD(controller), IGNAV_FIELD(state), IGNAV_FIELD(fault), IGNAV_FIELD(plan_id),
-      IGNAV_FIELD(target_id), IGNAV_FIELD(move_index), IGNAV_FIELD(move_count),
-      IGNAV_FIELD(move_kind), IGNAV_FIELD(steps), IGNAV_FIELD(goal_steps),
+      IGNAV_FIELD(controller), IGNAV_FIELD(state), IGNAV_FIELD(lifecycle), IGNAV_FIELD(fault),
+      IGNAV_FIELD(plan_id), IGNAV_FIELD(target_id), IGNAV_FIELD(move_index),
+      IGNAV_FIELD(move_count), IGNAV_FIELD(move_kind), IGNAV_FIELD(steps), IGNAV_FIELD(goal_steps),
       IGNAV_FIELD(verified_steps),
       field("joints", &T::joints,
             [](auto& msg) { return std::tie(msg.theta_c_rad, msg.z_c_mm, msg.z_s_mm); }),
@@ -351,6 +396,7 @@ struct TopicOf {};
     static constexpr Qos qos = qos_;           \
   }
 IGNAV_TOPIC_OF(Approval, topic::kApproval, Qos::kRequest);
+IGNAV_TOPIC_OF(Reply, topic::kReply, Qos::kRequest);
 IGNAV_TOPIC_OF(EmergencyStop, topic::kEmergencyStop, Qos::kRequest);
 IGNAV_TOPIC_OF(SliceRequest, topic::kSliceRequest, Qos::kRequest);
 IGNAV_TOPIC_OF(SliceReply, topic::kSliceReply, Qos::kRequest);

@@ -321,6 +321,7 @@ export class Panels {
       facts([
         ["controller", motion.controller],
         ["state", motion.state, "motion-state"],
+        ["link", motion.lifecycle, "motion-lifecycle"],
         ["move", motion.move_count > 0 ? `${motion.move_index} / ${motion.move_count} ${motion.move_kind}` : "–"],
         ["plan", motion.plan_id ? `${motion.plan_id} → T${motion.target_id}` : "–"],
         ["joints", `θc ${(theta_c_rad * kDegPerRad).toFixed(1)}°, zc ${mm(z_c_mm)}, zs ${mm(z_s_mm)}`],

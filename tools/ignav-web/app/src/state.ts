@@ -93,6 +93,7 @@ export interface ApprovalState {
 export interface MotionState {
   controller: string;
   state: string; // disconnected | idle | moving | fault
+  lifecycle: string; // unconfigured | connecting | active | lost | shut_down
   fault: string;
   plan_id: number;
   target_id: number;

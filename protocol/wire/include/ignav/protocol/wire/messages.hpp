@@ -4,9 +4,8 @@
 // Each topic with a value type (types.hpp) converts by that value's one list of fields:
 //   Owned<ignav_msg_TargetState> owned;  writer.write(toMsg(target, owned));
 //   TargetState t = fromMsg(sample);
-// and TopicWriter<T> / TopicReader<T> do that around a Writer / Reader of T's topic. Commands
-// (Command -> workflow::Input) and replies (workflow::Reply) convert by hand below: a command is
-// judged by the workflow, and copied only as far as its limits.
+// and TopicWriter<T> / TopicReader<T> do that around a Writer / Reader of T's topic. Commands and
+// replies too; below, what the workflow takes of a request (toInput) and gives as a reply.
 #pragma once
 
 #include <array>
@@ -75,6 +74,8 @@ struct ValueOf {};
   struct ValueOf<Msg> {                                                       \
     using type = Type;                                                        \
   }
+IGNAV_PROTOCOL_MSG(Command, ignav_msg_Command);
+IGNAV_PROTOCOL_MSG(Reply, ignav_msg_Reply);
 IGNAV_PROTOCOL_MSG(Approval, ignav_msg_Approval);
 IGNAV_PROTOCOL_MSG(EmergencyStop, ignav_msg_EmergencyStop);
 IGNAV_PROTOCOL_MSG(SliceRequest, ignav_msg_SliceRequest);
@@ -290,27 +291,16 @@ class TopicReader {
 
 // ---- commands and replies ------------------------------------------------------------------
 
-// A command as the workflow sees it; nullopt when the kind is not one of ours.
-std::optional<workflow::Input> toInput(const ignav_msg_Command& command);
-workflow::Input toInput(const ignav_msg_Approval& approval);
-workflow::Input toInput(const ignav_msg_EmergencyStop& stop);
+// The command of a taken sample by its field list, with at most kMaxCommandItemsRead points and
+// ids copied out (the workflow judges the rest: an oversized command is refused by name).
+Command commandOf(const ignav_msg_Command& sample);
 
-struct OwnedCommand {
-  std::string client_id, path;
-  std::vector<ignav_msg_Point3> points;
-  std::vector<std::uint32_t> ids;
-  std::array<double, 16> matrix{};  // row-major
-  ignav_msg_Command msg{};
-  const ignav_msg_Command& build(std::uint64_t request_id, std::int32_t kind);  // Command.kind
-};
+// What the workflow takes from each request; nullopt for a command kind that is not one of ours.
+std::optional<workflow::Input> toInput(const Command& command);
+workflow::Input toInput(const Approval& approval);
+workflow::Input toInput(const EmergencyStop& stop);
 
-struct OwnedReply {
-  workflow::Reply reply;
-  ignav_msg_Reply msg{};
-  const ignav_msg_Reply& build();
-};
-
-// A reply as a client sees it (strings copied out of the loaned sample).
-workflow::Reply fromMsg(const ignav_msg_Reply& msg);
+// The reducer's reply (workflow/session.hpp) as it travels.
+Reply toWire(const workflow::Reply& reply);
 
 }  // namespace ignav::protocol
