@@ -11,10 +11,7 @@
 
 namespace ignav::workflow::detail {
 
-struct Rejection {
-  ReplyCode code;
-  std::string message;
-};
+using workflow::Rejection;
 
 // The request for the next motion from the verified position: to the first target in plan order
 // not reached yet, else the final retraction of the stylet. nullopt: nothing left to do.

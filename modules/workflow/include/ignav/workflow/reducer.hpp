@@ -11,7 +11,6 @@
 namespace ignav::workflow {
 
 namespace detail {
-struct Rejection;     // why an action refused (motion.hpp)
 struct ActionOutput;  // what an action leaves for the reply (actions.hpp)
 }  // namespace detail
 
@@ -20,7 +19,7 @@ using Guard = bool (*)(const Session&, const Input&);
 // A row's work: changes the session (a copy) and asks for effects; refuses with a Rejection for
 // what is wrong with the arguments or the robot (unknown target, no CT, busy), which leaves the
 // session as it was. It never picks the phase: the row's `to` is where the step goes.
-using Action = std::optional<detail::Rejection> (*)(Session&, const Input&, detail::ActionOutput&);
+using Action = std::optional<Rejection> (*)(Session&, const Input&, detail::ActionOutput&);
 
 // One row per outcome of an allowed (phase, input) pair, as in IGSTK's state machines: every pair
 // not listed is rejected with "<input> is not allowed in <phase>". The rows of a pair are tried in
