@@ -29,8 +29,8 @@ using actuation::ControllerStatus;
 using actuation::Steps;
 
 using rig::Bench;
-using test::paperRobot;
 using rig::policy;
+using test::paperRobot;
 
 const kinematics::Joints kJointsA{30.0 * M_PI / 180.0, 10.0, 25.0};
 const kinematics::Joints kJointsB{-60.0 * M_PI / 180.0, 20.0, 30.0};
