@@ -52,6 +52,20 @@ std::vector<planning::PlannedTarget> unreached(const Session& s) {
   return out;
 }
 
+// The final retraction from `position`: the stylet home, cannula where it is.
+struct Retraction {
+  kinematics::Joints from, to;
+  actuation::Steps steps;  // zero when the stylet is home already
+};
+Retraction retraction(const config::Robot& robot, const actuation::Steps& position) {
+  Retraction r;
+  r.from = currentJoints(robot, position);
+  r.to = r.from;
+  r.to.z_s_mm = 0.0;
+  r.steps = robot.transmission.move(r.from, r.to).steps;
+  return r;
+}
+
 }  // namespace
 
 std::string canonicalText(const std::string& session_id, const MotionRequest& r) {
@@ -110,11 +124,9 @@ Expected<std::optional<MotionRequest>> nextRequest(const Session& s, double time
     where = fmt::format("T{} (θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm, {})", t.id,
                         j.theta_c_rad * kRadToDeg, j.z_c_mm, j.z_s_mm, tre);
   } else {
-    kinematics::Joints home = start;
-    home.z_s_mm = 0.0;
-    const auto conversion = robot.transmission.move(start, home);
-    if (conversion.steps == actuation::Steps{}) return std::optional<MotionRequest>{};
-    r.moves.push_back({planning::MoveKind::kRetractStylet, start, home, conversion.steps, 0.0});
+    const Retraction back = retraction(robot, s.position);
+    if (back.steps == actuation::Steps{}) return std::optional<MotionRequest>{};
+    r.moves.push_back({planning::MoveKind::kRetractStylet, back.from, back.to, back.steps, 0.0});
     where = "retract the stylet after the last target";
   }
   std::string moves;
@@ -130,6 +142,64 @@ Expected<std::optional<MotionRequest>> nextRequest(const Session& s, double time
   r.summary = fmt::format("plan {}: {}; steps per motor {}; about {:.1f} s", r.plan_id, where,
                           moves, r.duration_s);
   return std::optional<MotionRequest>{std::move(r)};
+}
+
+bool nothingLeftToMove(const Session& s, const actuation::Steps& position,
+                       std::uint32_t just_reached) {
+  const bool all_reached = std::all_of(s.targets.begin(), s.targets.end(), [&](const Target& t) {
+    return t.reached || t.id == just_reached;
+  });
+  return all_reached && retraction(*s.robot, position).steps == actuation::Steps{};
+}
+
+std::optional<Rejection> issueRequest(Session& s, const Input& in, Effects& e) {
+  auto next = nextRequest(s, in.time_s);
+  if (!next) return Rejection{ReplyCode::kPlanFailed, next.error().message};
+  e.approval_changed = true;
+  if (!next->has_value()) return std::nullopt;
+  s.pending = std::move(**next);
+  ++s.next_plan_id;
+  return std::nullopt;
+}
+
+void endMotionRecord(Session& s, double time_s, const std::string& outcome) {
+  if (s.motions.empty() || s.motions.back().ended_s >= 0.0) return;
+  s.motions.back().ended_s = time_s;
+  s.motions.back().outcome = outcome;
+}
+
+void interruptMotion(Session& s, Effects& e, double time_s, const std::string& why) {
+  if (!s.motion) return;
+  if (!s.motion->interrupted) endMotionRecord(s, time_s, why);
+  s.motion->interrupted = true;
+  e.motion_changed = true;
+}
+
+std::string readingFault(const Input& in) {
+  if (!in.controller) return in.error.empty() ? "no controller reading" : in.error;
+  if (!in.controller->fault.empty()) return in.controller->fault;
+  return in.controller->state == actuation::ControllerState::kDisconnected
+             ? "the controller does not answer"
+             : std::string();
+}
+
+actuation::Steps moveEnd(const ActiveMotion& m) {
+  actuation::Steps end = m.segment_from;
+  const auto& increments = m.request().moves[m.segment].steps;
+  for (std::size_t a = 0; a < 3; ++a)
+    end.motor[a] += increments.motor[a];
+  return end;
+}
+
+std::string restartDoubt(const Session& s, const Input& in) {
+  if (std::string fault = readingFault(in); !fault.empty()) return fault;
+  if (in.controller->state == actuation::ControllerState::kMoving) {
+    return "the robot was moving when the server started";
+  }
+  if (in.controller->position != s.position) {
+    return "after the restart " + describeMismatch(in.controller->position, s.position);
+  }
+  return "";
 }
 
 std::optional<Rejection> orderPlan(Session& s, std::string& summary) {

@@ -1,6 +1,10 @@
 #include <algorithm>
+#include <array>
+#include <iterator>
 #include <set>
+#include <utility>
 
+#include "actions.hpp"
 #include "ignav/workflow/reducer.hpp"
 
 namespace ignav::workflow {
@@ -39,105 +43,185 @@ namespace {
 
 using P = Phase;
 using I = InputKind;
+using namespace detail;  // the guards and actions (actions.hpp)
+
+constexpr Guard always = nullptr;
+
+// resume's guards, one per destination in kResumePhases: resumesTo<kResumePhases[i]>.
+template <std::size_t... i>
+constexpr std::array<Guard, sizeof...(i)> resumeGuards(std::index_sequence<i...>) {
+  return {&resumesTo<kResumePhases[i]>...};
+}
+constexpr auto kResumeGuards = resumeGuards(std::make_index_sequence<std::size(kResumePhases)>());
+
+// The actions of the inputs allowed in every phase (kEveryPhase in inputs.cpp).
+struct EveryPhaseAction {
+  InputKind input;
+  Action action;
+};
+constexpr EveryPhaseAction kEveryPhaseActions[] = {
+    {I::kQuery, republishEverything},
+    {I::kPing, answerPing},
+};
+
+Action everyPhaseAction(InputKind kind) {
+  for (const auto& a : kEveryPhaseActions) {
+    if (a.input == kind) return a.action;
+  }
+  return nullptr;  // a test finds it: every row has an action
+}
 
 // Stop, emergency stop and the kEveryPhase inputs (query, ping) are allowed (almost) everywhere;
-// they are added below per phase.
-// A (phase, input) pair may lead to several phases; the reducer picks one of the declared ones.
+// they are added below per phase. The rows of one (phase, input) pair are tried in this order: a
+// guarded row comes before the pair's row without a guard.
 std::vector<Transition> buildTable() {
   std::vector<Transition> t = {
-      // from              input                 to                why
-      {P::kStartup, I::kConfigLoaded, P::kImaging, "robot config valid"},
-      {P::kImaging, I::kLoadVolume, P::kImaging, "load a CT"},
-      {P::kImaging, I::kVolumeLoaded, P::kRegistration, "CT loaded"},
-      {P::kImaging, I::kVolumeLoadFailed, P::kImaging, "load failed"},
-      {P::kRegistration, I::kLoadVolume, P::kImaging, "another CT"},
-      {P::kRegistration, I::kSetFiducials, P::kPlanning, "3 points registered"},
+      // from, input, guard, to, action, why
+      {P::kStartup, I::kConfigLoaded, always, P::kImaging, adoptConfig, "robot config valid"},
+      {P::kImaging, I::kLoadVolume, always, P::kImaging, startVolumeLoad, "load a CT"},
+      {P::kImaging, I::kVolumeLoaded, always, P::kRegistration, keepLoadedCt, "CT loaded"},
+      {P::kImaging, I::kVolumeLoadFailed, always, P::kImaging, noteLoadFailure, "load failed"},
+      {P::kRegistration, I::kLoadVolume, always, P::kImaging, startVolumeLoad, "another CT"},
+      {P::kRegistration, I::kSetFiducials, always, P::kPlanning, registerClickedFiducials,
+       "3 points registered"},
       // auto_fiducials starts a marker detection on the server's detector thread; its outcome
       // comes back as fiducials_detected or fiducial_detection_failed. (A format-1 journal's
-      // auto_fiducials detected and registered within its step: the second row, replay only.)
-      {P::kRegistration, I::kAutoFiducials, P::kRegistration, "detect the markers"},
-      {P::kRegistration, I::kAutoFiducials, P::kPlanning, "format-1 journal: registered at once"},
-      {P::kRegistration, I::kFiducialsDetected, P::kPlanning, "markers found, registered"},
-      {P::kRegistration, I::kFiducialsDetected, P::kRegistration, "markers do not register"},
-      {P::kRegistration, I::kFiducialDetectionFailed, P::kRegistration, "no markers matched"},
-      {P::kImaging, I::kSetRegistration, P::kPlanning, "registered elsewhere (no CT here)"},
-      {P::kRegistration, I::kSetRegistration, P::kPlanning, "registered elsewhere"},
-      {P::kPlanning, I::kSetRegistration, P::kPlanning, "re-register"},
-      {P::kPlanning, I::kLoadVolume, P::kImaging, "another CT"},
-      {P::kPlanning, I::kSetFiducials, P::kPlanning, "re-register"},
-      {P::kPlanning, I::kAutoFiducials, P::kPlanning, "re-detect the markers"},
-      {P::kPlanning, I::kFiducialsDetected, P::kPlanning, "re-registered, or the old stays"},
-      {P::kPlanning, I::kFiducialDetectionFailed, P::kPlanning, "no match: the old stays"},
-      {P::kPlanning, I::kAddTarget, P::kPlanning, "click"},
-      {P::kPlanning, I::kMoveTarget, P::kPlanning, "drag"},
-      {P::kPlanning, I::kRemoveTarget, P::kPlanning, "remove"},
-      {P::kPlanning, I::kClearTargets, P::kPlanning, "clear"},
-      {P::kPlanning, I::kReorderTargets, P::kPlanning, "reorder"},
-      {P::kPlanning, I::kLockPlan, P::kPlanLocked, "all targets reachable"},
-      {P::kPlanLocked, I::kUnlockPlan, P::kPlanning, "edit again"},
-      {P::kPlanLocked, I::kApprove, P::kMoving, "approved: plan id, digest, approver, fresh"},
-      {P::kPlanLocked, I::kRequestApproval, P::kPlanLocked, "fresh request"},
-      {P::kMoving, I::kSegmentDone, P::kMoving, "next move"},
-      {P::kMoving, I::kSegmentDone, P::kAtTarget, "arrived, steps verified"},
-      {P::kMoving, I::kSegmentDone, P::kDone, "stylet home after the last target"},
-      {P::kMoving, I::kSegmentDone, P::kFault, "arrival check failed"},
-      {P::kAtTarget, I::kApprove, P::kMoving, "next motion approved"},
-      {P::kAtTarget, I::kRequestApproval, P::kAtTarget, "fresh request"},
-      {P::kAtTarget, I::kUnlockPlan, P::kPlanning, "edit the remaining targets"},
-      {P::kDone, I::kUnlockPlan, P::kPlanning, "plan more targets"},
+      // auto_fiducials detected and registered within its step: replay only.)
+      {P::kRegistration, I::kAutoFiducials, isFormatOneRecord, P::kPlanning,
+       detectAndRegisterAtOnce, "format-1 journal: registered at once"},
+      {P::kRegistration, I::kAutoFiducials, always, P::kRegistration, startMarkerDetection,
+       "detect the markers"},
+      {P::kRegistration, I::kFiducialsDetected, markersRegister, P::kPlanning,
+       registerDetectedMarkers, "markers found, registered"},
+      {P::kRegistration, I::kFiducialsDetected, always, P::kRegistration, refuseDetectedMarkers,
+       "markers do not register"},
+      {P::kRegistration, I::kFiducialDetectionFailed, always, P::kRegistration,
+       noteDetectionFailure, "no markers matched"},
+      {P::kImaging, I::kSetRegistration, always, P::kPlanning, registerByMatrix,
+       "registered elsewhere (no CT here)"},
+      {P::kRegistration, I::kSetRegistration, always, P::kPlanning, registerByMatrix,
+       "registered elsewhere"},
+      {P::kPlanning, I::kSetRegistration, always, P::kPlanning, registerByMatrix, "re-register"},
+      {P::kPlanning, I::kLoadVolume, always, P::kImaging, startVolumeLoad, "another CT"},
+      {P::kPlanning, I::kSetFiducials, always, P::kPlanning, registerClickedFiducials,
+       "re-register"},
+      {P::kPlanning, I::kAutoFiducials, isFormatOneRecord, P::kPlanning, detectAndRegisterAtOnce,
+       "format-1 journal: re-registered at once"},
+      {P::kPlanning, I::kAutoFiducials, always, P::kPlanning, startMarkerDetection,
+       "re-detect the markers"},
+      {P::kPlanning, I::kFiducialsDetected, markersRegister, P::kPlanning, registerDetectedMarkers,
+       "re-registered"},
+      {P::kPlanning, I::kFiducialsDetected, always, P::kPlanning, refuseDetectedMarkers,
+       "markers do not register: the old stays"},
+      {P::kPlanning, I::kFiducialDetectionFailed, always, P::kPlanning, noteDetectionFailure,
+       "no match: the old stays"},
+      {P::kPlanning, I::kAddTarget, always, P::kPlanning, addTarget, "click"},
+      {P::kPlanning, I::kMoveTarget, always, P::kPlanning, moveTarget, "drag"},
+      {P::kPlanning, I::kRemoveTarget, always, P::kPlanning, removeTarget, "remove"},
+      {P::kPlanning, I::kClearTargets, always, P::kPlanning, clearTargets, "clear"},
+      {P::kPlanning, I::kReorderTargets, always, P::kPlanning, reorderTargets, "reorder"},
+      {P::kPlanning, I::kLockPlan, always, P::kPlanLocked, lockPlan, "all targets reachable"},
+      {P::kPlanLocked, I::kUnlockPlan, always, P::kPlanning, unlockPlan, "edit again"},
+      {P::kPlanLocked, I::kApprove, always, P::kMoving, startApprovedMotion,
+       "approved: plan id, digest, approver, fresh"},
+      {P::kPlanLocked, I::kRequestApproval, always, P::kPlanLocked, requestApproval,
+       "fresh request"},
+      // A move ended (or the controller stopped answering): faults first, then where it ended.
+      {P::kMoving, I::kSegmentDone, readingReportsFault, P::kFault, faultDuringMove,
+       "the controller reports a fault"},
+      {P::kMoving, I::kSegmentDone, arrivalMismatch, P::kFault, failArrivalCheck,
+       "arrival check failed"},
+      {P::kMoving, I::kSegmentDone, moreMovesFollow, P::kMoving, startNextMove, "next move"},
+      {P::kMoving, I::kSegmentDone, retractionEnded, P::kDone, endRetraction,
+       "stylet home after the last target"},
+      {P::kMoving, I::kSegmentDone, nothingLeftAfterArrival, P::kDone, arriveAtTarget,
+       "at the last target, the stylet home"},
+      {P::kMoving, I::kSegmentDone, always, P::kAtTarget, arriveAtTarget,
+       "arrived, steps verified"},
+      {P::kAtTarget, I::kApprove, always, P::kMoving, startApprovedMotion, "next motion approved"},
+      {P::kAtTarget, I::kRequestApproval, always, P::kAtTarget, requestApproval, "fresh request"},
+      {P::kAtTarget, I::kUnlockPlan, always, P::kPlanning, unlockPlan,
+       "edit the remaining targets"},
+      {P::kDone, I::kUnlockPlan, always, P::kPlanning, unlockPlan, "plan more targets"},
       // A load finishing while stopped is kept; the workflow stays stopped.
-      {P::kStopped, I::kVolumeLoaded, P::kStopped, "CT loaded"},
-      {P::kStopped, I::kVolumeLoadFailed, P::kStopped, "load failed"},
-      {P::kEmergency, I::kVolumeLoaded, P::kEmergency, "CT loaded"},
-      {P::kEmergency, I::kVolumeLoadFailed, P::kEmergency, "load failed"},
-      {P::kEmergency, I::kResetEmergency, P::kStopped, "operator reset, position checked"},
-      {P::kEmergency, I::kHome, P::kEmergency, "robot homed by hand"},
-      {P::kStopped, I::kHome, P::kStopped, "robot homed by hand"},
-      {P::kFault, I::kResetEmergency, P::kStopped, "operator reset, position checked"},
-      {P::kFault, I::kHome, P::kFault, "robot homed by hand"},
-      {P::kFault, I::kVolumeLoaded, P::kFault, "CT loaded"},
-      {P::kFault, I::kVolumeLoadFailed, P::kFault, "load failed"},
-      {P::kManual, I::kHome, P::kManual, "robot homed by hand"},
-      {P::kManual, I::kVolumeLoaded, P::kManual, "CT loaded"},
-      {P::kManual, I::kVolumeLoadFailed, P::kManual, "load failed"},
+      {P::kStopped, I::kVolumeLoaded, always, P::kStopped, keepLoadedCt, "CT loaded"},
+      {P::kStopped, I::kVolumeLoadFailed, always, P::kStopped, noteLoadFailure, "load failed"},
+      {P::kEmergency, I::kVolumeLoaded, always, P::kEmergency, keepLoadedCt, "CT loaded"},
+      {P::kEmergency, I::kVolumeLoadFailed, always, P::kEmergency, noteLoadFailure, "load failed"},
+      {P::kEmergency, I::kResetEmergency, always, P::kStopped, resetAfterPositionCheck,
+       "operator reset, position checked"},
+      {P::kEmergency, I::kHome, always, P::kEmergency, adoptHome, "robot homed by hand"},
+      {P::kStopped, I::kHome, always, P::kStopped, adoptHome, "robot homed by hand"},
+      {P::kFault, I::kResetEmergency, always, P::kStopped, resetAfterPositionCheck,
+       "operator reset, position checked"},
+      {P::kFault, I::kHome, always, P::kFault, adoptHome, "robot homed by hand"},
+      {P::kFault, I::kVolumeLoaded, always, P::kFault, keepLoadedCt, "CT loaded"},
+      {P::kFault, I::kVolumeLoadFailed, always, P::kFault, noteLoadFailure, "load failed"},
+      {P::kManual, I::kHome, always, P::kManual, adoptHome, "robot homed by hand"},
+      {P::kManual, I::kVolumeLoaded, always, P::kManual, keepLoadedCt, "CT loaded"},
+      {P::kManual, I::kVolumeLoadFailed, always, P::kManual, noteLoadFailure, "load failed"},
   };
   // A marker detection started in registration or planning may end while interrupted: its outcome
   // is kept (resume then returns to planning if it registered); the phase stays.
   for (Phase p : {P::kStopped, P::kEmergency, P::kFault, P::kManual}) {
-    t.push_back({p, I::kFiducialsDetected, p, "markers found, registered"});
-    t.push_back({p, I::kFiducialDetectionFailed, p, "no markers matched"});
+    t.push_back({p, I::kFiducialsDetected, markersRegister, p, registerDetectedMarkers,
+                 "markers found, registered"});
+    t.push_back(
+        {p, I::kFiducialsDetected, always, p, refuseDetectedMarkers, "markers do not register"});
+    t.push_back(
+        {p, I::kFiducialDetectionFailed, always, p, noteDetectionFailure, "no markers matched"});
   }
   // resume returns to the phase the first interruption left (a move in flight: plan_locked, to be
   // approved again), or to done when nothing is left to move. Interruptions taken while
   // interrupted (manual after stop, emergency in manual) keep that phase (issue 27).
-  for (Phase back : kResumePhases) {
-    t.push_back({P::kStopped, I::kResume, back, "back to the interrupted phase"});
+  for (std::size_t i = 0; i < std::size(kResumePhases); ++i) {
+    const Phase back = kResumePhases[i];
     t.push_back(
-        {P::kManual, I::kResume, back, "back to the interrupted phase, position taken over"});
+        {P::kStopped, I::kResume, kResumeGuards[i], back, resume, "back to the interrupted phase"});
+    t.push_back({P::kManual, I::kResume, kResumeGuards[i], back, resume,
+                 "back to the interrupted phase, position taken over"});
   }
   for (Phase p : kAllPhases) {
     // A fault is left only by a reset with a position check (or an emergency stop).
     // Manual control is left by resume (the robot is already halted and in someone's hands).
     if (p != P::kStopped && p != P::kEmergency && p != P::kFault && p != P::kManual) {
-      t.push_back({p, I::kStop, P::kStopped, "stop"});
+      t.push_back({p, I::kStop, always, P::kStopped, stop, "stop"});
     }
-    if (p != P::kEmergency) t.push_back({p, I::kEmergencyStop, P::kEmergency, "EMERGENCY"});
+    if (p != P::kEmergency) {
+      t.push_back({p, I::kEmergencyStop, always, P::kEmergency, emergencyStop, "EMERGENCY"});
+    }
     for (const auto& spec : inputTable()) {
-      if (spec.traits & kEveryPhase) t.push_back({p, spec.kind, p, spec.name});
+      if (spec.traits & kEveryPhase) {
+        t.push_back({p, spec.kind, always, p, everyPhaseAction(spec.kind), spec.name});
+      }
     }
     // Manual control and readiness questions: not while the robot is in trouble or moving.
     const bool troubled = p == P::kEmergency || p == P::kFault || p == P::kManual;
     if (!troubled && p != P::kStartup && p != P::kMoving) {
-      t.push_back({p, I::kManual, P::kManual, "hand the robot over"});
+      t.push_back({p, I::kManual, always, P::kManual, handOverTheRobot, "hand the robot over"});
     }
-    if (!troubled && p != P::kMoving) t.push_back({p, I::kCheckReady, p, "readiness check"});
+    if (!troubled && p != P::kMoving) {
+      t.push_back({p, I::kCheckReady, always, p, checkReadiness, "readiness check"});
+    }
     if (p == P::kStartup) continue;
     // Only where the robot is in use does a controller fault become the fault phase.
-    const bool keeps = p != P::kPlanLocked && p != P::kMoving && p != P::kAtTarget && p != P::kDone;
-    t.push_back({p, I::kControllerFault, keeps ? p : P::kFault, "controller fault"});
+    if (robotInUse(p)) {
+      t.push_back(
+          {p, I::kControllerFault, always, P::kFault, faultStopsTheRobot, "controller fault"});
+    } else {
+      t.push_back({p, I::kControllerFault, always, p, noteControllerFault, "controller fault"});
+    }
     // After a crash: approvals are gone; a move in flight or a position that moved is a fault.
-    if (p != P::kMoving) t.push_back({p, I::kServerRestarted, p, "recovered"});
-    if (!keeps) t.push_back({p, I::kServerRestarted, P::kFault, "recovered, position in doubt"});
+    if (p == P::kMoving) {
+      t.push_back({p, I::kServerRestarted, always, P::kFault, restartedMidMotion,
+                   "recovered, position in doubt"});
+    } else if (robotInUse(p)) {
+      t.push_back({p, I::kServerRestarted, positionInDoubt, P::kFault, restartedInDoubt,
+                   "recovered, position in doubt"});
+      t.push_back({p, I::kServerRestarted, always, p, restartedRobotInPlace, "recovered"});
+    } else {
+      t.push_back({p, I::kServerRestarted, always, p, restartedIdle, "recovered"});
+    }
   }
   return t;
 }
@@ -205,7 +289,9 @@ std::string workflowMarkdown() {
       "Generated from the transition table in modules/workflow/src/transitions.cpp by\n"
       "`build/tools/workflow-diagram/ignav-workflow-diagram > docs/WORKFLOW.md`; a test fails "
       "when\nthis file is not current. Every (phase, input) pair not drawn is rejected with "
-      "\"<input> is\nnot allowed in <phase>\" and changes nothing.\n\n```mermaid\n" +
+      "\"<input> is\nnot allowed in <phase>\" and changes nothing. Where one input has several "
+      "edges from a\nphase, they are its outcomes, tried in the order listed: the first whose "
+      "condition (the text in\nparentheses; a guard in the table) holds is taken.\n\n```mermaid\n" +
       mermaidDiagram() + "```\n\n| phase | commands a client may send |\n|---|---|\n";
   for (Phase p : kAllPhases) {
     std::string allowed;

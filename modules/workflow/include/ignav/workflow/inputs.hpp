@@ -2,8 +2,8 @@
 // may send it, what it carries, what it is for. The wire kinds, the reducer's shape checks, the
 // role topics, ignavctl's subcommands, the web gateway's commands and docs/PROTOCOL.md's command
 // table are derived from this one table (kInputs in inputs.cpp). Adding a command: an InputKind
-// here, a row there, its case in reducer.cpp's apply(), and where it is allowed (transitions.cpp,
-// unless it is allowed everywhere).
+// here, a row there, its action (src/actions.hpp), and the transition rows that allow it with that
+// action (src/transitions.cpp; kEveryPhaseActions there when it is allowed everywhere).
 #pragma once
 
 #include <cstddef>

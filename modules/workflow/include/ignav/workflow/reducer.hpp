@@ -10,13 +10,28 @@
 
 namespace ignav::workflow {
 
-// One row per allowed (phase, input) pair; every pair not listed is rejected with
-// "<input> is not allowed in <phase>". `to` is where an accepted input leads; an input whose
-// guard fails leaves the phase unchanged.
+namespace detail {
+struct ActionOutput;  // what an action leaves for the reply (actions.hpp)
+}  // namespace detail
+
+// Whether a row is the one that fires for this session and input (pure; never changes anything).
+using Guard = bool (*)(const Session&, const Input&);
+// A row's work: changes the session (a copy) and asks for effects; refuses with a Rejection for
+// what is wrong with the arguments or the robot (unknown target, no CT, busy), which leaves the
+// session as it was. It never picks the phase: the row's `to` is where the step goes.
+using Action = std::optional<Rejection> (*)(Session&, const Input&, detail::ActionOutput&);
+
+// One row per outcome of an allowed (phase, input) pair, as in IGSTK's state machines: every pair
+// not listed is rejected with "<input> is not allowed in <phase>". The rows of a pair are tried in
+// table order and the first whose guard holds fires (no guard: always); a test checks that some
+// row fires for every session a pair meets. Before any row's action, a pending approval request
+// dies with any input but a question or an approve (DESIGN.md safety invariant 1; reduce()).
 struct Transition {
   Phase from;
   InputKind input;
+  Guard guard;  // nullptr: always
   Phase to;
+  Action action;
   const char* why;  // shown on the diagram's edge
 };
 const std::vector<Transition>& transitionTable();
@@ -48,6 +63,11 @@ std::vector<Eigen::Vector3d> needlePathLps(const Session& session,
 // receive, so a client approves exactly what it was shown.
 std::string requestDigest(const std::string& session_id, const MotionRequest& request);
 std::string sha256Hex(const std::string& text);
+
+// The row that fires for `input` in `session`'s phase: the first of the pair's rows whose guard
+// holds; nullptr when none does or the pair is not declared. (reduce() checks the input's shape
+// before it asks; the guards assume a well-formed input.)
+const Transition* firingTransition(const Session& session, const Input& input);
 
 // Deterministic: the same inputs in the same order give the same sessions and effects.
 Step reduce(const Session& session, const Input& input);

@@ -77,6 +77,12 @@ const std::vector<ReplyCodeSpec>& replyCodeTable();  // in ReplyCode order
 const char* toString(ReplyCode code);
 // The code a name stands for (modules/registration reports its reasons by name).
 std::optional<ReplyCode> replyCodeNamed(std::string_view name);
+
+// Why the workflow refused an input: the reply's code and a message a person can act on.
+struct Rejection {
+  ReplyCode code;
+  std::string message;
+};
 // docs/PROTOCOL.md's table of codes.
 std::string replyCodesMarkdown();
 

@@ -1,0 +1,98 @@
+// The transition rows' guards and actions (the table: transitions.cpp). Guards are pure
+// predicates that pick which row of a (phase, input) pair fires (guards.cpp); actions do the
+// row's work (planning_actions.cpp: configuration, CT, registration, targets, plan; and
+// motion_actions.cpp: approval, motion, interruptions, the robot). Internal to modules/workflow.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "ignav/workflow/reducer.hpp"
+#include "motion.hpp"
+
+namespace ignav::workflow::detail {
+
+// What an action leaves besides the session: the step's effects, and for the reply, the id of a
+// target it made and a message ("ok" when empty).
+struct ActionOutput {
+  Effects& effects;
+  std::uint32_t new_target_id = 0;
+  std::string note;
+};
+
+using Refusal = std::optional<Rejection>;
+
+// ---- Guards (guards.cpp) ----
+
+// auto_fiducials: a format-1 journal record, which detected and registered within its own step.
+bool isFormatOneRecord(const Session& s, const Input& in);
+// fiducials_detected: the markers found register the robot (the same computation the action
+// then adopts).
+bool markersRegister(const Session& s, const Input& in);
+// segment_done, in the order the rows try them: the controller reports a fault (or no reading);
+// it came to rest somewhere else than the move's end; another move of the motion follows; the
+// final retraction ended; the last target was reached and nothing is left (the stylet home).
+bool readingReportsFault(const Session& s, const Input& in);
+bool arrivalMismatch(const Session& s, const Input& in);
+bool moreMovesFollow(const Session& s, const Input& in);
+bool retractionEnded(const Session& s, const Input& in);
+bool nothingLeftAfterArrival(const Session& s, const Input& in);
+// server_restarted while the robot is in use: its position is in doubt (a fault, the robot
+// moving, a position other than the last verified one).
+bool positionInDoubt(const Session& s, const Input& in);
+// Where resume leads: the phase the first interruption left, or done when that phase waits for
+// an approval and nothing is left to move from where the robot stands.
+Phase resumeDestination(const Session& s, const Input& in);
+template <Phase kTo>
+bool resumesTo(const Session& s, const Input& in) {
+  return resumeDestination(s, in) == kTo;
+}
+
+// ---- Actions: configuration, CT, registration, targets, plan (planning_actions.cpp) ----
+
+Refusal adoptConfig(Session& s, const Input& in, ActionOutput& out);
+Refusal startVolumeLoad(Session& s, const Input& in, ActionOutput& out);
+Refusal keepLoadedCt(Session& s, const Input& in, ActionOutput& out);
+Refusal noteLoadFailure(Session& s, const Input& in, ActionOutput& out);
+Refusal registerClickedFiducials(Session& s, const Input& in, ActionOutput& out);
+Refusal startMarkerDetection(Session& s, const Input& in, ActionOutput& out);
+Refusal detectAndRegisterAtOnce(Session& s, const Input& in, ActionOutput& out);  // format 1
+Refusal registerDetectedMarkers(Session& s, const Input& in, ActionOutput& out);
+Refusal refuseDetectedMarkers(Session& s, const Input& in, ActionOutput& out);
+Refusal noteDetectionFailure(Session& s, const Input& in, ActionOutput& out);
+Refusal registerByMatrix(Session& s, const Input& in, ActionOutput& out);
+Refusal addTarget(Session& s, const Input& in, ActionOutput& out);
+Refusal moveTarget(Session& s, const Input& in, ActionOutput& out);
+Refusal removeTarget(Session& s, const Input& in, ActionOutput& out);
+Refusal clearTargets(Session& s, const Input& in, ActionOutput& out);
+Refusal reorderTargets(Session& s, const Input& in, ActionOutput& out);
+Refusal lockPlan(Session& s, const Input& in, ActionOutput& out);
+Refusal unlockPlan(Session& s, const Input& in, ActionOutput& out);
+Refusal requestApproval(Session& s, const Input& in, ActionOutput& out);
+
+// ---- Actions: approval, motion, interruptions, the robot (motion_actions.cpp) ----
+
+Refusal startApprovedMotion(Session& s, const Input& in, ActionOutput& out);
+Refusal faultDuringMove(Session& s, const Input& in, ActionOutput& out);
+Refusal failArrivalCheck(Session& s, const Input& in, ActionOutput& out);
+Refusal startNextMove(Session& s, const Input& in, ActionOutput& out);
+Refusal endRetraction(Session& s, const Input& in, ActionOutput& out);
+Refusal arriveAtTarget(Session& s, const Input& in, ActionOutput& out);
+Refusal faultStopsTheRobot(Session& s, const Input& in, ActionOutput& out);
+Refusal noteControllerFault(Session& s, const Input& in, ActionOutput& out);
+Refusal restartedMidMotion(Session& s, const Input& in, ActionOutput& out);
+Refusal restartedInDoubt(Session& s, const Input& in, ActionOutput& out);
+Refusal restartedRobotInPlace(Session& s, const Input& in, ActionOutput& out);
+Refusal restartedIdle(Session& s, const Input& in, ActionOutput& out);
+Refusal stop(Session& s, const Input& in, ActionOutput& out);
+Refusal emergencyStop(Session& s, const Input& in, ActionOutput& out);
+Refusal handOverTheRobot(Session& s, const Input& in, ActionOutput& out);
+Refusal checkReadiness(Session& s, const Input& in, ActionOutput& out);
+Refusal resume(Session& s, const Input& in, ActionOutput& out);
+Refusal resetAfterPositionCheck(Session& s, const Input& in, ActionOutput& out);
+Refusal adoptHome(Session& s, const Input& in, ActionOutput& out);
+Refusal republishEverything(Session& s, const Input& in, ActionOutput& out);
+Refusal answerPing(Session& s, const Input& in, ActionOutput& out);
+
+}  // namespace ignav::workflow::detail

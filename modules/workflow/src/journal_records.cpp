@@ -1,0 +1,264 @@
+#include "journal_records.hpp"
+
+#include <limits>
+#include <stdexcept>
+#include <type_traits>
+
+#include <fmt/format.h>
+
+#include <nlohmann/json.hpp>
+
+#include "ignav/workflow/reducer.hpp"
+
+namespace ignav::workflow {
+namespace {
+
+using nlohmann::json;
+
+json journalRecord(const Input& in, const Session& after) {
+  json points = json::array();
+  for (const auto& p : in.points)
+    points.push_back({p.x(), p.y(), p.z()});
+  json record = {{"v", kJournalFormat},
+                 {"t", in.time_s},
+                 {"revision", after.revision},
+                 {"input", toString(in.kind)},
+                 {"phase", toString(after.phase)}};
+  if (isCommand(in.kind)) {
+    record["client_id"] = in.client_id;
+    record["request_id"] = in.request_id;
+    if (!in.role.empty()) record["role"] = in.role;
+    if (!in.identity.empty()) record["identity"] = in.identity;
+  }
+  if (!in.path.empty()) record["path"] = in.path;
+  if (!in.points.empty()) record["points"] = points;
+  if (!in.ids.empty()) record["ids"] = in.ids;
+  if (in.kind == InputKind::kVolumeLoaded && in.loaded.volume) {
+    const auto& g = in.loaded.volume->geometry;
+    record["source"] = in.loaded.source;
+    record["description"] = in.loaded.description;
+    record["dims"] = {g.dims[0], g.dims[1], g.dims[2]};
+  }
+  if (!in.error.empty()) record["error"] = in.error;
+  if (in.job != 0) record["job"] = in.job;
+  if (!in.summary.empty()) record["summary"] = in.summary;
+  if (in.policy) {
+    record["policy"] = {{"approvers", in.policy->approvers},
+                        {"expiry_s", in.policy->expiry_s},
+                        {"speed_steps_s", in.policy->speed_steps_s},
+                        {"acceleration_steps_s2", in.policy->acceleration_steps_s2},
+                        {"max_targets", in.policy->limits.max_targets},
+                        {"max_total_rotation_rad", in.policy->limits.max_total_rotation_rad}};
+  }
+  if (in.tissue) {
+    record["tissue"] = {{"name", in.tissue->name},
+                        {"source", in.tissue->source},
+                        {"lambda1", in.tissue->tissue.lambda1},
+                        {"lambda2", in.tissue->tissue.lambda2},
+                        {"curvature_per_mm", in.tissue->needle.curvature_per_mm},
+                        {"wheelbase_mm", in.tissue->needle.wheelbase_mm}};
+  }
+  if (in.plan_id != 0) record["plan_id"] = in.plan_id;
+  if (!in.digest.empty()) record["digest"] = in.digest;
+  if (in.matrix) {
+    json m = json::array();
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c)
+        m.push_back((*in.matrix)(r, c));
+    record["matrix"] = m;  // row-major
+  }
+  if (in.controller) {
+    const auto& c = *in.controller;
+    record["controller"] = {
+        {"state", actuation::toString(c.state)},
+        {"position", c.position.motor},
+        {"moving", c.moving},
+        {"fault", c.fault},
+    };
+  }
+  return record;
+}
+
+// An integer field of a journal record, checked: nlohmann's get<int>() of a float (1.8e22, say)
+// is an out-of-range conversion, undefined behaviour (found by fuzz_journal).
+template <typename Int>
+Int integer(const json& v, const char* field) {
+  static_assert(std::is_integral_v<Int>);
+  bool fits = false;
+  if (v.is_number_unsigned()) {
+    fits = v.get<std::uint64_t>() <= static_cast<std::uint64_t>(std::numeric_limits<Int>::max());
+  } else if (v.is_number_integer()) {
+    const auto i = v.get<std::int64_t>();
+    fits = std::is_signed_v<Int>
+               ? i >= static_cast<std::int64_t>(std::numeric_limits<Int>::min()) &&
+                     i <= static_cast<std::int64_t>(std::numeric_limits<Int>::max())
+               : i >= 0 && static_cast<std::uint64_t>(i) <=
+                               static_cast<std::uint64_t>(std::numeric_limits<Int>::max());
+  }
+  if (!fits)
+    throw std::invalid_argument(std::string(field) + ": " + v.dump() +
+                                " is not an integer in range");
+  return v.get<Int>();
+}
+
+template <typename Int>
+Int integer(const json& object, const char* field, Int fallback) {
+  return object.contains(field) ? integer<Int>(object.at(field), field) : fallback;
+}
+
+std::optional<actuation::ControllerStatus> readingFromJson(const json& j) {
+  actuation::ControllerStatus c;
+  const std::string state = j.at("state").get<std::string>();
+  bool known = false;
+  for (auto st : {actuation::ControllerState::kDisconnected, actuation::ControllerState::kIdle,
+                  actuation::ControllerState::kMoving, actuation::ControllerState::kFault}) {
+    if (state == actuation::toString(st)) {
+      c.state = st;
+      known = true;
+    }
+  }
+  if (!known) throw std::invalid_argument("unknown controller state '" + state + "'");
+  const json& position = j.at("position");
+  if (!position.is_array() || position.size() != 3) {
+    throw std::invalid_argument("controller.position: not 3 numbers");
+  }
+  for (std::size_t a = 0; a < 3; ++a)
+    c.position.motor[a] = integer<std::int64_t>(position[a], "controller.position");
+  c.moving = j.at("moving").get<std::array<bool, 3>>();
+  c.fault = j.at("fault").get<std::string>();
+  return c;
+}
+
+InputKind inputKindFromName(const std::string& name, bool& found) {
+  for (const auto& spec : inputTable()) {
+    if (name == spec.name) {
+      found = true;
+      return spec.kind;
+    }
+  }
+  found = false;
+  return InputKind::kQuery;
+}
+
+}  // namespace
+
+namespace detail {
+
+std::string journalLine(const Input& in, const Session& after) {
+  return journalRecord(in, after).dump();
+}
+
+}  // namespace detail
+
+Expected<JournalEntry> parseJournalRecord(const std::string& line) {
+  const json r = json::parse(line, nullptr, /*allow_exceptions=*/false);
+  auto bad = [](const std::string& why) { return makeError(ErrorCode::kFormat, why); };
+  if (r.is_discarded() || !r.is_object()) return bad("not a JSON object");
+  try {
+    const int format = integer(r, "v", 0);
+    if (format < kOldestJournalFormat || format > kJournalFormat) {
+      return bad("format version " + r.value("v", json(0)).dump() + ", this build reads " +
+                 std::to_string(kOldestJournalFormat) + " to " + std::to_string(kJournalFormat));
+    }
+    JournalEntry e;
+    e.input.journal_format = format;
+    bool known = false;
+    e.input.kind = inputKindFromName(r.at("input").get<std::string>(), known);
+    if (!known) return bad("unknown input '" + r.at("input").get<std::string>() + "'");
+    e.input.time_s = r.at("t").get<double>();
+    e.revision = integer<std::uint64_t>(r.at("revision"), "revision");
+    e.phase = r.at("phase").get<std::string>();
+    e.input.client_id = r.value("client_id", "");
+    e.input.request_id = integer(r, "request_id", std::uint64_t{0});
+    e.input.role = r.value("role", "");
+    e.input.identity = r.value("identity", "");
+    e.input.path = r.value("path", "");
+    for (const auto& p : r.value("points", json::array())) {
+      e.input.points.emplace_back(p.at(0).get<double>(), p.at(1).get<double>(),
+                                  p.at(2).get<double>());
+    }
+    for (const auto& id : r.value("ids", json::array())) {
+      e.input.ids.push_back(integer<std::uint32_t>(id, "ids"));
+    }
+    e.input.error = r.value("error", "");
+    e.input.job = integer(r, "job", std::uint64_t{0});
+    e.input.summary = r.value("summary", "");
+    e.input.loaded.source = r.value("source", "");
+    e.input.loaded.description = r.value("description", "");
+    e.input.plan_id = integer(r, "plan_id", std::uint64_t{0});
+    e.input.digest = r.value("digest", "");
+    if (r.contains("matrix")) {
+      const json& m = r.at("matrix");
+      if (!m.is_array() || m.size() != 16) throw std::invalid_argument("matrix: not 16 numbers");
+      Eigen::Matrix4d matrix;
+      for (int k = 0; k < 16; ++k)
+        matrix(k / 4, k % 4) = m.at(k).get<double>();
+      e.input.matrix = matrix;
+    }
+    if (r.contains("controller")) e.input.controller = readingFromJson(r.at("controller"));
+    if (r.contains("tissue")) {
+      const json& t = r.at("tissue");
+      config::TissueProfile profile;
+      profile.name = t.at("name").get<std::string>();
+      profile.source = t.value("source", "");
+      profile.tissue = {t.at("lambda1").get<double>(), t.at("lambda2").get<double>()};
+      profile.needle.curvature_per_mm = t.at("curvature_per_mm").get<double>();
+      profile.needle.wheelbase_mm = t.at("wheelbase_mm").get<double>();
+      e.input.tissue = std::move(profile);
+    }
+    if (r.contains("policy")) {
+      const json& p = r.at("policy");
+      ApprovalPolicy policy;
+      policy.approvers = p.at("approvers").get<std::vector<std::string>>();
+      policy.expiry_s = p.at("expiry_s").get<double>();
+      policy.speed_steps_s = p.at("speed_steps_s").get<double>();
+      policy.acceleration_steps_s2 = p.at("acceleration_steps_s2").get<double>();
+      policy.limits.max_targets = integer(p, "max_targets", policy.limits.max_targets);
+      policy.limits.max_total_rotation_rad =
+          p.value("max_total_rotation_rad", policy.limits.max_total_rotation_rad);
+      e.input.policy = std::move(policy);
+    }
+    return e;
+  } catch (const json::exception& ex) {
+    return bad(ex.what());
+  } catch (const std::invalid_argument& ex) {
+    return bad(ex.what());
+  }
+}
+
+Expected<ReplayedStep> replayRecord(const Session& session, const std::string& line,
+                                    const CtLoader& load_ct, const std::string& where) {
+  auto entry = parseJournalRecord(line);
+  if (!entry) return makeError(ErrorCode::kFormat, where + ": " + entry.error().message);
+  Input& in = entry->input;
+  if (in.kind == InputKind::kVolumeLoaded) {
+    auto ct = load_ct(in.loaded.source);
+    if (!ct) {
+      return makeError(ErrorCode::kIo,
+                       where + ": cannot load the CT again (" + ct.error().message + ")");
+    }
+    in.loaded = std::move(ct).value();
+  }
+  Step step = reduce(session, in);
+  if (step.session.revision != entry->revision || toString(step.session.phase) != entry->phase) {
+    return makeError(ErrorCode::kFormat,
+                     fmt::format("{}: replaying it gives revision {} in {}, the record says "
+                                 "revision {} in {}",
+                                 where, step.session.revision, toString(step.session.phase),
+                                 entry->revision, entry->phase));
+  }
+  return ReplayedStep{std::move(step), std::move(in)};
+}
+
+Expected<Session> replayJournal(Session session, const std::vector<std::string>& lines,
+                                const CtLoader& load_ct, const std::string& journal_name) {
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    auto replayed =
+        replayRecord(session, lines[i], load_ct, fmt::format("{} line {}", journal_name, i + 1));
+    if (!replayed) return replayed.error();
+    session = std::move(replayed->step.session);
+  }
+  return session;
+}
+
+}  // namespace ignav::workflow
