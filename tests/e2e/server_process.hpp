@@ -88,11 +88,9 @@ constexpr bool kSanitized = false;
 #endif
 
 #ifdef IGNAV_PLAN_EXE
-// `ignav-plan replay --verify` over a stopped server's session folder, which re-derives the session
-// from its journal offline: its exit status and what it printed (JSON).
-inline std::pair<int, std::string> replayVerified(const std::filesystem::path& session_dir) {
-  const std::string cmd = std::string(IGNAV_PLAN_EXE) + " replay " + session_dir.string() +
-                          " --verify --robot " IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml";
+// `ignav-plan ARGS` (2>&1 when `with_stderr`): its exit status and what it printed.
+inline std::pair<int, std::string> runPlan(const std::string& args, bool with_stderr = false) {
+  const std::string cmd = std::string(IGNAV_PLAN_EXE) + " " + args + (with_stderr ? " 2>&1" : "");
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return {-1, "cannot run " + cmd};
   std::string out;
@@ -100,6 +98,13 @@ inline std::pair<int, std::string> replayVerified(const std::filesystem::path& s
   while (std::size_t n = fread(buf, 1, sizeof buf, p))
     out.append(buf, n);
   return {pclose(p), out};
+}
+
+// `ignav-plan replay --verify` over a stopped server's session folder, which re-derives the session
+// from its journal offline: its exit status and what it printed (JSON).
+inline std::pair<int, std::string> replayVerified(const std::filesystem::path& session_dir) {
+  return runPlan("replay " + session_dir.string() +
+                 " --verify --robot " IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml");
 }
 #endif
 

@@ -14,6 +14,7 @@
 #include "registration_commands.hpp"
 #include "session_commands.hpp"
 #include "study_report.hpp"
+#include "verify_command.hpp"
 #include "volume_commands.hpp"
 
 namespace {
@@ -271,6 +272,24 @@ int main(int argc, char** argv) {
   replay->add_option("--robot", replay_args.robot_path, "the robot YAML the server ran with")
       ->required();
   replay->add_flag("--verify", verify, "check each record's revision and phase (always done)");
+  ignav::plan::VerifyArgs verify_args;
+  bool verify_json = false;
+  auto* verify_cmd = app.add_subcommand(
+      "verify", "targeting errors of a recorded session, measured on a confirmation CT");
+  verify_cmd->add_option("session", verify_args.session_dir, "session folder")->required();
+  verify_cmd
+      ->add_option("confirmation_ct", verify_args.confirmation_ct,
+                   "DICOM folder/file, .nrrd/.nhdr, .mha/.mhd")
+      ->required();
+  verify_cmd->add_option("--robot", verify_args.robot_path, "the robot YAML the server ran with")
+      ->required();
+  verify_cmd->add_option("--reuse-within", verify_args.reuse_within_mm,
+                         "reuse the session's registration when no marker moved farther (mm)");
+  verify_cmd->add_option("--max-marker-shift", verify_args.max_marker_shift_mm,
+                         "refuse a scan whose markers moved farther (mm)");
+  verify_cmd->add_flag("--allow-extra-seeds", verify_args.allow_extra_seeds,
+                       "report seeds no target claims instead of refusing them");
+  verify_cmd->add_flag("--json", verify_json, "print JSON");
   ignav::plan::FindFiducialsArgs find_args;
   double min_hu = 0.0;
   auto* find = app.add_subcommand("find-fiducials", "locate marker beads on a CT");
@@ -336,6 +355,12 @@ int main(int argc, char** argv) {
     }
     if (*replay) {
       std::cout << ignav::plan::replaySession(replay_args).dump(2) << "\n";
+      return 0;
+    }
+    if (*verify_cmd) {
+      const auto verified = ignav::plan::verifySession(verify_args);
+      std::cout << (verify_json ? verified.dump(2) + "\n"
+                                : ignav::plan::verificationTable(verified));
       return 0;
     }
     if (*find) {

@@ -10,9 +10,8 @@
 
 namespace ignav::plan {
 
-nlohmann::json replaySession(const ReplayArgs& args) {
+workflow::Session replayedSession(const ReplayArgs& args) {
   namespace fs = std::filesystem;
-  using nlohmann::json;
   const fs::path dir(args.session_dir);
   const std::string journal_path = (dir / "journal.jsonl").string();
   if (!fs::exists(journal_path)) throw CliError{journal_path + ": no journal in this folder"};
@@ -36,6 +35,15 @@ nlohmann::json replaySession(const ReplayArgs& args) {
       args.robot_path);
   auto session = workflow::replayJournal(start, contents->lines, load_ct, journal_path);
   if (!session) throw CliError{session.error().message};
+  return std::move(session).value();
+}
+
+nlohmann::json replaySession(const ReplayArgs& args) {
+  using nlohmann::json;
+  const auto contents =
+      journal::readJournal((std::filesystem::path(args.session_dir) / "journal.jsonl").string());
+  const workflow::Session replayed = replayedSession(args);
+  const workflow::Session* session = &replayed;
 
   json targets = json::array();
   for (std::size_t i = 0; i < session->targets.size(); ++i) {

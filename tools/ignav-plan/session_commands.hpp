@@ -6,6 +6,7 @@
 #include <string>
 
 #include "cli_common.hpp"
+#include "ignav/workflow/session.hpp"
 
 namespace ignav::plan {
 
@@ -14,5 +15,7 @@ struct ReplayArgs {
   std::string robot_path;  // the robot config the server ran with
 };
 nlohmann::json replaySession(const ReplayArgs& args);
+// The session its journal describes (every record checked); CliError naming what is wrong.
+workflow::Session replayedSession(const ReplayArgs& args);
 
 }  // namespace ignav::plan

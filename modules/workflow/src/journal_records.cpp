@@ -241,11 +241,17 @@ Expected<ReplayedStep> replayRecord(const Session& session, const std::string& l
   }
   Step step = reduce(session, in);
   if (step.session.revision != entry->revision || toString(step.session.phase) != entry->phase) {
+    // A refusal says why (the step's reply); a server's own input has no reply to show.
+    std::string why;
+    for (const auto& r : step.effects.replies) {
+      if (!r.accepted)
+        why = fmt::format(" ({} refused it: {}: {})", toString(in.kind), r.error_code, r.message);
+    }
     return makeError(ErrorCode::kFormat,
                      fmt::format("{}: replaying it gives revision {} in {}, the record says "
-                                 "revision {} in {}",
+                                 "revision {} in {}{}",
                                  where, step.session.revision, toString(step.session.phase),
-                                 entry->revision, entry->phase));
+                                 entry->revision, entry->phase, why));
   }
   return ReplayedStep{std::move(step), std::move(in)};
 }

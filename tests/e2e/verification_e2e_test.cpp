@@ -1,0 +1,127 @@
+// The closed loop's measuring half end to end (issue 23): a real server moves the simulated robot
+// to three targets; a confirmation CT is made with a seed at each target, displaced by a known
+// amount in the robot frame (the truth); `ignav-plan verify` on the recorded session and that CT
+// must report those errors.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "ignav/registration/robot_phantom.hpp"
+#include "ignav/volume/phantom.hpp"
+#include "server_process.hpp"
+#include "support/phantom_ct.hpp"
+
+namespace ignav::e2e {
+namespace {
+
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+Eigen::Vector3d vec(const json& p) {
+  return {p.at(0).get<double>(), p.at(1).get<double>(), p.at(2).get<double>()};
+}
+
+// Plans the targets (robot frame) and moves to each in turn, approving every motion as shown,
+// until the procedure is done. Returns the targets' ids.
+std::vector<std::uint32_t> insertAll(protocol::Client& op,
+                                     const std::vector<Eigen::Vector3d>& targets_robot) {
+  std::vector<std::uint32_t> ids{plannedTarget(op, targets_robot.front())};
+  for (std::size_t i = 1; i < targets_robot.size(); ++i) {
+    const auto added = op.send("add_target", {"", {lpsOf(op.state(), targets_robot[i])}, {}});
+    EXPECT_TRUE(added.accepted) << added.message;
+    ids.push_back(added.target_id);
+  }
+  lockAndWaitForApproval(op);
+  for (std::size_t motion = 0; motion <= targets_robot.size(); ++motion) {
+    op.waitFor([](const json& s) { return stateText(s, "approval", "status") == "pending"; }, 10s);
+    const auto approved = approveShown(op);
+    EXPECT_TRUE(approved.accepted) << approved.message;
+    op.waitFor(
+        [&](const json& s) {
+          return (phaseIs(s, "at_target") || phaseIs(s, "done")) &&
+                 s["workflow"]["revision"].get<std::uint64_t>() > approved.revision &&
+                 stateText(s, "motion", "state") == "idle";
+        },
+        60s);
+  }
+  EXPECT_TRUE(phaseIs(op.state(), "done")) << op.state()["workflow"].dump();
+  return ids;
+}
+
+TEST(VerificationE2E, ErrorsMeasuredOnAConfirmationCtAreTheSeedsTrueDisplacements) {
+  const std::filesystem::path ct_dir = std::filesystem::temp_directory_path() /
+                                       ("ignav_e2e_confirmation_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(ct_dir);
+  // Where each seed really is, relative to its target, in the robot frame (mm): lateral and
+  // depth errors of the paper's size (Table V: 1-4 mm).
+  const std::vector<Eigen::Vector3d> targets = {{8, 12, -175}, {-6, 10, -182}, {4, -9, -170}};
+  const std::vector<Eigen::Vector3d> offsets = {
+      {1.2, -0.8, -1.5}, {-2.0, 0.6, 0.9}, {0.4, 2.1, -0.7}};
+  ServerProcess server(180, {"--controller-speed", "40000"});
+  auto op = server.client("operator");
+  const std::vector<std::uint32_t> ids = insertAll(*op, targets);
+  const json state = op->state();
+  op.reset();
+  server.stop();  // the session folder stays until `server` goes (its name is the session id)
+  const std::filesystem::path session = server.sessionDir();
+  ASSERT_EQ(ids.size(), targets.size());
+
+  // The confirmation scan: the same phantom (robot and markers where they were) with the seeds.
+  const auto& robot = *test::paperRobot();
+  auto rp = registration::makeRobotPhantom(robot.kinematics, robot.config.registration.scan);
+  ASSERT_TRUE(rp) << rp.error().message;
+  const Eigen::Matrix4d robot_to_image_true = rp->image_to_robot_true.inverse();
+  std::map<std::uint32_t, Eigen::Vector3d> planned_robot;
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const Eigen::Vector3d planned = vec(state["targets"][std::to_string(ids[i])]["robot"]);
+    planned_robot[ids[i]] = planned;
+    volume::PhantomSeed seed;
+    seed.centre_lps_mm = (robot_to_image_true * (planned + offsets[i]).homogeneous()).head<3>();
+    seed.axis_lps = robot_to_image_true.topLeftCorner<3, 3>() * Eigen::Vector3d::UnitZ();
+    rp->spec.seeds.push_back(seed);
+  }
+  auto ct = volume::makePhantom(rp->spec);
+  ASSERT_TRUE(ct) << ct.error().message;
+  ASSERT_TRUE(volume::writeDicomSeries(*ct, ct_dir.string()));
+
+  const std::string robot_yaml = IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml";
+  const auto [status, out] = runPlan("verify " + session.string() + " " + ct_dir.string() +
+                                     " --robot " + robot_yaml + " --json");
+  ASSERT_EQ(status, 0) << out;
+  const json v = json::parse(out);
+  EXPECT_TRUE(v["registration"]["reused"].get<bool>()) << v["registration"].dump();
+  EXPECT_LT(v["registration"]["marker_shift_mm"].get<double>(), 0.5);
+  ASSERT_EQ(v["targets"].size(), targets.size()) << out;
+  // What a perfect localiser reports, through the session's registration (which carries its own
+  // small error): the seed's true LPS position in that registration's robot frame, less the plan.
+  const Eigen::Matrix4d session_image_to_robot = imageToRobot(state);
+  for (const auto& row : v["targets"]) {
+    const auto id = row["id"].get<std::uint32_t>();
+    const std::size_t i =
+        static_cast<std::size_t>(std::find(ids.begin(), ids.end(), id) - ids.begin());
+    ASSERT_LT(i, ids.size());
+    const Eigen::Vector3d truth_lps =
+        (robot_to_image_true * (planned_robot[id] + offsets[i]).homogeneous()).head<3>();
+    const Eigen::Vector3d expected =
+        (session_image_to_robot * truth_lps.homogeneous()).head<3>() - planned_robot[id];
+    EXPECT_LT((vec(row["error_robot_mm"]) - expected).norm(), 0.1)
+        << "target " << id << ": " << row.dump();
+    EXPECT_NEAR(row["error_mm"].get<double>(), offsets[i].norm(), 0.15) << row.dump();
+    // Depth is + when deeper than planned: deeper is -z in the robot frame.
+    EXPECT_NEAR(row["depth_mm"].get<double>(), -expected.z(), 0.1) << row.dump();
+  }
+  EXPECT_EQ(v["summary"]["error"]["count"], targets.size());
+
+  // The planning CT shows no seeds: a clear refusal, and nothing printed as a result.
+  const auto [no_seed_status, no_seed_out] =
+      runPlan("verify " + session.string() + " " + (session / "phantom_ct").string() + " --robot " +
+                  robot_yaml + " --json",
+              true);
+  EXPECT_NE(no_seed_status, 0);
+  EXPECT_NE(no_seed_out.find("no seeds found"), std::string::npos) << no_seed_out;
+
+  std::filesystem::remove_all(ct_dir);
+}
+
+}  // namespace
+}  // namespace ignav::e2e

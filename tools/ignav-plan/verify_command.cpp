@@ -1,0 +1,153 @@
+#include "verify_command.hpp"
+
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "ignav/config/robot_config.hpp"
+#include "ignav/verification/confirmation_registration.hpp"
+#include "ignav/verification/seed_detection.hpp"
+#include "ignav/verification/targeting_error.hpp"
+#include "ignav/volume/load.hpp"
+#include "ignav/workflow/reducer.hpp"
+#include "session_commands.hpp"
+
+namespace ignav::plan {
+namespace {
+
+using nlohmann::json;
+
+json point(const Eigen::Vector3d& p) {
+  return {p.x(), p.y(), p.z()};
+}
+
+json stats(const verification::Stats& s) {
+  return {{"count", s.count}, {"mean_mm", s.mean}, {"sd_mm", s.sd_sample},
+          {"min_mm", s.min},  {"max_mm", s.max},   {"rms_mm", s.rms}};
+}
+
+}  // namespace
+
+json verifySession(const VerifyArgs& args) {
+  const workflow::Session session = replayedSession({args.session_dir, args.robot_path});
+  const config::Robot& robot = *session.robot;
+  if (!session.registration) {
+    throw CliError{args.session_dir + ": the session was never registered: nothing to verify"};
+  }
+  std::vector<verification::PlannedTarget> planned;
+  std::map<std::uint32_t, const workflow::Target*> by_id;
+  for (const auto& t : session.targets) {
+    if (!t.reached) continue;
+    planned.push_back({t.id, t.robot_mm});
+    by_id[t.id] = &t;
+  }
+  if (planned.empty()) {
+    throw CliError{args.session_dir +
+                   ": no target of this session was reached: there are no seeds to measure"};
+  }
+
+  auto loaded = volume::loadVolume(args.confirmation_ct, {});
+  if (!loaded) throw CliError{args.confirmation_ct + ": " + loaded.error().message};
+  const auto ct = std::make_shared<const volume::Volume>(std::move(loaded->volume));
+
+  // The robot's markers on the confirmation CT, found as auto_fiducials finds them.
+  workflow::FiducialDetectionJob job;
+  job.volume = ct;
+  job.ct_source = args.confirmation_ct;
+  job.search = robot.config.registration.fiducials;
+  job.model_mm.assign(robot.feature_points_mm.begin(), robot.feature_points_mm.end());
+  const workflow::Input markers = workflow::detectFiducials(job);
+  if (markers.kind != workflow::InputKind::kFiducialsDetected) {
+    throw CliError{args.confirmation_ct + ": the robot's markers were not found (" + markers.error +
+                   "): the confirmation CT cannot be registered"};
+  }
+  auto confirmed = verification::registerConfirmation(
+      *session.registration, markers.points, job.model_mm, robot.config.registration.kind,
+      robot.config.registration.limits, {args.reuse_within_mm, args.max_marker_shift_mm});
+  if (!confirmed) throw CliError{args.confirmation_ct + ": " + confirmed.error().message};
+
+  verification::SeedSearch search;
+  search.markers_lps_mm = markers.points;
+  auto found = verification::findSeeds(*ct, search);
+  if (!found) throw CliError{args.confirmation_ct + ": " + found.error().message};
+  if (found->seeds.empty()) {
+    throw CliError{args.confirmation_ct + ": no seeds found (" + found->summary + ")"};
+  }
+  std::vector<Eigen::Vector3d> seeds;
+  for (const auto& s : found->seeds)
+    seeds.push_back(s.centroid_lps_mm);
+  verification::MatchOptions options;
+  options.allow_extra_seeds = args.allow_extra_seeds;
+  auto verified = verification::verifyTargeting(planned, seeds,
+                                                confirmed->registration.imageToRobot(), options);
+  if (!verified) throw CliError{args.confirmation_ct + ": " + verified.error().message};
+
+  json targets = json::array();
+  for (const auto& e : verified->errors) {
+    const auto* t = by_id.at(e.target_id);
+    json row = {{"id", e.target_id},
+                {"planned_robot_mm", point(e.planned_robot_mm)},
+                {"actual_robot_mm", point(e.actual_robot_mm)},
+                {"planned_lps_mm", point(e.planned_lps_mm)},
+                {"actual_lps_mm", point(e.actual_lps_mm)},
+                {"error_robot_mm", point(e.error_robot_mm)},
+                {"error_lps_mm", point(e.error_lps_mm)},
+                {"error_mm", e.error_mm},
+                {"lateral_mm", e.lateral_mm},
+                {"depth_mm", e.depth_mm}};
+    row["predicted_deviation_mm"] =
+        std::isfinite(t->predicted_deviation_mm) ? json(t->predicted_deviation_mm) : json();
+    targets.push_back(row);
+  }
+  json missing = json::array();
+  for (std::size_t i : verified->match.missing_targets)
+    missing.push_back(planned[i].id);
+  json extra = json::array();
+  for (std::size_t i : verified->match.extra_seeds)
+    extra.push_back(point(seeds[i]));
+  const auto& sum = verified->summary;
+  return {
+      {"session", args.session_dir},
+      {"confirmation_ct", args.confirmation_ct},
+      {"registration",
+       {{"reused", confirmed->reused},
+        {"marker_shift_mm", confirmed->marker_shift_mm},
+        {"fre_mm", confirmed->registration.fre_mm},
+        {"image_to_robot",
+         [&] {
+           json m = json::array();
+           const Eigen::Matrix4d r = confirmed->registration.imageToRobot();
+           for (int i = 0; i < 16; ++i)
+             m.push_back(r(i / 4, i % 4));
+           return m;
+         }()},
+        {"message", confirmed->message}}},
+      {"seeds", {{"found", found->seeds.size()}, {"summary", found->summary}}},
+      {"targets", targets},
+      {"missing_targets", missing},
+      {"extra_seeds_lps_mm", extra},
+      {"summary",
+       {{"error", stats(sum.error)}, {"lateral", stats(sum.lateral)}, {"depth", stats(sum.depth)}}},
+      {"text", verified->text}};
+}
+
+std::string verificationTable(const json& v) {
+  std::string out = fmt::format(
+      "confirmation CT {}\n{}\n{}\n\n", v["confirmation_ct"].get<std::string>(),
+      v["registration"]["message"].get<std::string>(), v["seeds"]["summary"].get<std::string>());
+  out += fmt::format("{:>4}  {:>26}  {:>26}  {:>8}  {:>8}  {:>8}\n", "id", "planned (robot mm)",
+                     "actual (robot mm)", "error", "lateral", "depth");
+  auto p3 = [](const json& p) {
+    return fmt::format("({:7.2f},{:7.2f},{:7.2f})", p[0].get<double>(), p[1].get<double>(),
+                       p[2].get<double>());
+  };
+  for (const auto& t : v["targets"]) {
+    out += fmt::format("{:>4}  {:>26}  {:>26}  {:8.2f}  {:8.2f}  {:8.2f}\n",
+                       t["id"].get<unsigned>(), p3(t["planned_robot_mm"]), p3(t["actual_robot_mm"]),
+                       t["error_mm"].get<double>(), t["lateral_mm"].get<double>(),
+                       t["depth_mm"].get<double>());
+  }
+  return out + "\n" + v["text"].get<std::string>() + "\n";
+}
+
+}  // namespace ignav::plan

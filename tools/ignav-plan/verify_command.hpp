@@ -1,0 +1,31 @@
+// ignav-plan verify: a recorded session's targeting error measured on a confirmation CT (issue
+// 23), offline: the session replayed from its journal, the confirmation CT registered (the
+// session's registration reused when the markers stayed, else registered anew), the seeds found
+// and matched to the targets reached, and each error measured as the paper's Table V reports it.
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "cli_common.hpp"
+
+namespace ignav::plan {
+
+struct VerifyArgs {
+  std::string session_dir;
+  std::string confirmation_ct;  // DICOM folder/file, .nrrd/.nhdr, .mha/.mhd
+  std::string robot_path;       // the robot YAML the server ran with
+  double reuse_within_mm = 1.0;
+  double max_marker_shift_mm = 20.0;
+  bool allow_extra_seeds = false;
+};
+
+// Per target `id`, `planned_robot_mm`, `actual_robot_mm`, `error_mm` (and the LPS points, the
+// error vectors, lateral and depth), the summary, the registration used; CliError for bad input.
+nlohmann::json verifySession(const VerifyArgs& args);
+
+// The same as a table for a person (like the paper's Table V).
+std::string verificationTable(const nlohmann::json& verified);
+
+}  // namespace ignav::plan
