@@ -102,6 +102,10 @@ TEST(BicycleModel, BadInputIsRefusedWithItsReason) {
   const auto turned = simulate({-1.0 / 20.0, 20.0, -1}, {}, 100.0, 1.0);
   ASSERT_FALSE(turned.ok());
   EXPECT_EQ(turned.error().reason, "turned_back");
+  // Pushed on past 90° the integrator stops there instead of crawling towards tan α's pole.
+  const auto far = simulate(kPaperNeedle, kAgar, 1000.0, 1000.0);
+  ASSERT_FALSE(far.ok());
+  EXPECT_EQ(far.error().reason, "turned_back");
   EXPECT_FALSE(deflectionAtDepths(kPaperNeedle, kAgar, {10.0, 5.0}).ok());  // not ascending
 }
 

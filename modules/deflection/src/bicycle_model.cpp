@@ -111,8 +111,16 @@ Expected<std::vector<PathSample>> simulate(const NeedleModel& needle, const Tiss
     times.push_back(static_cast<double>(i) * step_mm);
   times.push_back(length_mm);
 
-  auto rhs = [&](const State& x, State& dx, double /*s*/) {
+  // Past ±90° the model no longer holds and tan α heads for its pole, where the step control
+  // would crawl for ever: stop moving there and refuse the path below.
+  double turned_at = std::numeric_limits<double>::quiet_NaN();
+  auto rhs = [&](const State& x, State& dx, double s) {
     const double gamma = x[2];
+    if (std::abs(gamma) >= M_PI / 2) {
+      if (!(turned_at <= s)) turned_at = s;
+      dx = {0.0, 0.0, 0.0};
+      return;
+    }
     const double c = std::cos(alpha(tissue, gamma));
     dx[0] = std::cos(gamma) / c;  // z
     dx[1] = std::sin(gamma) / c;  // y
@@ -126,13 +134,14 @@ Expected<std::vector<PathSample>> simulate(const NeedleModel& needle, const Tiss
         out.push_back({s, st[0], st[1], st[2]});
       });
   for (const auto& p : out) {
-    if (std::abs(p.gamma_rad) >= M_PI / 2) {
-      return makeError(ErrorCode::kDegenerate,
-                       fmt::format("the path turns past 90° at s = {:.2f} mm; the model holds "
-                                   "only for |γ| < 90°",
-                                   p.s_mm),
-                       "turned_back");
-    }
+    if (std::abs(p.gamma_rad) >= M_PI / 2 && !(turned_at <= p.s_mm)) turned_at = p.s_mm;
+  }
+  if (std::isfinite(turned_at)) {
+    return makeError(ErrorCode::kDegenerate,
+                     fmt::format("the path turns past 90° at s = {:.2f} mm; the model holds "
+                                 "only for |γ| < 90°",
+                                 turned_at),
+                     "turned_back");
   }
   return out;
 }
