@@ -207,6 +207,19 @@ TEST(TissueProfiles, BundledFileHoldsTableOneAndErrorsNameTheKey) {
   bad = load("needle: {wheelbase_mm: -1}\ntissues:\n  gel: {lambda1: 0, lambda2: 0}\n");
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.error().message.find("needle.wheelbase_mm"), std::string::npos);
+  // A tissue fitted with its curvature carries it; the others keep the needle's.
+  const auto own = load(
+      "needle: {curvature_per_mm: -0.0025, wheelbase_mm: 20}\ntissues:\n"
+      "  fitted: {lambda1: 0.3, lambda2: 0.2, curvature_per_mm: -0.003}\n"
+      "  plain: {lambda1: 0, lambda2: 0}\n");
+  ASSERT_TRUE(own.ok()) << own.error().message;
+  EXPECT_EQ(tissueProfile(*own, "fitted")->needle.curvature_per_mm, -0.003);
+  EXPECT_EQ(tissueProfile(*own, "plain")->needle.curvature_per_mm, -0.0025);
+  bad = load("tissues:\n  gel: {lambda1: 0, lambda2: 0, curvature_per_mm: .nan}\n");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("tissues.gel.curvature_per_mm: must be finite"),
+            std::string::npos)
+      << bad.error().message;
   std::filesystem::remove_all(dir);
 }
 
