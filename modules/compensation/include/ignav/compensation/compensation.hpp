@@ -57,15 +57,16 @@ struct CompensationOptions {
 
 struct Compensation {
   kinematics::InverseSolution nominal;     // exact IK of the target (no tissue)
-  Eigen::Vector3d nominal_landing_mm;      // where the nominal joints land in the tissue
+  Eigen::Vector3d nominal_landing_mm;      // where the nominal joints land (NaN: no joints)
   kinematics::Joints compensated;          // joints whose predicted landing is the target
   Eigen::Vector3d compensated_landing_mm;  // their predicted landing
   double residual_mm = 0.0;                // |compensated_landing − target|
   int iterations = 0;                      // Newton steps taken (0: nothing to compensate)
 };
-// Newton on the joints, from the exact IK of the target, with a finite-difference Jacobian and
-// step halving. Refused (reason "compensated_out_of_reach") when the compensated joints leave
-// their ranges, naming the joint and the limit; "not_converged" when the iteration stalls.
+// Newton on the joints, from the exact IK of the target, with a finite-difference Jacobian, a
+// trust region and step halving. Refused (reason "compensated_out_of_reach") when the
+// compensated joints, or those where the iteration stalls, leave their ranges, naming the joint
+// and the limit; "not_converged" when it stalls inside them; "inadmissible" for the tissue.
 Expected<Compensation> compensate(const kinematics::Kinematics& kinematics,
                                   const DeflectionModel& model, const Eigen::Vector3d& target_mm,
                                   const CompensationOptions& options = {});
