@@ -6,24 +6,14 @@
 #include <iostream>
 #include <random>
 
-#include "ignav/config/robot_config.hpp"
-#include "ignav/config/tissue_profiles.hpp"
+#include "fixtures.hpp"
 #include "reference.hpp"
 
 namespace ignav::compensation {
 namespace {
 
-const std::string kConfigs = std::string(IGNAV_SOURCE_DIR) + "/configs/";
-
-kinematics::Kinematics paperRobot() {
-  return config::loadRobot(kConfigs + "robots/torabi2014.yaml").value().kinematics;
-}
-
-DeflectionModel profile(const std::string& name) {
-  const auto p =
-      config::tissueProfile(config::loadTissueProfiles(kConfigs + "tissues.yaml").value(), name);
-  return {p->needle, p->tissue, StyletCarry::kRotated};
-}
+using test::paperRobot;
+using test::profile;
 
 // Targets spread over the feasible volume: the tips of random joints.
 std::vector<Eigen::Vector3d> targets(const kinematics::Kinematics& kin, int count, unsigned seed) {
@@ -36,7 +26,7 @@ std::vector<Eigen::Vector3d> targets(const kinematics::Kinematics& kin, int coun
 }
 
 TEST(Compensation, LandsOnTheTargetToAMicrometreOverTheFeasibleVolume) {
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   for (const char* name : {"agar", "plastisol"}) {
     const DeflectionModel m = profile(name);
     int solved = 0, refused = 0, too_deep = 0, most_iterations = 0;
@@ -73,7 +63,7 @@ TEST(Compensation, LandsOnTheTargetToAMicrometreOverTheFeasibleVolume) {
 TEST(Compensation, HiddenAgarCompensatedErrorsAreFiveTimesSmaller) {
   // The must-show, in the model: a tissue deflects every insertion; the same targets,
   // aimed without and with compensation, land (as the reference predicts) this far off.
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   const DeflectionModel agar = profile("agar");
   double plain_sum = 0.0, compensated_sum = 0.0;
   int n = 0;
@@ -93,7 +83,7 @@ TEST(Compensation, HiddenAgarCompensatedErrorsAreFiveTimesSmaller) {
 }
 
 TEST(Compensation, NoTissueMeansNominalEqualsCompensated) {
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   const DeflectionModel none{{0.0, 20.0, -1}, {}, StyletCarry::kRotated};
   for (const auto& target : targets(kin, 50, 3)) {
     const auto c = compensate(kin, none, target);
@@ -107,7 +97,7 @@ TEST(Compensation, NoTissueMeansNominalEqualsCompensated) {
 }
 
 TEST(Compensation, OutOfReachIsRefusedNamingTheJointAndLimit) {
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   const DeflectionModel agar = profile("agar");
   // Nominally reachable at full cannula travel: compensation must push deeper than 40 mm.
   const Eigen::Vector3d deep = kin.forward({0.3, 39.9, 20.0}).tip_mm;
@@ -139,7 +129,7 @@ TEST(Compensation, OutOfReachIsRefusedNamingTheJointAndLimit) {
 }
 
 TEST(Compensation, StallingIsRefusedNotReportedAsSolved) {
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   const DeflectionModel agar = profile("agar");
   CompensationOptions one;
   one.max_iterations = 1;

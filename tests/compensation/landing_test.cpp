@@ -5,29 +5,19 @@
 #include <cmath>
 #include <random>
 
-#include "ignav/config/robot_config.hpp"
-#include "ignav/config/tissue_profiles.hpp"
+#include "fixtures.hpp"
 #include "reference.hpp"
 
 namespace ignav::compensation {
 namespace {
 
-const std::string kConfigs = std::string(IGNAV_SOURCE_DIR) + "/configs/";
-
-kinematics::Kinematics paperRobot() {
-  return config::loadRobot(kConfigs + "robots/torabi2014.yaml").value().kinematics;
-}
-
-DeflectionModel profile(const std::string& name) {
-  const auto p =
-      config::tissueProfile(config::loadTissueProfiles(kConfigs + "tissues.yaml").value(), name);
-  return {p->needle, p->tissue, StyletCarry::kRotated};
-}
+using test::paperRobot;
+using test::profile;
 
 TEST(Landing, PlainBicycleCannulaTipFollowsACircularArc) {
   // λ = 0: the cannula tip runs on the circle of radius 1/|k| tangent to the axis at the entry
   // (its tip at z_c = 0), bending to the stylet's side; after z_c of arc it has turned by |k| z_c.
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   for (double k : {-1.0 / 400.0, -1.0 / 150.0}) {
     const DeflectionModel plain{{k, 20.0, -1}, {}, StyletCarry::kRotated};
     for (double theta : {0.0, 0.7, 2.5, 4.0}) {
@@ -61,7 +51,7 @@ TEST(Landing, PlainBicycleCannulaTipFollowsACircularArc) {
 
 TEST(Landing, NoTissueIsTheForwardKinematics) {
   // k = 0, λ = 0: a straight push; the landing is the forward kinematics, exactly.
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   const DeflectionModel none{{0.0, 20.0, -1}, {}, StyletCarry::kRotated};
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> t(0, 2 * M_PI), c(0, 40), s(0, 40);
@@ -78,7 +68,7 @@ TEST(Landing, NoTissueIsTheForwardKinematics) {
 }
 
 TEST(Landing, AgreesWithAnIndependentIntegratorAndRotation) {
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> t(0, 2 * M_PI), c(0, 40), s(0, 40);
   for (const char* name : {"agar", "plastisol"}) {

@@ -8,24 +8,15 @@
 #include <iostream>
 #include <random>
 
-#include "ignav/config/robot_config.hpp"
-#include "ignav/config/tissue_profiles.hpp"
+#include "fixtures.hpp"
 #include "reference.hpp"
 
 namespace ignav::compensation {
 namespace {
 
-const std::string kConfigs = std::string(IGNAV_SOURCE_DIR) + "/configs/";
-
-kinematics::Kinematics paperRobot() {
-  return config::loadRobot(kConfigs + "robots/torabi2014.yaml").value().kinematics;
-}
-
-DeflectionModel profile(const std::string& name) {
-  const auto p =
-      config::tissueProfile(config::loadTissueProfiles(kConfigs + "tissues.yaml").value(), name);
-  return {p->needle, p->tissue, StyletCarry::kRotated};
-}
+using test::kConfigs;
+using test::paperRobot;
+using test::profile;
 
 // A session's worth of targets (the paper's 21), aimed without compensation, landing where the
 // hidden tissue puts them, measured with isotropic noise of `noise_mm` per axis.
@@ -47,7 +38,7 @@ std::vector<TargetingRecord> session(const kinematics::Kinematics& kin,
 }
 
 TEST(TargetingFit, RecoversAHiddenTissueFromExactErrors) {
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   for (const char* name : {"agar", "plastisol"}) {
     const DeflectionModel hidden = profile(name);
     // The server knows the needle, not the tissue: it starts from the default guess.
@@ -67,7 +58,7 @@ TEST(TargetingFit, RecoversAHiddenTissueFromExactErrors) {
 
 TEST(TargetingFit, NoisyErrorsGiveEstimatesWithinTheirStandardErrors) {
   // 0.1–0.2 mm of localisation noise per axis over the paper's 21 targets.
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   const DeflectionModel agar = profile("agar");
   DeflectionModel known = agar;
   known.tissue = {};
@@ -108,7 +99,7 @@ TEST(TargetingFit, NoisyErrorsGiveEstimatesWithinTheirStandardErrors) {
 TEST(TargetingFit, TheLoopCompensatedWithTheFittedTissueLandsFiveTimesCloser) {
   // The workflow in the model: plan → move (hidden agar) → measure (0.15 mm noise) →
   // fit → a second, compensated pass on the same targets with the fitted tissue.
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   const DeflectionModel agar = profile("agar");
   DeflectionModel known = agar;
   known.tissue = {};
@@ -133,7 +124,7 @@ TEST(TargetingFit, TheLoopCompensatedWithTheFittedTissueLandsFiveTimesCloser) {
 }
 
 TEST(TargetingFit, CurvatureCanBeFittedToo) {
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   DeflectionModel hidden = profile("plastisol");
   hidden.needle.curvature_per_mm = -1.0 / 300.0;
   DeflectionModel known = hidden;
@@ -152,7 +143,7 @@ TEST(TargetingFit, CurvatureCanBeFittedToo) {
 TEST(TargetingFit, ExtendedModelExplainsAgarBetterThanThePlainOne) {
   // Seed 000's comparison on targeting errors: λ = 0 with its curvature fitted cannot follow
   // agar's non-circular drift as well, though at ≤ 40 mm insertions the gap is modest.
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   const DeflectionModel agar = profile("agar");
   DeflectionModel known = agar;
   known.tissue = {};
@@ -167,7 +158,7 @@ TEST(TargetingFit, ExtendedModelExplainsAgarBetterThanThePlainOne) {
 }
 
 TEST(TargetingFit, UnusableRecordsAreRefusedWithTheReason) {
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   const DeflectionModel agar = profile("agar");
   auto records = session(kin, agar, 0.0, 3);
   // No insertion at all: nothing about the tissue in the errors.
@@ -228,7 +219,7 @@ TEST(TargetingFit, UnusableRecordsAreRefusedWithTheReason) {
 }
 
 TEST(TargetingFit, ResultIsANamedProfileThatTheConfigLoads) {
-  const auto kin = paperRobot();
+  const auto& kin = paperRobot();
   const DeflectionModel agar = profile("agar");
   DeflectionModel known = agar;
   known.tissue = {};
