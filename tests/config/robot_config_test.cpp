@@ -113,6 +113,34 @@ TEST(RobotConfig, RegistrationSectionIsOptionalWithDefaults) {
   EXPECT_EQ(a.kind, registration::TransformKind::kSimilarity);
 }
 
+TEST(RobotConfig, ShorterCannulaWithoutRegistrationSectionLoads) {
+  // Issue 23: a 90 mm cannula (z_fixed 50 + zs_max 40) without a `registration` section was
+  // refused, "robot.registration.cannula_base_mm = 95 must lie on the straight part of the
+  // cannula": the default must follow the geometry, the lower end of the straight part.
+  std::string text = withValue("fixed_offset_mm", "50");
+  text.erase(text.find("  # Optional; every key"));
+  const auto config = parseRobotConfig(text, "short.yaml");
+  ASSERT_TRUE(config.ok()) << config.error().message;
+  EXPECT_EQ(config->registration.scan.cannula_base_mm, 50.0);
+  const auto robot = makeRobot(*config, "short.yaml");
+  ASSERT_TRUE(robot.ok()) << robot.error().message;
+  // The base marker is on the axis, 50 mm below P0; the cannula tip 90 mm below it.
+  EXPECT_EQ(robot->feature_points_mm[0], Eigen::Vector3d(0, 0, -50));
+  EXPECT_NEAR(robot->feature_points_mm[1].z(), -90.0, 1e-12);
+  // A longer curved section moves the straight part's end up: 50 + 40 - 45 = 45.
+  std::string curved = withValue("curved_length_mm", "45");
+  curved = std::regex_replace(curved, std::regex("fixed_offset_mm: 95"), "fixed_offset_mm: 50");
+  curved.erase(curved.find("    cannula_base_mm"),
+               curved.find("    transform:") - curved.find("    cannula_base_mm"));
+  const auto partial = parseRobotConfig(curved, "partial.yaml");  // section present, key absent
+  ASSERT_TRUE(partial.ok()) << partial.error().message;
+  EXPECT_EQ(partial->registration.scan.cannula_base_mm, 45.0);
+  EXPECT_TRUE(makeRobot(*partial, "partial.yaml").ok());
+  // An explicit value past the straight part is still refused, naming the key and the range.
+  EXPECT_NE(errorOf(withValue("fixed_offset_mm", "50")).find("cannula_base_mm = 95 must lie"),
+            std::string::npos);
+}
+
 TEST(RobotConfig, RegistrationErrorsNameTheKey) {
   EXPECT_NE(errorOf(withValue("transform", "affine"))
                 .find("robot.registration.transform: unknown value 'affine'"),
@@ -179,6 +207,19 @@ TEST(TissueProfiles, BundledFileHoldsTableOneAndErrorsNameTheKey) {
   bad = load("needle: {wheelbase_mm: -1}\ntissues:\n  gel: {lambda1: 0, lambda2: 0}\n");
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.error().message.find("needle.wheelbase_mm"), std::string::npos);
+  // A tissue fitted with its curvature carries it; the others keep the needle's.
+  const auto own = load(
+      "needle: {curvature_per_mm: -0.0025, wheelbase_mm: 20}\ntissues:\n"
+      "  fitted: {lambda1: 0.3, lambda2: 0.2, curvature_per_mm: -0.003}\n"
+      "  plain: {lambda1: 0, lambda2: 0}\n");
+  ASSERT_TRUE(own.ok()) << own.error().message;
+  EXPECT_EQ(tissueProfile(*own, "fitted")->needle.curvature_per_mm, -0.003);
+  EXPECT_EQ(tissueProfile(*own, "plain")->needle.curvature_per_mm, -0.0025);
+  bad = load("tissues:\n  gel: {lambda1: 0, lambda2: 0, curvature_per_mm: .nan}\n");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("tissues.gel.curvature_per_mm: must be finite"),
+            std::string::npos)
+      << bad.error().message;
   std::filesystem::remove_all(dir);
 }
 

@@ -102,6 +102,10 @@ TEST(BicycleModel, BadInputIsRefusedWithItsReason) {
   const auto turned = simulate({-1.0 / 20.0, 20.0, -1}, {}, 100.0, 1.0);
   ASSERT_FALSE(turned.ok());
   EXPECT_EQ(turned.error().reason, "turned_back");
+  // Pushed on past 90° the integrator stops there instead of crawling towards tan α's pole.
+  const auto far = simulate(kPaperNeedle, kAgar, 1000.0, 1000.0);
+  ASSERT_FALSE(far.ok());
+  EXPECT_EQ(far.error().reason, "turned_back");
   EXPECT_FALSE(deflectionAtDepths(kPaperNeedle, kAgar, {10.0, 5.0}).ok());  // not ascending
 }
 
@@ -160,6 +164,67 @@ TEST(TissueFit, ExtendedModelFitsANonCircularPathBetterThanThePlainOne) {
   EXPECT_EQ(with_k->standard_errors.size(), 3u);
   // Too few observations for the parameters.
   EXPECT_FALSE(fitTissue(kPaperNeedle, {{10, -1}, {20, -2}}).ok());
+}
+
+TEST(TissueFit, MeasurementNoiseAtTheEntryIsDataNotAnError) {
+  // Issue 23: `ignav-plan deflection fit` refused a measured path whose first point had a depth
+  // of −0.02 mm (the entry point picked a little deep). Noise is data: small negative depths and
+  // small steps back are fitted; the model reads a depth above the entry as 0 (no deflection).
+  std::vector<Observation> noisy = observe(kAgar, 0.0, 1);
+  noisy.insert(noisy.begin(), {-0.02, 0.01});
+  noisy.insert(noisy.begin() + 1, {0.5, -0.01});
+  std::swap(noisy[5].depth_mm, noisy[6].depth_mm);  // 2 mm apart: a step back beyond 0.5 mm...
+  auto refused = fitTissue(kPaperNeedle, noisy);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().reason, "not_a_path");
+  EXPECT_NE(refused.error().message.find("observation 7"), std::string::npos)
+      << refused.error().message;
+  std::swap(noisy[5].depth_mm, noisy[6].depth_mm);
+  noisy[6].depth_mm = noisy[5].depth_mm - 0.3;  // ...but 0.3 mm back is noise
+  const auto fit = fitTissue(kPaperNeedle, noisy);
+  ASSERT_TRUE(fit.ok()) << fit.error().message;
+  // The perturbed points cost a little accuracy, nothing more.
+  EXPECT_NEAR(fit->tissue.lambda1, kAgar.lambda1, 0.05);
+  EXPECT_NEAR(fit->tissue.lambda2, kAgar.lambda2, 0.01);
+  // Exact data with only a negative entry point: the entry adds y = 0 at depth 0, which is the
+  // model's own value there, so the fit is still exact.
+  std::vector<Observation> entry = observe(kAgar, 0.0, 1);
+  entry.insert(entry.begin(), {-0.02, 0.0});
+  const auto exact = fitTissue(kPaperNeedle, entry);
+  ASSERT_TRUE(exact.ok()) << exact.error().message;
+  EXPECT_NEAR(exact->tissue.lambda1, kAgar.lambda1, 1e-6);
+  EXPECT_NEAR(exact->tissue.lambda2, kAgar.lambda2, 1e-6);
+  // A path listed from the deepest point back to the entry is one path too.
+  std::vector<Observation> backwards(entry.rbegin(), entry.rend());
+  const auto reversed = fitTissue(kPaperNeedle, backwards);
+  ASSERT_TRUE(reversed.ok()) << reversed.error().message;
+  EXPECT_NEAR(reversed->tissue.lambda1, kAgar.lambda1, 1e-6);
+}
+
+TEST(TissueFit, WhatCannotBeAPathIsRefusedWithItsReason) {
+  const auto path = observe(kAgar, 0.0, 1);
+  auto reasonOf = [](const std::vector<Observation>& o) {
+    const auto fit = fitTissue(kPaperNeedle, o);
+    return fit ? std::string("accepted") : fit.error().reason + ": " + fit.error().message;
+  };
+  // 5 mm above the entry is not noise.
+  std::vector<Observation> above = path;
+  above.insert(above.begin(), {-5.0, 0.0});
+  EXPECT_EQ(reasonOf(above).rfind("not_a_path: observation 1: depth -5 mm lies above", 0), 0u)
+      << reasonOf(above);
+  // Two paths in one file: the second starts again at the entry.
+  std::vector<Observation> two = path;
+  two.insert(two.end(), path.begin(), path.end());
+  EXPECT_NE(reasonOf(two).find("not one path"), std::string::npos) << reasonOf(two);
+  // All at one depth (within the noise): no path.
+  EXPECT_NE(reasonOf({{10, -1}, {10.1, -1.1}, {10.2, -1.2}, {10.3, -1.2}}).find("span 0.3 mm"),
+            std::string::npos);
+  EXPECT_NE(reasonOf({{10, -1}, {20, std::nan("")}, {30, -2}, {40, -3}}).find("observation 2"),
+            std::string::npos);
+  // A tolerance is a length.
+  FitOptions o;
+  o.depth_noise_mm = -1;
+  EXPECT_FALSE(fitTissue(kPaperNeedle, path, o).ok());
 }
 
 }  // namespace

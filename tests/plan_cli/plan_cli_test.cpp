@@ -313,4 +313,42 @@ TEST(PlanCli, DeflectionSimulateThenFitRecoversTheTissue) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(PlanCli, DeflectionFitTakesEntryNoiseAndRefusesWhatIsNoPath) {
+  // Issue 23: a measured path whose first point lies at depth −0.02 mm (noise at the entry) was
+  // refused. It is data; a file holding two paths is not one path and is refused, by line.
+  const auto sim = plan(
+      "deflection simulate --k -0.0025 --ell 20 --lambda1 0.49 --lambda2 0.22 --length 130 "
+      "--step 5");
+  ASSERT_EQ(sim.exit_code, 0) << sim.out;
+  const json path = json::parse(sim.out)["path"];
+  const auto dir = std::filesystem::temp_directory_path() / "ignav_deflection_noise_cli";
+  std::filesystem::create_directories(dir);
+  std::string rows;
+  for (std::size_t i = 1; i < path.size(); ++i)
+    rows += fmt::format("{:.17g},{:.17g}\n", path[i][1].get<double>(), path[i][2].get<double>());
+  std::ofstream(dir / "noisy.csv") << "depth_mm,deflection_mm\n-0.02,0.0\n" << rows;
+  const auto fit = plan("deflection fit --k -0.0025 --ell 20 --in " + (dir / "noisy.csv").string());
+  ASSERT_EQ(fit.exit_code, 0) << fit.out;
+  EXPECT_NEAR(json::parse(fit.out)["lambda1"].get<double>(), 0.49, 1e-6);
+  EXPECT_NEAR(json::parse(fit.out)["lambda2"].get<double>(), 0.22, 1e-6);
+  // The tolerance is the user's: at 0.01 mm the same entry point is too far above the entry.
+  EXPECT_EQ(plan("deflection fit --k -0.0025 --ell 20 --depth-noise 0.01 --in " +
+                 (dir / "noisy.csv").string())
+                .exit_code,
+            2);
+  std::ofstream(dir / "two.csv") << "depth_mm,deflection_mm\n" << rows << rows;
+  const std::string cmd = std::string(IGNAV_PLAN_EXE) +
+                          " deflection fit --k -0.0025 --ell 20 --in " +
+                          (dir / "two.csv").string() + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string err;
+  char buf[512];
+  while (fgets(buf, sizeof buf, p))
+    err += buf;
+  EXPECT_EQ(WEXITSTATUS(pclose(p)), 2);
+  EXPECT_NE(err.find("two.csv: observation 27"), std::string::npos) << err;
+  EXPECT_NE(err.find("not one path"), std::string::npos) << err;
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace

@@ -147,7 +147,9 @@ json plotDeflection(const DeflectionArgs& args) {
     out["curves"] = ends;
   } else {
     const auto observed = readObservations(args.csv_path);
-    const auto fit = deflection::fitTissue(args.needle, observed, {});
+    deflection::FitOptions options;
+    options.depth_noise_mm = args.depth_noise_mm;
+    const auto fit = deflection::fitTissue(args.needle, observed, options);
     if (!fit) throw CliError{args.csv_path + ": " + fit.error().message};
     Curve seen{"observed", {}, {0, 0, 0}, true};
     double deepest = 0.0;
@@ -180,6 +182,7 @@ json fitDeflection(const DeflectionArgs& args) {
   const auto observed = readObservations(args.csv_path);
   deflection::FitOptions options;
   options.fit_curvature = args.fit_curvature;
+  options.depth_noise_mm = args.depth_noise_mm;
   const auto fit = deflection::fitTissue(args.needle, observed, options);
   if (!fit) throw CliError{args.csv_path + ": " + fit.error().message};
   return {{"lambda1", fit->tissue.lambda1},

@@ -17,7 +17,8 @@ struct DeflectionArgs {
   double step_mm = 1.0;
   std::string csv_path;  // fit: depth_mm,deflection_mm per line, after a header
   bool fit_curvature = false;
-  std::string png_path;  // plot: where the figure goes
+  double depth_noise_mm = 0.5;  // fit, plot: depth noise a measured path may carry
+  std::string png_path;         // plot: where the figure goes
 };
 
 // {"admissible": true, "path": [[s, z, y, gamma], ...]}; an inadmissible tissue is an answer:

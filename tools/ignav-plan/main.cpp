@@ -321,6 +321,9 @@ int main(int argc, char** argv) {
   auto* defl_fit = defl->get_subcommand("fit");
   defl_fit->add_option("--in", deflection_args.csv_path, "CSV: depth_mm,deflection_mm")->required();
   defl_fit->add_flag("--fit-k", deflection_args.fit_curvature, "fit the curvature too");
+  const char* noise_help =
+      "depth noise the path may carry (mm): depths down to minus this, steps back up to it";
+  defl_fit->add_option("--depth-noise", deflection_args.depth_noise_mm, noise_help);
   auto* defl_plot = defl->add_subcommand(
       "plot", "PNG: paths for several tissues (seed 000's Fig. 5), or observed vs fitted");
   defl_plot->add_option("--k", deflection_args.needle.curvature_per_mm)->required();
@@ -328,6 +331,7 @@ int main(int argc, char** argv) {
   defl_plot->add_option("--length", deflection_args.length_mm, "inserted length (mm)");
   defl_plot->add_option("--in", deflection_args.csv_path, "observed path: plot it with the fits");
   defl_plot->add_option("--out", deflection_args.png_path, "the PNG")->required();
+  defl_plot->add_option("--depth-noise", deflection_args.depth_noise_mm, noise_help);
 
   try {
     app.parse(argc, argv);

@@ -222,7 +222,12 @@ Expected<RobotConfig> parseRobotConfig(const std::string& yaml_text, const std::
                                 ? actuation::Coupling::kCarried
                                 : actuation::Coupling::kCasing;
 
+  // Defaults that follow the geometry: the scan with the stylet fully deployed, and the base
+  // marker at the lower end of the cannula's straight part (95 mm for the paper's instrument).
   c.registration.scan.scan_joints.z_s_mm = c.instrument.stylet_travel_mm;
+  c.registration.scan.cannula_base_mm = c.instrument.cannula_fixed_offset_mm +
+                                        c.instrument.stylet_travel_mm -
+                                        c.instrument.stylet_curved_length_mm;
   if (r.has("registration")) parseRegistration(r, c);
 
   if (!error.empty()) return makeError(ErrorCode::kConfig, source + ": " + error);

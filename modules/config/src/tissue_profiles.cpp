@@ -47,8 +47,9 @@ Expected<TissueProfiles> loadTissueProfiles(const std::string& path) {
     const std::string key = "tissues." + p.name;
     for (const auto& field : kv.second) {
       const std::string f = field.first.Scalar();
-      if (f != "lambda1" && f != "lambda2" && f != "source") {
-        return bad(key + "." + f, "unknown key; expected lambda1, lambda2, source");
+      if (f != "lambda1" && f != "lambda2" && f != "curvature_per_mm" && f != "source") {
+        return bad(key + "." + f,
+                   "unknown key; expected lambda1, lambda2, curvature_per_mm, source");
       }
     }
     if (!kv.second["lambda1"] || !kv.second["lambda2"]) {
@@ -58,6 +59,12 @@ Expected<TissueProfiles> loadTissueProfiles(const std::string& path) {
       return ok.error();
     }
     if (auto ok = number(kv.second["lambda2"], key + ".lambda2", p.tissue.lambda2); !ok) {
+      return ok.error();
+    }
+    // A profile fitted with its curvature carries the needle's k along (it overrides needle's).
+    if (auto ok = number(kv.second["curvature_per_mm"], key + ".curvature_per_mm",
+                         p.needle.curvature_per_mm);
+        !ok) {
       return ok.error();
     }
     if (kv.second["source"]) p.source = kv.second["source"].as<std::string>();

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 #include <fmt/format.h>
 
@@ -110,8 +111,16 @@ Expected<std::vector<PathSample>> simulate(const NeedleModel& needle, const Tiss
     times.push_back(static_cast<double>(i) * step_mm);
   times.push_back(length_mm);
 
-  auto rhs = [&](const State& x, State& dx, double /*s*/) {
+  // Past ±90° the model no longer holds and tan α heads for its pole, where the step control
+  // would crawl for ever: stop moving there and refuse the path below.
+  double turned_at = std::numeric_limits<double>::quiet_NaN();
+  auto rhs = [&](const State& x, State& dx, double s) {
     const double gamma = x[2];
+    if (std::abs(gamma) >= M_PI / 2) {
+      if (!(turned_at <= s)) turned_at = s;
+      dx = {0.0, 0.0, 0.0};
+      return;
+    }
     const double c = std::cos(alpha(tissue, gamma));
     dx[0] = std::cos(gamma) / c;  // z
     dx[1] = std::sin(gamma) / c;  // y
@@ -125,13 +134,14 @@ Expected<std::vector<PathSample>> simulate(const NeedleModel& needle, const Tiss
         out.push_back({s, st[0], st[1], st[2]});
       });
   for (const auto& p : out) {
-    if (std::abs(p.gamma_rad) >= M_PI / 2) {
-      return makeError(ErrorCode::kDegenerate,
-                       fmt::format("the path turns past 90° at s = {:.2f} mm; the model holds "
-                                   "only for |γ| < 90°",
-                                   p.s_mm),
-                       "turned_back");
-    }
+    if (std::abs(p.gamma_rad) >= M_PI / 2 && !(turned_at <= p.s_mm)) turned_at = p.s_mm;
+  }
+  if (std::isfinite(turned_at)) {
+    return makeError(ErrorCode::kDegenerate,
+                     fmt::format("the path turns past 90° at s = {:.2f} mm; the model holds "
+                                 "only for |γ| < 90°",
+                                 turned_at),
+                     "turned_back");
   }
   return out;
 }
@@ -195,8 +205,17 @@ struct Residuals : Eigen::DenseFunctor<double> {
         needle(n),
         observed(o),
         kind_(kind) {
+    // The model at each observation's depth, a depth above the entry read as 0; the integrator
+    // wants distinct ascending depths, so each observation points at its own.
     for (const auto& p : o)
-      depths.push_back(p.depth_mm);
+      depths.push_back(std::max(0.0, p.depth_mm));
+    std::sort(depths.begin(), depths.end());
+    depths.erase(std::unique(depths.begin(), depths.end()), depths.end());
+    for (const auto& p : o) {
+      at.push_back(static_cast<std::size_t>(
+          std::lower_bound(depths.begin(), depths.end(), std::max(0.0, p.depth_mm)) -
+          depths.begin()));
+    }
   }
 
   void split(const InputType& x, NeedleModel& n, Tissue& t) const {
@@ -216,16 +235,16 @@ struct Residuals : Eigen::DenseFunctor<double> {
     auto y = deflectionAtDepths(n, t, depths);
     for (Eigen::Index i = 0; i < r.size(); ++i) {
       // Outside the model's domain: a large, smooth-enough penalty pushes the search back.
-      r[i] = y ? (*y)[static_cast<std::size_t>(i)] -
-                     observed[static_cast<std::size_t>(i)].deflection_mm
-               : 1e3;
+      const auto k = static_cast<std::size_t>(i);
+      r[i] = y ? (*y)[at[k]] - observed[k].deflection_mm : 1e3;
     }
     return 0;
   }
 
   NeedleModel needle;
   std::vector<Observation> observed;
-  std::vector<double> depths;
+  std::vector<double> depths;   // distinct, ascending, ≥ 0
+  std::vector<std::size_t> at;  // observation i's index into depths
   Kind kind_;
 };
 
@@ -234,6 +253,7 @@ struct Solved {
   Eigen::VectorXd residuals;
   Eigen::MatrixXd jacobian;
   int iterations = 0;
+  bool converged = false;
 };
 
 Solved solve(Residuals& f, Eigen::VectorXd x) {
@@ -243,8 +263,15 @@ Solved solve(Residuals& f, Eigen::VectorXd x) {
   lm.setFtol(1e-14);
   lm.setGtol(0.0);
   lm.setMaxfev(4000);
-  lm.minimize(x);
+  const auto status = lm.minimize(x);
   Solved out;
+  out.converged = status == Eigen::LevenbergMarquardtSpace::RelativeReductionTooSmall ||
+                  status == Eigen::LevenbergMarquardtSpace::RelativeErrorTooSmall ||
+                  status == Eigen::LevenbergMarquardtSpace::RelativeErrorAndReductionTooSmall ||
+                  status == Eigen::LevenbergMarquardtSpace::CosinusTooSmall ||
+                  status == Eigen::LevenbergMarquardtSpace::FtolTooSmall ||
+                  status == Eigen::LevenbergMarquardtSpace::XtolTooSmall ||
+                  status == Eigen::LevenbergMarquardtSpace::GtolTooSmall;
   out.x = x;
   out.residuals.resize(f.values());
   f(x, out.residuals);
@@ -252,6 +279,66 @@ Solved solve(Residuals& f, Eigen::VectorXd x) {
   diff.df(x, out.jacobian);
   out.iterations = static_cast<int>(lm.iterations());
   return out;
+}
+
+}  // namespace
+
+namespace {
+
+// A measured path, in the order measured: noise within `tolerance_mm` is data; what no single
+// insertion can produce is refused, naming the observation (1-based).
+Status checkPath(const std::vector<Observation>& observed, double tolerance_mm) {
+  if (!std::isfinite(tolerance_mm) || tolerance_mm < 0) {
+    return makeError(
+        ErrorCode::kInvalidArgument,
+        fmt::format("depth noise tolerance {} mm must be finite and ≥ 0", tolerance_mm));
+  }
+  // A path listed from its deepest point back to the entry is still one path.
+  const bool reversed = !observed.empty() && observed.back().depth_mm < observed.front().depth_mm;
+  double deepest = -std::numeric_limits<double>::infinity();
+  std::size_t deepest_at = 0;
+  double shallowest = std::numeric_limits<double>::infinity();
+  for (std::size_t n = 0; n < observed.size(); ++n) {
+    const std::size_t i = reversed ? observed.size() - 1 - n : n;
+    const auto& o = observed[i];
+    if (!std::isfinite(o.depth_mm) || !std::isfinite(o.deflection_mm)) {
+      return makeError(ErrorCode::kInvalidArgument,
+                       fmt::format("observation {}: depth {} mm and deflection {} mm must be "
+                                   "finite",
+                                   i + 1, o.depth_mm, o.deflection_mm));
+    }
+    if (o.depth_mm < -tolerance_mm) {
+      return makeError(ErrorCode::kInvalidArgument,
+                       fmt::format("observation {}: depth {} mm lies above the entry point by "
+                                   "more than the {} mm depth noise tolerance: not part of a path "
+                                   "that starts at the entry",
+                                   i + 1, o.depth_mm, tolerance_mm),
+                       "not_a_path");
+    }
+    if (o.depth_mm < deepest - tolerance_mm) {
+      return makeError(ErrorCode::kInvalidArgument,
+                       fmt::format("observation {}: depth {} mm is {:.3g} mm shallower than "
+                                   "observation {} ({} mm){}, more than the {} mm depth noise "
+                                   "tolerance: a needle's path only goes deeper, so this is not "
+                                   "one path (two paths in one file, or the columns swapped?)",
+                                   i + 1, o.depth_mm, deepest - o.depth_mm, deepest_at + 1, deepest,
+                                   reversed ? " listed after it" : "", tolerance_mm),
+                       "not_a_path");
+    }
+    if (o.depth_mm > deepest) {
+      deepest = o.depth_mm;
+      deepest_at = i;
+    }
+    shallowest = std::min(shallowest, o.depth_mm);
+  }
+  if (deepest - shallowest <= tolerance_mm) {
+    return makeError(ErrorCode::kInvalidArgument,
+                     fmt::format("the observations span {:.3g} mm of depth, no more than the {} "
+                                 "mm depth noise tolerance: not a path",
+                                 deepest - shallowest, tolerance_mm),
+                     "not_a_path");
+  }
+  return Ok{};
 }
 
 }  // namespace
@@ -264,30 +351,28 @@ Expected<TissueFit> fitTissue(const NeedleModel& needle, const std::vector<Obser
         ErrorCode::kInvalidArgument,
         fmt::format("{} observations for {} parameters; need more", observed.size(), p));
   }
-  std::vector<Observation> sorted = observed;
-  std::sort(sorted.begin(), sorted.end(),
-            [](const Observation& a, const Observation& b) { return a.depth_mm < b.depth_mm; });
-  for (std::size_t i = 0; i < sorted.size(); ++i) {
-    if (!std::isfinite(sorted[i].depth_mm) || !std::isfinite(sorted[i].deflection_mm) ||
-        sorted[i].depth_mm < 0) {
-      return makeError(ErrorCode::kInvalidArgument,
-                       fmt::format("observation {}: depth and deflection must be finite, depth "
-                                   "≥ 0",
-                                   i + 1));
-    }
-  }
+  if (auto ok = checkPath(observed, options.depth_noise_mm); !ok) return ok.error();
   if (auto ok = checkInputs(needle, options.initial); !ok) {
     return makeError(ErrorCode::kInvalidArgument, "initial guess: " + ok.error().message);
   }
 
   Residuals extended(
-      needle, sorted,
+      needle, observed,
       options.fit_curvature ? Residuals::Kind::kExtendedWithCurvature : Residuals::Kind::kExtended);
   Eigen::VectorXd x0(p);
   x0[0] = options.initial.lambda1;
   x0[1] = options.initial.lambda2;
   if (options.fit_curvature) x0[2] = needle.curvature_per_mm;
   const Solved fit = solve(extended, x0);
+  if (!fit.converged) {
+    return makeError(ErrorCode::kDegenerate,
+                     fmt::format("the fit did not converge in {} iterations (λ1 = {:.4g}, λ2 = "
+                                 "{:.4g}, RMS {:.3g} mm): the path does not determine the tissue",
+                                 fit.iterations, fit.x[0], fit.x[1],
+                                 std::sqrt(fit.residuals.squaredNorm() /
+                                           static_cast<double>(fit.residuals.size()))),
+                     "not_converged");
+  }
 
   TissueFit out;
   out.tissue = {fit.x[0], fit.x[1]};
@@ -299,7 +384,7 @@ Expected<TissueFit> fitTissue(const NeedleModel& needle, const std::vector<Obser
     return makeError(ErrorCode::kDegenerate, "the fit ended outside the admissible parameters",
                      "inadmissible");
   }
-  const double n = static_cast<double>(sorted.size());
+  const double n = static_cast<double>(observed.size());
   const double rss = fit.residuals.squaredNorm();
   out.rms_mm = std::sqrt(rss / n);
   out.max_error_mm = fit.residuals.cwiseAbs().maxCoeff();
@@ -312,7 +397,7 @@ Expected<TissueFit> fitTissue(const NeedleModel& needle, const std::vector<Obser
   out.correlation = cov(0, 1) / std::sqrt(cov(0, 0) * cov(1, 1));
 
   // The plain bicycle model on the same data: only its curvature is free.
-  Residuals plain(needle, sorted, Residuals::Kind::kBicycle);
+  Residuals plain(needle, observed, Residuals::Kind::kBicycle);
   Eigen::VectorXd k0(1);
   k0[0] = needle.curvature_per_mm;
   const Solved bicycle = solve(plain, k0);

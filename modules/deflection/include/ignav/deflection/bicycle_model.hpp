@@ -60,6 +60,10 @@ struct Observation {
 struct FitOptions {
   Tissue initial{0.2, 0.1};
   bool fit_curvature = false;  // also estimate k (the needle's own curvature)
+  // Measurement noise a measured path may carry: depths down to −depth_noise_mm (the entry
+  // point picked slightly too deep) and, in the order given, steps back by up to this much. The
+  // model reads a depth below 0 as 0 (the needle is straight until it enters).
+  double depth_noise_mm = 0.5;
 };
 
 struct TissueFit {
@@ -77,6 +81,10 @@ struct TissueFit {
 // Levenberg–Marquardt (Eigen) on the deflection residuals at the observed depths; standard errors
 // from the Jacobian at the solution, σ² = RSS / (n − p). The plain bicycle model is fitted to the
 // same data for comparison (seed 000's claim: the extended model fits non-circular paths better).
+// The observations are one path in the order measured; noise within `depth_noise_mm` is data.
+// Refused, naming the observation: non-finite values, a depth further above the entry than the
+// tolerance, a step back by more than it (not one path), a path spanning no more depth than the
+// noise, too few observations, or a fit that does not converge.
 Expected<TissueFit> fitTissue(const NeedleModel& needle, const std::vector<Observation>& observed,
                               const FitOptions& options = {});
 

@@ -1,0 +1,323 @@
+// The tissue fitted from measured targeting errors (docs/COMPENSATION.md): Levenberg–Marquardt on
+// the 3-D residuals between where each seed ended and where the model says its joints land.
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <limits>
+
+#include <fmt/format.h>
+
+#include <Eigen/Dense>
+#include <unsupported/Eigen/LevenbergMarquardt>
+
+#include "ignav/compensation/compensation.hpp"
+
+namespace ignav::compensation {
+namespace {
+
+// Outside the model's domain (inadmissible, turned back): a large residual pushes the search back.
+constexpr double kPenalty_mm = 1e3;
+// The scaled Jacobian's condition number beyond which the records do not determine the parameters.
+constexpr double kMaxCondition = 1e7;
+
+enum class Kind { kExtended, kExtendedWithCurvature, kBicycle };
+
+int parameterCount(Kind kind) {
+  return kind == Kind::kExtended ? 2 : kind == Kind::kExtendedWithCurvature ? 3 : 1;
+}
+
+struct Residuals : Eigen::DenseFunctor<double> {
+  Residuals(const kinematics::Kinematics& k, const DeflectionModel& m,
+            const std::vector<TargetingRecord>& r, Kind kind)
+      : Eigen::DenseFunctor<double>(parameterCount(kind), 3 * static_cast<int>(r.size())),
+        kinematics(k),
+        model(m),
+        records(r),
+        kind_(kind) {}
+
+  DeflectionModel modelAt(const InputType& x) const {
+    DeflectionModel m = model;
+    if (kind_ == Kind::kBicycle) {
+      m.tissue = {};
+      m.needle.curvature_per_mm = x[0];
+      return m;
+    }
+    m.tissue = {x[0], x[1]};
+    if (kind_ == Kind::kExtendedWithCurvature) m.needle.curvature_per_mm = x[2];
+    return m;
+  }
+
+  // False (and the penalty in r) where the model does not hold for the parameters x.
+  bool evaluate(const InputType& x, ValueType& r) const {
+    const DeflectionModel m = modelAt(x);
+    r.resize(values());
+    bool inside = true;
+    for (std::size_t i = 0; i < records.size(); ++i) {
+      auto landing = predictLanding(kinematics, m, records[i].joints);
+      inside = inside && landing.ok();
+      const Eigen::Vector3d e = landing ? Eigen::Vector3d(landing->tip_mm - records[i].actual_mm)
+                                        : Eigen::Vector3d::Constant(kPenalty_mm);
+      r.segment<3>(3 * static_cast<Eigen::Index>(i)) = e;
+    }
+    return inside;
+  }
+
+  int operator()(const InputType& x, ValueType& r) const {
+    evaluate(x, r);
+    return 0;
+  }
+
+  // Central differences with steps of 1e-6 relative (far above the integrator's 1e-12 noise);
+  // one-sided where a step would leave the model's admissible parameters, so that a fit resting
+  // on that limit still sees the slope on its own side.
+  int df(const InputType& x, JacobianType& jac) const {
+    jac.resize(values(), inputs());
+    ValueType plus, minus, centre;
+    evaluate(x, centre);
+    for (Eigen::Index j = 0; j < x.size(); ++j) {
+      const double h = 1e-6 * std::max(std::abs(x[j]), typical(j));
+      InputType xp = x, xm = x;
+      xp[j] += h;
+      xm[j] -= h;
+      const bool p_ok = evaluate(xp, plus), m_ok = evaluate(xm, minus);
+      if (p_ok && m_ok) {
+        jac.col(j) = (plus - minus) / (2.0 * h);
+      } else if (p_ok || m_ok) {
+        jac.col(j) = p_ok ? ValueType((plus - centre) / h) : ValueType((centre - minus) / h);
+      } else {
+        jac.col(j).setZero();
+      }
+    }
+    return 0;
+  }
+
+  // Which parameter, if any, rests on the admissibility limit at x, and why.
+  std::string limitAt(const InputType& x) const {
+    for (Eigen::Index j = 0; j < x.size(); ++j) {
+      const double h = 1e-5 * std::max(std::abs(x[j]), typical(j));
+      for (double side : {1.0, -1.0}) {
+        InputType beyond = x;
+        beyond[j] += side * h;
+        const DeflectionModel m = modelAt(beyond);
+        if (auto ok = deflection::checkAdmissible(m.needle, m.tissue); !ok.admissible) {
+          return fmt::format(
+              "{} = {:.4g} rests on the model's admissibility limit (just {} it, {}): the "
+              "errors would take it further, so it is bounded there rather than determined, and "
+              "its standard error is one-sided",
+              name(j), x[j], side > 0 ? "above" : "below", ok.reason);
+        }
+      }
+    }
+    return {};
+  }
+
+  double typical(Eigen::Index j) const {
+    const bool curvature = kind_ == Kind::kBicycle || j == 2;
+    return curvature ? 1e-3 : 0.1;
+  }
+  const char* name(Eigen::Index j) const {
+    return kind_ == Kind::kBicycle || j == 2 ? "k" : j == 0 ? "λ1" : "λ2";
+  }
+
+  const kinematics::Kinematics& kinematics;
+  DeflectionModel model;
+  const std::vector<TargetingRecord>& records;
+  Kind kind_;
+};
+
+struct Solved {
+  Eigen::VectorXd x, residuals;
+  Eigen::MatrixXd jacobian;
+  int iterations = 0;
+  bool converged = false;
+};
+
+Eigen::MatrixXd jacobianAt(const Residuals& f, const Eigen::VectorXd& x) {
+  Eigen::MatrixXd j;
+  f.df(x, j);
+  return j;
+}
+
+// The condition number of the Jacobian with unit columns: how well the data separate the
+// parameters, whatever their units.
+double condition(const Eigen::MatrixXd& j) {
+  Eigen::MatrixXd scaled = j;
+  for (Eigen::Index c = 0; c < j.cols(); ++c) {
+    const double n = j.col(c).norm();
+    if (!(n > 0.0)) return std::numeric_limits<double>::infinity();
+    scaled.col(c) /= n;
+  }
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled);
+  const auto& s = svd.singularValues();
+  return s[s.size() - 1] > 0.0 ? s[0] / s[s.size() - 1] : std::numeric_limits<double>::infinity();
+}
+
+Solved solve(Residuals& f, Eigen::VectorXd x, int max_evaluations) {
+  Eigen::LevenbergMarquardt<Residuals> lm(f);
+  lm.setXtol(1e-14);
+  lm.setFtol(1e-14);
+  lm.setGtol(0.0);
+  lm.setMaxfev(max_evaluations);
+  const auto status = lm.minimize(x);
+  using namespace Eigen::LevenbergMarquardtSpace;
+  Solved out;
+  out.converged = status == RelativeReductionTooSmall || status == RelativeErrorTooSmall ||
+                  status == RelativeErrorAndReductionTooSmall || status == CosinusTooSmall ||
+                  status == FtolTooSmall || status == XtolTooSmall || status == GtolTooSmall;
+  out.x = x;
+  f.evaluate(x, out.residuals);
+  out.jacobian = jacobianAt(f, x);
+  out.iterations = static_cast<int>(lm.iterations());
+  return out;
+}
+
+// Per-target 3-D error norms of a residual vector.
+std::vector<double> norms(const Eigen::VectorXd& r) {
+  std::vector<double> out;
+  for (Eigen::Index i = 0; i + 2 < r.size(); i += 3)
+    out.push_back(r.segment<3>(i).norm());
+  return out;
+}
+
+double rms(const std::vector<double>& e) {
+  double s = 0.0;
+  for (double v : e)
+    s += v * v;
+  return std::sqrt(s / static_cast<double>(e.size()));
+}
+
+}  // namespace
+
+Expected<TargetingFit> fitTissueFromTargeting(const kinematics::Kinematics& kinematics,
+                                              const DeflectionModel& model,
+                                              const std::vector<TargetingRecord>& records,
+                                              const TargetingFitOptions& options) {
+  const Kind kind = options.fit_curvature ? Kind::kExtendedWithCurvature : Kind::kExtended;
+  const int p = parameterCount(kind);
+  // Each target gives two in-plane residuals that the tissue moves (and one across, noise only).
+  if (2 * records.size() <= static_cast<std::size_t>(p)) {
+    return makeError(
+        ErrorCode::kInvalidArgument,
+        fmt::format("{} targets for {} parameters: need at least {}", records.size(), p, p / 2 + 1),
+        "underdetermined");
+  }
+  double deepest = 0.0, shallowest = std::numeric_limits<double>::infinity();
+  for (const auto& r : records) {
+    const auto& j = r.joints;
+    if (!r.planned_mm.allFinite() || !r.actual_mm.allFinite() || !std::isfinite(j.theta_c_rad) ||
+        !std::isfinite(j.z_c_mm) || !std::isfinite(j.z_s_mm)) {
+      return makeError(ErrorCode::kInvalidArgument,
+                       fmt::format("target '{}': planned, actual and joints must be finite", r.id));
+    }
+    if (auto ok = kinematics.checkJoints(j); !ok) {
+      return makeError(ErrorCode::kInvalidArgument,
+                       fmt::format("target '{}': {}", r.id, ok.error().message));
+    }
+    deepest = std::max(deepest, j.z_c_mm);
+    shallowest = std::min(shallowest, j.z_c_mm);
+  }
+  if (!(deepest > 0.0)) {
+    return makeError(ErrorCode::kInvalidArgument,
+                     "no target was reached with the cannula in tissue (every z_c is 0): the "
+                     "errors say nothing about the tissue",
+                     "underdetermined");
+  }
+  if (auto ok = deflection::checkAdmissible(model.needle, options.initial); !ok.admissible) {
+    return makeError(ErrorCode::kInvalidArgument, "initial guess: " + ok.reason);
+  }
+
+  Residuals extended(kinematics, model, records, kind);
+  Eigen::VectorXd x0(p);
+  x0[0] = options.initial.lambda1;
+  x0[1] = options.initial.lambda2;
+  if (options.fit_curvature) x0[2] = model.needle.curvature_per_mm;
+  auto underdetermined = [&](double cond) {
+    return makeError(
+        ErrorCode::kInvalidArgument,
+        fmt::format("the {} targets do not determine λ1, λ2{} (condition number {:.3g}): their "
+                    "insertions span z_c {:.1f}–{:.1f} mm; targets at several depths, the deeper "
+                    "the better, separate the parameters",
+                    records.size(), options.fit_curvature ? " and k" : "", cond, shallowest,
+                    deepest),
+        "underdetermined");
+  };
+  if (const double c = condition(jacobianAt(extended, x0)); !(c < kMaxCondition)) {
+    return underdetermined(c);
+  }
+  const Solved fit = solve(extended, x0, options.max_evaluations);
+  if (!fit.converged) {
+    return makeError(ErrorCode::kDegenerate,
+                     fmt::format("the fit did not converge in {} iterations (λ1 = {:.4g}, "
+                                 "λ2 = {:.4g}, RMS {:.3g} mm)",
+                                 fit.iterations, fit.x[0], fit.x[1], rms(norms(fit.residuals))),
+                     "not_converged");
+  }
+  if (const double c = condition(fit.jacobian); !(c < kMaxCondition)) return underdetermined(c);
+
+  TargetingFit out;
+  out.limit = extended.limitAt(fit.x);
+  out.tissue = {fit.x[0], fit.x[1]};
+  out.curvature_per_mm = options.fit_curvature ? fit.x[2] : model.needle.curvature_per_mm;
+  out.iterations = fit.iterations;
+  deflection::NeedleModel fitted = model.needle;
+  fitted.curvature_per_mm = out.curvature_per_mm;
+  if (auto ok = deflection::checkAdmissible(fitted, out.tissue); !ok.admissible) {
+    return makeError(ErrorCode::kDegenerate,
+                     fmt::format("the fit ended outside the model's admissible parameters "
+                                 "(λ1 = {:.4g}, λ2 = {:.4g}): {}",
+                                 out.tissue.lambda1, out.tissue.lambda2, ok.reason),
+                     "inadmissible");
+  }
+  const auto errors = norms(fit.residuals);
+  out.rms_mm = rms(errors);
+  out.max_error_mm = *std::max_element(errors.begin(), errors.end());
+  const double dof = static_cast<double>(fit.residuals.size() - p);
+  const double sigma2 = fit.residuals.squaredNorm() / dof;
+  const Eigen::MatrixXd cov =
+      sigma2 *
+      (fit.jacobian.transpose() * fit.jacobian).ldlt().solve(Eigen::MatrixXd::Identity(p, p));
+  for (Eigen::Index i = 0; i < p; ++i)
+    out.standard_errors.push_back(std::sqrt(std::max(0.0, cov(i, i))));
+  out.correlation = cov(0, 1) / std::sqrt(cov(0, 0) * cov(1, 1));
+
+  // The plain bicycle model on the same errors (its curvature free), and no model at all.
+  Residuals plain(kinematics, model, records, Kind::kBicycle);
+  Eigen::VectorXd k0(1);
+  k0[0] = model.needle.curvature_per_mm;
+  const Solved bicycle = solve(plain, k0, options.max_evaluations);
+  const auto bicycle_errors = norms(bicycle.residuals);
+  out.bicycle_curvature_per_mm = bicycle.x[0];
+  out.rms_bicycle_mm = rms(bicycle_errors);
+  out.max_error_bicycle_mm = *std::max_element(bicycle_errors.begin(), bicycle_errors.end());
+  std::vector<double> measured;
+  for (const auto& r : records)
+    measured.push_back((r.actual_mm - kinematics.forward(r.joints).tip_mm).norm());
+  out.rms_no_deflection_mm = rms(measured);
+  return out;
+}
+
+Expected<std::string> tissueProfileYaml(const std::string& name, const TargetingFit& fit,
+                                        const std::string& source, bool with_curvature) {
+  const bool plain = !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-';
+  });
+  if (!plain) {
+    return makeError(ErrorCode::kInvalidArgument,
+                     fmt::format("tissue name '{}': use letters, digits, '_' and '-' only", name));
+  }
+  std::string out = fmt::format("  {}:\n    lambda1: {}\n    lambda2: {}\n", name,
+                                fit.tissue.lambda1, fit.tissue.lambda2);
+  if (with_curvature) out += fmt::format("    curvature_per_mm: {}\n", fit.curvature_per_mm);
+  std::string note = source;
+  std::replace(note.begin(), note.end(), '\n', ' ');
+  std::replace(note.begin(), note.end(), '"', '\'');
+  std::replace(note.begin(), note.end(), '\\', '/');
+  const auto& se = fit.standard_errors;
+  out += fmt::format(
+      "    source: \"{}; ±{:.2g} / ±{:.2g} (1 SE), RMS {:.3g} mm (plain bicycle {:.3g} mm)\"\n",
+      note, se.size() > 0 ? se[0] : 0.0, se.size() > 1 ? se[1] : 0.0, fit.rms_mm,
+      fit.rms_bicycle_mm);
+  return out;
+}
+
+}  // namespace ignav::compensation
