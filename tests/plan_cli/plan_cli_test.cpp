@@ -24,8 +24,10 @@ struct ProcessResult {
   std::string out;
 };
 
-ProcessResult plan(const std::string& args) {
-  const std::string cmd = std::string(IGNAV_PLAN_EXE) + " " + args + " 2>/dev/null";
+// `ignav-plan ARGS`: its exit code and stdout (and stderr with it when `with_stderr`).
+ProcessResult plan(const std::string& args, bool with_stderr = false) {
+  const std::string cmd =
+      std::string(IGNAV_PLAN_EXE) + " " + args + (with_stderr ? " 2>&1" : " 2>/dev/null");
   FILE* pipe = popen(cmd.c_str(), "r");
   std::string out;
   std::array<char, 4096> buf{};
@@ -300,15 +302,10 @@ TEST(PlanCli, DeflectionSimulateThenFitRecoversTheTissue) {
   EXPECT_EQ(bad.exit_code, 0);
   EXPECT_FALSE(json::parse(bad.out)["admissible"].get<bool>());
   std::ofstream(dir / "bad.csv") << "depth_mm,deflection_mm\n10,-1\n20,oops\n";
-  const std::string cmd = std::string(IGNAV_PLAN_EXE) +
-                          " deflection fit --k -0.0025 --ell 20 --in " +
-                          (dir / "bad.csv").string() + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string err;
-  char buf[512];
-  while (fgets(buf, sizeof buf, p))
-    err += buf;
-  EXPECT_EQ(WEXITSTATUS(pclose(p)), 2);
+  const auto refused =
+      plan("deflection fit --k -0.0025 --ell 20 --in " + (dir / "bad.csv").string(), true);
+  const std::string& err = refused.out;
+  EXPECT_EQ(refused.exit_code, 2);
   EXPECT_NE(err.find("bad.csv line 3"), std::string::npos) << err;
   std::filesystem::remove_all(dir);
 }
@@ -337,15 +334,10 @@ TEST(PlanCli, DeflectionFitTakesEntryNoiseAndRefusesWhatIsNoPath) {
                 .exit_code,
             2);
   std::ofstream(dir / "two.csv") << "depth_mm,deflection_mm\n" << rows << rows;
-  const std::string cmd = std::string(IGNAV_PLAN_EXE) +
-                          " deflection fit --k -0.0025 --ell 20 --in " +
-                          (dir / "two.csv").string() + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string err;
-  char buf[512];
-  while (fgets(buf, sizeof buf, p))
-    err += buf;
-  EXPECT_EQ(WEXITSTATUS(pclose(p)), 2);
+  const auto refused =
+      plan("deflection fit --k -0.0025 --ell 20 --in " + (dir / "two.csv").string(), true);
+  const std::string& err = refused.out;
+  EXPECT_EQ(refused.exit_code, 2);
   EXPECT_NE(err.find("two.csv: observation 27"), std::string::npos) << err;
   EXPECT_NE(err.find("not one path"), std::string::npos) << err;
   std::filesystem::remove_all(dir);
