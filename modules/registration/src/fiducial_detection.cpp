@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include "bright_clusters.hpp"
+#include "ignav/volume/threshold.hpp"
 
 namespace ignav::registration {
 namespace {
@@ -142,21 +143,6 @@ void refineCentroid(const volume::Volume& volume, const std::vector<Index3>& vox
   candidate.centroid_lps_mm = volume.geometry.toLps(ijk);
 }
 
-// Plain reductions the compiler vectorises.
-std::int16_t blockMax(const std::int16_t* v, std::size_t n) {
-  std::int16_t m = std::numeric_limits<std::int16_t>::min();
-  for (std::size_t i = 0; i < n; ++i)
-    m = v[i] > m ? v[i] : m;
-  return m;
-}
-
-std::int16_t blockMin(const std::int16_t* v, std::size_t n) {
-  std::int16_t m = std::numeric_limits<std::int16_t>::max();
-  for (std::size_t i = 0; i < n; ++i)
-    m = v[i] < m ? v[i] : m;
-  return m;
-}
-
 std::string describeCandidate(const FiducialCandidate& c) {
   return fmt::format("({:.2f}, {:.2f}, {:.2f})", c.centroid_lps_mm.x(), c.centroid_lps_mm.y(),
                      c.centroid_lps_mm.z());
@@ -267,38 +253,22 @@ Expected<FiducialDetection> findFiducials(const volume::Volume& volume,
   // Bright voxels, as integer IJK so that clustering at tolerance √3 is exactly
   // 26-connectivity whatever the spacing.
   // The threshold in stored units, so the scan over ~10^8 voxels is an int16 compare.
-  std::vector<Index3> bright;
-  if (volume.value_scale == 0.0) {
-    return makeError(ErrorCode::kInvalidArgument, "volume: value scale is 0");
+  // Most of a CT holds no marker: one vectorised pass finds the bright voxels.
+  auto at_or_above = volume::voxelsAtOrAbove(volume, search.min_hu, search.max_bright_voxels);
+  if (!at_or_above) {
+    if (at_or_above.error().reason != "too_many_bright_voxels") return at_or_above.error();
+    return makeError(ErrorCode::kInvalidArgument,
+                     fmt::format("fiducial search: more than {} voxels at or above "
+                                 "min_hu {:g} HU; raise min_hu to the markers' intensity",
+                                 search.max_bright_voxels, search.min_hu));
   }
-  const double stored = (search.min_hu - volume.value_offset) / volume.value_scale;
-  const bool rising = volume.value_scale > 0.0;  // a larger stored value is brighter
-  const double bound = rising ? std::ceil(stored) : std::floor(stored);
-  const auto limit = static_cast<std::int16_t>(std::clamp(bound, -32768.0, 32767.0));
-  const bool none = rising ? bound > 32767.0 : bound < -32768.0;
   const std::size_t nx = static_cast<std::size_t>(g.dims[0]);
   const std::size_t nxy = nx * static_cast<std::size_t>(g.dims[1]);
-  const std::int16_t* data = volume.voxels.data();
-  const std::size_t total = volume.voxels.size();
-  constexpr std::size_t kBlock = 4096;
-  for (std::size_t start = 0; !none && start < total; start += kBlock) {
-    const std::size_t end = std::min(total, start + kBlock);
-    // Most blocks hold no marker: one vectorised extreme per block skips them.
-    if (rising ? blockMax(data + start, end - start) < limit
-               : blockMin(data + start, end - start) > limit) {
-      continue;
-    }
-    for (std::size_t idx = start; idx < end; ++idx) {
-      if (rising ? data[idx] < limit : data[idx] > limit) continue;
-      if (bright.size() == search.max_bright_voxels) {
-        return makeError(ErrorCode::kInvalidArgument,
-                         fmt::format("fiducial search: more than {} voxels at or above "
-                                     "min_hu {:g} HU; raise min_hu to the markers' intensity",
-                                     search.max_bright_voxels, search.min_hu));
-      }
-      bright.emplace_back(static_cast<int>(idx % nx), static_cast<int>((idx % nxy) / nx),
-                          static_cast<int>(idx / nxy));
-    }
+  std::vector<Index3> bright;
+  bright.reserve(at_or_above->size());
+  for (const std::size_t idx : *at_or_above) {
+    bright.emplace_back(static_cast<int>(idx % nx), static_cast<int>((idx % nxy) / nx),
+                        static_cast<int>(idx / nxy));
   }
   FiducialDetection result;
   result.bright_voxels = bright.size();

@@ -9,6 +9,8 @@
 #include <fmt/format.h>
 #include <Eigen/Eigenvalues>
 
+#include "ignav/volume/threshold.hpp"
+
 namespace ignav::verification {
 namespace {
 
@@ -56,55 +58,15 @@ Status checkSearch(const SeedSearch& s) {
   return Ok{};
 }
 
-// Plain reductions the compiler vectorises.
-std::int16_t blockMax(const std::int16_t* v, std::size_t n) {
-  std::int16_t m = std::numeric_limits<std::int16_t>::min();
-  for (std::size_t i = 0; i < n; ++i)
-    m = v[i] > m ? v[i] : m;
-  return m;
-}
-
-std::int16_t blockMin(const std::int16_t* v, std::size_t n) {
-  std::int16_t m = std::numeric_limits<std::int16_t>::max();
-  for (std::size_t i = 0; i < n; ++i)
-    m = v[i] < m ? v[i] : m;
-  return m;
-}
-
-// The voxels at or above min_hu, as linear indices in increasing order (the threshold in
-// stored units, so the pass is an int16 compare; blocks without one are skipped by their
-// extreme). kMaxVoxels < 2^32, so an index fits 32 bits.
+// The voxels at or above min_hu, as linear indices in increasing order.
 Expected<std::vector<std::uint32_t>> brightVoxels(const volume::Volume& volume,
                                                   const SeedSearch& search) {
-  std::vector<std::uint32_t> bright;
-  if (volume.value_scale == 0.0 || !std::isfinite(volume.value_scale) ||
-      !std::isfinite(volume.value_offset)) {
-    return makeError(ErrorCode::kInvalidArgument, "volume: value scale 0 or not finite");
-  }
-  const double stored = (search.min_hu - volume.value_offset) / volume.value_scale;
-  const bool rising = volume.value_scale > 0.0;  // a larger stored value is brighter
-  const double bound = rising ? std::ceil(stored) : std::floor(stored);
-  if (rising ? bound > 32767.0 : bound < -32768.0) return bright;  // nothing can reach it
-  const auto limit = static_cast<std::int16_t>(std::clamp(bound, -32768.0, 32767.0));
-  const std::int16_t* data = volume.voxels.data();
-  const std::size_t total = volume.voxels.size();
-  constexpr std::size_t kBlock = 4096;
-  for (std::size_t start = 0; start < total; start += kBlock) {
-    const std::size_t end = std::min(total, start + kBlock);
-    if (rising ? blockMax(data + start, end - start) < limit
-               : blockMin(data + start, end - start) > limit) {
-      continue;
-    }
-    for (std::size_t idx = start; idx < end; ++idx) {
-      if (rising ? data[idx] < limit : data[idx] > limit) continue;
-      if (bright.size() == search.max_bright_voxels) {
-        return makeError(ErrorCode::kInvalidArgument,
-                         fmt::format("seed search: more than {} voxels at or above min_hu {:g} "
-                                     "HU; raise min_hu towards the seeds' intensity",
-                                     search.max_bright_voxels, search.min_hu));
-      }
-      bright.push_back(static_cast<std::uint32_t>(idx));
-    }
+  auto bright = volume::voxelsAtOrAbove(volume, search.min_hu, search.max_bright_voxels);
+  if (!bright && bright.error().reason == "too_many_bright_voxels") {
+    return makeError(ErrorCode::kInvalidArgument,
+                     fmt::format("seed search: more than {} voxels at or above min_hu {:g} "
+                                 "HU; raise min_hu towards the seeds' intensity",
+                                 search.max_bright_voxels, search.min_hu));
   }
   return bright;
 }
