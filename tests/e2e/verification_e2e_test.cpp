@@ -5,7 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
+#include <iostream>
 
+#include "ignav/compensation/compensation.hpp"
+#include "ignav/config/tissue_profiles.hpp"
 #include "ignav/registration/robot_phantom.hpp"
 #include "ignav/volume/phantom.hpp"
 #include "server_process.hpp"
@@ -121,6 +125,104 @@ TEST(VerificationE2E, ErrorsMeasuredOnAConfirmationCtAreTheSeedsTrueDisplacement
   EXPECT_NE(no_seed_out.find("no seeds found"), std::string::npos) << no_seed_out;
 
   std::filesystem::remove_all(ct_dir);
+}
+
+// The loop closed offline: the seeds land where a tissue the server was not told deflects the
+// needle (agar, seed 000's Table I, in the extended bicycle model); verify measures the errors
+// and fits the tissue from them; aiming with the fitted tissue lands closer on the same targets.
+TEST(VerificationE2E, ATissueHiddenFromTheServerIsFittedFromTheErrorsAndCompensatesThem) {
+  const std::filesystem::path ct_dir = std::filesystem::temp_directory_path() /
+                                       ("ignav_e2e_hidden_tissue_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(ct_dir);
+  const std::vector<Eigen::Vector3d> targets = {{8, 12, -175},  {-6, 10, -182}, {4, -9, -170},
+                                                {10, -4, -186}, {-9, -7, -178}, {3, 14, -190}};
+  ServerProcess server(181, {"--controller-speed", "40000"});
+  auto op = server.client("operator");
+  const std::vector<std::uint32_t> ids = insertAll(*op, targets);
+  const json state = op->state();
+  op.reset();
+  server.stop();
+  const std::filesystem::path session = server.sessionDir();
+
+  const auto& robot = *test::paperRobot();
+  auto profiles = config::loadTissueProfiles(IGNAV_SOURCE_DIR "/configs/tissues.yaml");
+  ASSERT_TRUE(profiles) << profiles.error().message;
+  compensation::DeflectionModel hidden;
+  hidden.needle = profiles->needle;
+  hidden.tissue = {0.49, 0.22};  // agar
+  auto rp = registration::makeRobotPhantom(robot.kinematics, robot.config.registration.scan);
+  ASSERT_TRUE(rp) << rp.error().message;
+  const Eigen::Matrix4d robot_to_image_true = rp->image_to_robot_true.inverse();
+  std::map<std::uint32_t, Eigen::Vector3d> planned, landed;
+  for (const auto id : ids) {
+    const json& t = state["targets"][std::to_string(id)];
+    planned[id] = vec(t["robot"]);
+    const kinematics::Joints joints{t["joints"][0].get<double>(), t["joints"][1].get<double>(),
+                                    t["joints"][2].get<double>()};
+    const auto landing = compensation::predictLanding(robot.kinematics, hidden, joints);
+    ASSERT_TRUE(landing) << landing.error().message;
+    landed[id] = landing->tip_mm;
+    volume::PhantomSeed seed;
+    seed.centre_lps_mm = (robot_to_image_true * landing->tip_mm.homogeneous()).head<3>();
+    seed.axis_lps = robot_to_image_true.topLeftCorner<3, 3>() * Eigen::Vector3d::UnitZ();
+    rp->spec.seeds.push_back(seed);
+  }
+  auto ct = volume::makePhantom(rp->spec);
+  ASSERT_TRUE(ct) << ct.error().message;
+  ASSERT_TRUE(volume::writeDicomSeries(*ct, ct_dir.string()));
+
+  const auto markups = ct_dir.string() + "_seeds.mrk.json";
+  const auto [status, out] = runPlan("verify " + session.string() + " " + ct_dir.string() +
+                                     " --robot " IGNAV_SOURCE_DIR
+                                     "/configs/robots/torabi2014.yaml --fit-tissue hidden_agar "
+                                     "--markups " +
+                                     markups + " --json");
+  ASSERT_EQ(status, 0) << out;
+  const json v = json::parse(out);
+  const Eigen::Matrix4d session_image_to_robot = imageToRobot(state);
+  double uncompensated_sum = 0.0;
+  for (const auto& row : v["targets"]) {
+    const auto id = row["id"].get<std::uint32_t>();
+    const Eigen::Vector3d truth_lps = (robot_to_image_true * landed[id].homogeneous()).head<3>();
+    const Eigen::Vector3d expected =
+        (session_image_to_robot * truth_lps.homogeneous()).head<3>() - planned[id];
+    EXPECT_LT((vec(row["error_robot_mm"]) - expected).norm(), 0.1) << row.dump();
+    uncompensated_sum += (landed[id] - planned[id]).norm();
+  }
+  ASSERT_EQ(v["targets"].size(), targets.size());
+  // The seeds in Slicer's markups format, one per target, in LPS.
+  const json mrk = json::parse(std::ifstream(markups));
+  EXPECT_EQ(mrk["markups"][0]["controlPoints"].size(), targets.size());
+  EXPECT_EQ(mrk["markups"][0]["coordinateSystem"], "LPS");
+
+  // The fit recovers the hidden tissue within its standard errors (twice, for a 95 % interval).
+  const json& fit = v["tissue_fit"];
+  const double se1 = fit["standard_errors"][0], se2 = fit["standard_errors"][1];
+  EXPECT_LT(std::abs(fit["lambda1"].get<double>() - 0.49), 2.0 * se1 + 1e-9) << fit.dump();
+  EXPECT_LT(std::abs(fit["lambda2"].get<double>() - 0.22), 2.0 * se2 + 1e-9) << fit.dump();
+  EXPECT_LT(se2, 0.2) << fit.dump();
+  EXPECT_NE(fit["profile_yaml"].get<std::string>().find("hidden_agar:"), std::string::npos);
+
+  // Aimed with the fitted tissue, the same targets land (in the hidden tissue) far closer.
+  compensation::DeflectionModel fitted = hidden;
+  fitted.tissue = {fit["lambda1"].get<double>(), fit["lambda2"].get<double>()};
+  double compensated_sum = 0.0;
+  for (const auto id : ids) {
+    const auto aimed = compensation::compensate(robot.kinematics, fitted, planned[id]);
+    ASSERT_TRUE(aimed) << "target " << id << ": " << aimed.error().message;
+    const auto landing = compensation::predictLanding(robot.kinematics, hidden, aimed->compensated);
+    ASSERT_TRUE(landing) << landing.error().message;
+    compensated_sum += (landing->tip_mm - planned[id]).norm();
+  }
+  std::cout << "hidden agar fitted: lambda1 " << fit["lambda1"] << " ± " << se1 << ", lambda2 "
+            << fit["lambda2"] << " ± " << se2 << "; mean landing error uncompensated "
+            << uncompensated_sum / static_cast<double>(ids.size()) << " mm, compensated "
+            << compensated_sum / static_cast<double>(ids.size()) << " mm\n";
+  EXPECT_GT(uncompensated_sum, 5.0 * compensated_sum)
+      << "mean error uncompensated " << uncompensated_sum / static_cast<double>(ids.size())
+      << " mm, compensated " << compensated_sum / static_cast<double>(ids.size()) << " mm";
+  std::filesystem::remove_all(ct_dir);
+  std::filesystem::remove(markups);
 }
 
 }  // namespace

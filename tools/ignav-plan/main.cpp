@@ -290,6 +290,12 @@ int main(int argc, char** argv) {
   verify_cmd->add_flag("--allow-extra-seeds", verify_args.allow_extra_seeds,
                        "report seeds no target claims instead of refusing them");
   verify_cmd->add_flag("--json", verify_json, "print JSON");
+  verify_cmd->add_option("--markups", verify_args.markups_out,
+                         "write the seeds found (.mrk.json, LPS) for 3D Slicer");
+  verify_cmd->add_option("--fit-tissue", verify_args.fit_tissue_name,
+                         "fit λ1, λ2 to the measured errors; NAME for the tissues.yaml entry");
+  verify_cmd->add_option("--tissues", verify_args.tissues_path,
+                         "tissue profiles (the needle, when the session had no tissue)");
   ignav::plan::FindFiducialsArgs find_args;
   double min_hu = 0.0;
   auto* find = app.add_subcommand("find-fiducials", "locate marker beads on a CT");

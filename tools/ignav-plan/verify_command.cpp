@@ -4,7 +4,10 @@
 
 #include <fmt/format.h>
 
+#include "ignav/compensation/compensation.hpp"
 #include "ignav/config/robot_config.hpp"
+#include "ignav/config/tissue_profiles.hpp"
+#include "ignav/registration/slicer_export.hpp"
 #include "ignav/verification/confirmation_registration.hpp"
 #include "ignav/verification/seed_detection.hpp"
 #include "ignav/verification/targeting_error.hpp"
@@ -24,6 +27,57 @@ json point(const Eigen::Vector3d& p) {
 json stats(const verification::Stats& s) {
   return {{"count", s.count}, {"mean_mm", s.mean}, {"sd_mm", s.sd_sample},
           {"min_mm", s.min},  {"max_mm", s.max},   {"rms_mm", s.rms}};
+}
+
+// λ1, λ2 fitted to the measured landings of the targets (each at its own joints), and the
+// profile as a configs/tissues.yaml entry.
+json fitTissue(const VerifyArgs& args, const workflow::Session& session,
+               const std::vector<verification::TargetError>& errors,
+               const std::map<std::uint32_t, const workflow::Target*>& by_id) {
+  compensation::DeflectionModel model;
+  if (session.tissue) {
+    model.needle = session.tissue->needle;
+  } else {
+    auto profiles = config::loadTissueProfiles(args.tissues_path);
+    if (!profiles) throw CliError{profiles.error().message};
+    model.needle = profiles->needle;
+  }
+  std::vector<compensation::TargetingRecord> records;
+  for (const auto& e : errors) {
+    records.push_back({"T" + std::to_string(e.target_id), e.planned_robot_mm,
+                       by_id.at(e.target_id)->solution.joints, e.actual_robot_mm});
+  }
+  auto fit = compensation::fitTissueFromTargeting(session.robot->kinematics, model, records);
+  if (!fit) throw CliError{"the tissue fit: " + fit.error().message};
+  auto yaml = compensation::tissueProfileYaml(
+      args.fit_tissue_name, *fit,
+      fmt::format("fitted by ignav-plan verify to {} targets of session {}", records.size(),
+                  session.session_id),
+      false);
+  if (!yaml) throw CliError{yaml.error().message};
+  return {{"name", args.fit_tissue_name},
+          {"lambda1", fit->tissue.lambda1},
+          {"lambda2", fit->tissue.lambda2},
+          {"standard_errors", fit->standard_errors},
+          {"correlation", fit->correlation},
+          {"rms_mm", fit->rms_mm},
+          {"max_error_mm", fit->max_error_mm},
+          {"rms_bicycle_mm", fit->rms_bicycle_mm},
+          {"rms_no_deflection_mm", fit->rms_no_deflection_mm},
+          {"limit", fit->limit},
+          {"profile_yaml", *yaml}};
+}
+
+void writeMarkups(const std::string& path, const std::vector<verification::TargetError>& errors) {
+  std::vector<registration::MarkupPoint> points;
+  for (const auto& e : errors) {
+    points.push_back(
+        {"T" + std::to_string(e.target_id), e.actual_lps_mm,
+         fmt::format("seed of target {}: {:.2f} mm from its plan", e.target_id, e.error_mm), true});
+  }
+  if (auto written = registration::writeMarkupsJson("seeds", points, path); !written) {
+    throw CliError{path + ": " + written.error().message};
+  }
 }
 
 }  // namespace
@@ -105,8 +159,9 @@ json verifySession(const VerifyArgs& args) {
   json extra = json::array();
   for (std::size_t i : verified->match.extra_seeds)
     extra.push_back(point(seeds[i]));
+  if (!args.markups_out.empty()) writeMarkups(args.markups_out, verified->errors);
   const auto& sum = verified->summary;
-  return {
+  json out = {
       {"session", args.session_dir},
       {"confirmation_ct", args.confirmation_ct},
       {"registration",
@@ -129,6 +184,9 @@ json verifySession(const VerifyArgs& args) {
       {"summary",
        {{"error", stats(sum.error)}, {"lateral", stats(sum.lateral)}, {"depth", stats(sum.depth)}}},
       {"text", verified->text}};
+  if (!args.fit_tissue_name.empty())
+    out["tissue_fit"] = fitTissue(args, session, verified->errors, by_id);
+  return out;
 }
 
 std::string verificationTable(const json& v) {
@@ -147,7 +205,20 @@ std::string verificationTable(const json& v) {
                        t["error_mm"].get<double>(), t["lateral_mm"].get<double>(),
                        t["depth_mm"].get<double>());
   }
-  return out + "\n" + v["text"].get<std::string>() + "\n";
+  out += "\n" + v["text"].get<std::string>() + "\n";
+  if (v.contains("tissue_fit")) {
+    const json& f = v["tissue_fit"];
+    out += fmt::format(
+        "\ntissue fitted: λ1 {:.3f} ± {:.3f}, λ2 {:.3f} ± {:.3f}; RMS {:.3f} mm (plain bicycle "
+        "{:.3f}, no deflection {:.3f}){}\nfor configs/tissues.yaml:\n{}",
+        f["lambda1"].get<double>(), f["standard_errors"][0].get<double>(),
+        f["lambda2"].get<double>(), f["standard_errors"][1].get<double>(),
+        f["rms_mm"].get<double>(), f["rms_bicycle_mm"].get<double>(),
+        f["rms_no_deflection_mm"].get<double>(),
+        f["limit"].get<std::string>().empty() ? "" : "; " + f["limit"].get<std::string>(),
+        f["profile_yaml"].get<std::string>());
+  }
+  return out;
 }
 
 }  // namespace ignav::plan

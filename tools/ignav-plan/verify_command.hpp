@@ -19,6 +19,12 @@ struct VerifyArgs {
   double reuse_within_mm = 1.0;
   double max_marker_shift_mm = 20.0;
   bool allow_extra_seeds = false;
+  std::string markups_out;  // a Slicer .mrk.json of the seeds found (LPS), one per target
+  // Fit the tissue (λ1, λ2 of the extended bicycle model) to the measured errors and name it: a
+  // `tissues:` entry for configs/tissues.yaml comes out with the fit. The needle is the session's
+  // tissue profile's, else `tissues_path`'s.
+  std::string fit_tissue_name;
+  std::string tissues_path = "configs/tissues.yaml";
 };
 
 // Per target `id`, `planned_robot_mm`, `actual_robot_mm`, `error_mm` (and the LPS points, the
