@@ -4,6 +4,9 @@
 #include <array>
 #include <string>
 
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
 namespace ignav::plan {
 
 // Bad input from the user: printed on stderr, exit code 2.
@@ -13,5 +16,10 @@ struct CliError {
 
 // "X,Y,Z" -> three finite numbers; `what` names the option in errors.
 std::array<double, 3> parseTriple(const std::string& text, const std::string& what);
+
+// A point as the JSON output shows it: [x, y, z].
+inline nlohmann::json pointJson(const Eigen::Vector3d& p) {
+  return nlohmann::json::array({p.x(), p.y(), p.z()});
+}
 
 }  // namespace ignav::plan

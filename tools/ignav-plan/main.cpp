@@ -33,6 +33,7 @@ double deg(double rad) {
 
 using ignav::plan::CliError;
 using ignav::plan::parseTriple;
+using ignav::plan::pointJson;
 
 Robot loadRobotOrThrow(const std::string& path) {
   auto robot = ignav::config::loadRobot(path);
@@ -44,18 +45,14 @@ json jointsJson(const Joints& j) {
   return {{"theta_c_deg", deg(j.theta_c_rad)}, {"z_c_mm", j.z_c_mm}, {"z_s_mm", j.z_s_mm}};
 }
 
-json vec(const Eigen::Vector3d& p) {
-  return json::array({p.x(), p.y(), p.z()});
-}
-
 json forwardJson(const Robot& robot, const std::array<double, 3>& q) {
   const Joints joints{q[0] * kPi / 180.0, q[1], q[2]};
   const auto ok = robot.kinematics.checkJoints(joints);
   if (!ok) throw CliError{ok.error().message};
   const auto pose = robot.kinematics.forward(joints);
-  return {{"tip_mm", vec(pose.tip_mm)},
+  return {{"tip_mm", pointJson(pose.tip_mm)},
           {"approach_rad", pose.approach_rad},
-          {"cannula_tip_mm", vec(pose.cannula_tip_mm)}};
+          {"cannula_tip_mm", pointJson(pose.cannula_tip_mm)}};
 }
 
 json inverseJson(const Robot& robot, const std::array<double, 3>& p) {

@@ -19,10 +19,6 @@ using Points = std::vector<Eigen::Vector3d>;
 
 constexpr std::size_t kMaxPairs = 1000;
 
-json vec(const Eigen::Vector3d& v) {
-  return {v.x(), v.y(), v.z()};
-}
-
 // Feature-point names when the robot supplied the model points, else P1, P2, ...
 std::string pointLabel(std::size_t i, bool feature_points) {
   if (feature_points && i < 3) {
@@ -71,7 +67,7 @@ json registrationJson(const registration::Registration& r,
           {"kind", registration::toString(r.kind)},
           {"scale", r.scale},
           {"rotation", rotation},
-          {"translation_mm", vec(r.translation_mm)},
+          {"translation_mm", pointJson(r.translation_mm)},
           {"fre_mm", r.fre_mm},
           {"residuals_mm", r.residuals_mm},
           {"fle_mm", settings.fle_mm},
@@ -87,7 +83,8 @@ json targetsJson(const registration::Registration& r,
   for (const auto& t : targets) {
     const Eigen::Vector3d image(t[0], t[1], t[2]);
     const double tre = registration::expectedTre_mm(fiducials, image, settings.fle_mm, r.kind);
-    json row = {{"image_mm", vec(image)}, {"robot_mm", vec(r.toRobot(image))}, {"tre_mm", tre}};
+    json row = {
+        {"image_mm", pointJson(image)}, {"robot_mm", pointJson(r.toRobot(image))}, {"tre_mm", tre}};
     if (tre > settings.max_tre_mm) {
       row["warning"] =
           fmt::format("expected TRE {:.2f} mm exceeds {:.2f} mm", tre, settings.max_tre_mm);
@@ -186,7 +183,7 @@ json findFiducials(const FindFiducialsArgs& args) {
 
   json candidates = json::array();
   for (const auto& c : found->candidates) {
-    json row = {{"centroid_lps_mm", vec(c.centroid_lps_mm)},
+    json row = {{"centroid_lps_mm", pointJson(c.centroid_lps_mm)},
                 {"voxels", c.voxel_count},
                 {"volume_mm3", c.volume_mm3},
                 {"extent_mm", c.extent_mm},
@@ -224,7 +221,7 @@ json findFiducials(const FindFiducialsArgs& args) {
     image.push_back(c.centroid_lps_mm);
     chosen.push_back({{"label", pointLabel(k, robot.has_value())},
                       {"candidate", m.candidate[k]},
-                      {"centroid_lps_mm", vec(c.centroid_lps_mm)}});
+                      {"centroid_lps_mm", pointJson(c.centroid_lps_mm)}});
   }
   out["chosen"] = chosen;
   if (robot) {

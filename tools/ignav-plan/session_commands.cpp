@@ -10,7 +10,7 @@
 
 namespace ignav::plan {
 
-workflow::Session replayedSession(const ReplayArgs& args) {
+ReplayedSession replayedSession(const ReplayArgs& args) {
   namespace fs = std::filesystem;
   const fs::path dir(args.session_dir);
   const std::string journal_path = (dir / "journal.jsonl").string();
@@ -35,15 +35,13 @@ workflow::Session replayedSession(const ReplayArgs& args) {
       args.robot_path);
   auto session = workflow::replayJournal(start, contents->lines, load_ct, journal_path);
   if (!session) throw CliError{session.error().message};
-  return std::move(session).value();
+  return {std::move(session).value(), contents->lines.size(), contents->torn_tail};
 }
 
 nlohmann::json replaySession(const ReplayArgs& args) {
   using nlohmann::json;
-  const auto contents =
-      journal::readJournal((std::filesystem::path(args.session_dir) / "journal.jsonl").string());
-  const workflow::Session replayed = replayedSession(args);
-  const workflow::Session* session = &replayed;
+  const ReplayedSession replayed = replayedSession(args);
+  const workflow::Session* session = &replayed.session;
 
   json targets = json::array();
   for (std::size_t i = 0; i < session->targets.size(); ++i) {
@@ -52,8 +50,8 @@ nlohmann::json replaySession(const ReplayArgs& args) {
     targets.push_back({{"id", t.id},
                        {"order", i + 1},
                        {"status", t.status()},
-                       {"lps_mm", {t.lps_mm.x(), t.lps_mm.y(), t.lps_mm.z()}},
-                       {"robot_mm", {t.robot_mm.x(), t.robot_mm.y(), t.robot_mm.z()}},
+                       {"lps_mm", pointJson(t.lps_mm)},
+                       {"robot_mm", pointJson(t.robot_mm)},
                        {"joints",
                         {{"theta_c_deg", j.theta_c_rad * 180.0 / M_PI},
                          {"z_c_mm", j.z_c_mm},
@@ -63,8 +61,8 @@ nlohmann::json replaySession(const ReplayArgs& args) {
                        {"message", t.message}});
   }
   json out = {{"verified", true},
-              {"records", contents->lines.size()},
-              {"torn_tail_dropped", contents->torn_tail},
+              {"records", replayed.records},
+              {"torn_tail_dropped", replayed.torn_tail_dropped},
               {"revision", session->revision},
               {"phase", workflow::toString(session->phase)},
               {"volume", session->volume_status.source},

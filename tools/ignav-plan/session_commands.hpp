@@ -15,7 +15,13 @@ struct ReplayArgs {
   std::string robot_path;  // the robot config the server ran with
 };
 nlohmann::json replaySession(const ReplayArgs& args);
-// The session its journal describes (every record checked); CliError naming what is wrong.
-workflow::Session replayedSession(const ReplayArgs& args);
+// The session its journal describes (every record checked), and how many records it took;
+// CliError naming what is wrong.
+struct ReplayedSession {
+  workflow::Session session;
+  std::size_t records = 0;
+  bool torn_tail_dropped = false;
+};
+ReplayedSession replayedSession(const ReplayArgs& args);
 
 }  // namespace ignav::plan

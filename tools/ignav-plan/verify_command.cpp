@@ -20,8 +20,12 @@ namespace {
 
 using nlohmann::json;
 
-json point(const Eigen::Vector3d& p) {
-  return {p.x(), p.y(), p.z()};
+// 16 numbers, row-major (as the state topics show matrices).
+json rowMajorJson(const Eigen::Matrix4d& m) {
+  json out = json::array();
+  for (int i = 0; i < 16; ++i)
+    out.push_back(m(i / 4, i % 4));
+  return out;
 }
 
 json stats(const verification::Stats& s) {
@@ -83,7 +87,7 @@ void writeMarkups(const std::string& path, const std::vector<verification::Targe
 }  // namespace
 
 json verifySession(const VerifyArgs& args) {
-  const workflow::Session session = replayedSession({args.session_dir, args.robot_path});
+  const workflow::Session session = replayedSession({args.session_dir, args.robot_path}).session;
   const config::Robot& robot = *session.robot;
   if (!session.registration) {
     throw CliError{args.session_dir + ": the session was never registered: nothing to verify"};
@@ -140,12 +144,12 @@ json verifySession(const VerifyArgs& args) {
   for (const auto& e : verified->errors) {
     const auto* t = by_id.at(e.target_id);
     json row = {{"id", e.target_id},
-                {"planned_robot_mm", point(e.planned_robot_mm)},
-                {"actual_robot_mm", point(e.actual_robot_mm)},
-                {"planned_lps_mm", point(e.planned_lps_mm)},
-                {"actual_lps_mm", point(e.actual_lps_mm)},
-                {"error_robot_mm", point(e.error_robot_mm)},
-                {"error_lps_mm", point(e.error_lps_mm)},
+                {"planned_robot_mm", pointJson(e.planned_robot_mm)},
+                {"actual_robot_mm", pointJson(e.actual_robot_mm)},
+                {"planned_lps_mm", pointJson(e.planned_lps_mm)},
+                {"actual_lps_mm", pointJson(e.actual_lps_mm)},
+                {"error_robot_mm", pointJson(e.error_robot_mm)},
+                {"error_lps_mm", pointJson(e.error_lps_mm)},
                 {"error_mm", e.error_mm},
                 {"lateral_mm", e.lateral_mm},
                 {"depth_mm", e.depth_mm}};
@@ -158,7 +162,7 @@ json verifySession(const VerifyArgs& args) {
     missing.push_back(planned[i].id);
   json extra = json::array();
   for (std::size_t i : verified->match.extra_seeds)
-    extra.push_back(point(seeds[i]));
+    extra.push_back(pointJson(seeds[i]));
   if (!args.markups_out.empty()) writeMarkups(args.markups_out, verified->errors);
   const auto& sum = verified->summary;
   json out = {
@@ -168,14 +172,7 @@ json verifySession(const VerifyArgs& args) {
        {{"reused", confirmed->reused},
         {"marker_shift_mm", confirmed->marker_shift_mm},
         {"fre_mm", confirmed->registration.fre_mm},
-        {"image_to_robot",
-         [&] {
-           json m = json::array();
-           const Eigen::Matrix4d r = confirmed->registration.imageToRobot();
-           for (int i = 0; i < 16; ++i)
-             m.push_back(r(i / 4, i % 4));
-           return m;
-         }()},
+        {"image_to_robot", rowMajorJson(confirmed->registration.imageToRobot())},
         {"message", confirmed->message}}},
       {"seeds", {{"found", found->seeds.size()}, {"summary", found->summary}}},
       {"targets", targets},

@@ -2,8 +2,6 @@
 // that pick which row of a (phase, input) pair fires, before any action runs. Where an action
 // computes what decides the outcome (a registration, an arrival check, the next request), the
 // guard computes the same thing with the same helper: twice, but never out of step.
-#include <fmt/format.h>
-
 #include "actions.hpp"
 #include "session_rules.hpp"
 
