@@ -47,7 +47,7 @@ double controllerDuration_s(const actuation::Steps& increments, const ApprovalPo
 std::vector<planning::PlannedTarget> unreached(const Session& s) {
   std::vector<planning::PlannedTarget> out;
   for (const auto& t : s.targets) {
-    if (!t.reached) out.push_back({t.id, t.solution.joints});
+    if (!t.reached) out.push_back({t.id, t.commandedJoints()});
   }
   return out;
 }

@@ -125,6 +125,17 @@ struct Reply {
   std::uint64_t revision = 0;
 };
 
+// Aiming with a tissue profile (use_tissue, issue 23): the joints whose tip, deflected as the
+// profile's extended bicycle model predicts, lands on the target (compensation::compensate).
+struct CompensatedAim {
+  std::string profile;  // the tissue profile's name
+  kinematics::Joints joints;
+  Eigen::Vector3d landing_robot_mm = Eigen::Vector3d::Zero();  // of `joints`, predicted
+  // Where the nominal joints (Target::solution) would land in that tissue: the error compensated.
+  Eigen::Vector3d nominal_landing_robot_mm = Eigen::Vector3d::Zero();
+  double residual_mm = 0.0;  // |landing - target|
+};
+
 // A clicked target and what it means for the robot, re-derived whenever the registration or the
 // robot changes (never dropped).
 struct Target {
@@ -132,8 +143,9 @@ struct Target {
   Eigen::Vector3d lps_mm = Eigen::Vector3d::Zero();
   bool registered = false;
   Eigen::Vector3d robot_mm = Eigen::Vector3d::Zero();
-  kinematics::InverseSolution solution;
-  actuation::Steps steps;
+  kinematics::InverseSolution solution;  // exact IK: the nominal joints
+  std::optional<CompensatedAim> compensated;  // with a tissue profile chosen
+  actuation::Steps steps;  // of commandedJoints()
   double tre_mm = 0.0;
   bool tre_warning = false;
   // Model prediction (extended bicycle model, the session's tissue): how far the cannula's tip
@@ -152,6 +164,10 @@ struct Target {
   std::string message;  // person-readable reachability
   // "planned" | "reached" | "unreachable" | "unregistered" | "outside_volume"
   std::string status() const;
+  // The joints the plan moves to: the compensated ones with a tissue profile, else the nominal.
+  const kinematics::Joints& commandedJoints() const {
+    return compensated ? compensated->joints : solution.joints;
+  }
 };
 
 // What one approval releases: the moves to one target (or the final retraction), as the exact
