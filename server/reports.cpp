@@ -60,7 +60,7 @@ volume::Overlays overlaysFor(const Session& session) {
   }
   for (const auto& t : session.targets) {
     const volume::Rgb colour = !t.registered            ? volume::Rgb{160, 160, 160}
-                               : t.solution.reachable() ? volume::Rgb{0, 255, 0}
+                               : t.plannable()          ? volume::Rgb{0, 255, 0}
                                                         : volume::Rgb{255, 60, 60};
     o.points.push_back({t.lps_mm, "T" + std::to_string(t.id), colour, 5});
   }
@@ -91,6 +91,10 @@ void Reports::report(Snapshot session) {
 
 void Reports::slices(Snapshot session, bool all_targets, std::uint32_t reached_id) {
   submit({Kind::kSlices, std::move(session), all_targets, reached_id});
+}
+
+void Reports::verification(Snapshot session) {
+  submit({Kind::kVerification, std::move(session), false, 0});
 }
 
 void Reports::submit(Job job) {
@@ -141,6 +145,9 @@ void Reports::run(const Job& job) {
       case Kind::kSlices:
         writeSlices(*job.session, job.all_targets, job.reached_id);
         break;
+      case Kind::kVerification:
+        writeVerification(*job.session);
+        break;
     }
   } catch (const std::exception& e) {
     spdlog::error("reports: {}", e.what());
@@ -168,6 +175,42 @@ void Reports::writeExports(const Session& session) const {
                                        (session_dir_ / "targets.mrk.json").string());
 }
 
+void Reports::writeVerification(const Session& session) const {
+  const auto& c = session.confirmation;
+  if (!c.targets.empty() || !c.seeds.empty()) {
+    const fs::path dir = session_dir_ / "verification";
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    std::vector<registration::MarkupPoint> seeds;
+    for (const auto& seed : c.seeds) {
+      if (seed.rejected) continue;
+      std::string label = "seed " + std::to_string(seed.id);
+      std::string description = seed.placed ? "placed by hand" : "detected";
+      for (const auto& t : c.targets) {
+        if (t.seed_id != seed.id) continue;
+        label = "T" + std::to_string(t.error.target_id);
+        description += fmt::format("; {:.2f} mm from target {}", t.error.error_mm,
+                                   t.error.target_id);
+      }
+      seeds.push_back({label, seed.lps_mm, description, true});
+    }
+    // On the confirmation CT's LPS: open it with that scan.
+    (void)registration::writeMarkupsJson("ignav seeds (" + c.source + ")", seeds,
+                                         (dir / "seeds.mrk.json").string());
+  }
+  if (!session.fitted_tissues.empty()) {
+    const auto& needle = session.fitted_tissues.front().profile.needle;
+    std::string yaml = fmt::format(
+        "# Tissues fitted from the measured targeting errors of session {} (fit_tissue).\n"
+        "# A configs/tissues.yaml: use it as server.yaml tissue.profiles, or copy an entry.\n"
+        "needle:\n  curvature_per_mm: {}\n  wheelbase_mm: {}\ntissues:\n",
+        session.session_id, needle.curvature_per_mm, needle.wheelbase_mm);
+    for (const auto& f : session.fitted_tissues)
+      yaml += f.yaml;
+    writeAtomically(session_dir_ / "tissues_fitted.yaml", yaml.data(), yaml.size());
+  }
+}
+
 void Reports::writeReport(const Session& session) const {
   std::vector<std::string> images;
   for (const auto& [id, files] : images_)
@@ -186,12 +229,12 @@ void Reports::writeSlices(const Session& session, bool all_targets, std::uint32_
   fs::create_directories(dir, ec);
   std::size_t drawn = 0;
   for (const auto& t : session.targets) {
-    if (!t.registered || !t.solution.reachable()) continue;
+    if (!t.plannable()) continue;
     if (!all_targets && t.id != reached_id) continue;
     if (all_targets && ++drawn > kReportTargets) break;
     volume::Overlays overlays = overlaysFor(session);
     overlays.paths.push_back(
-        {workflow::needlePathLps(session, t.solution.joints), {0, 255, 255}, 1});
+        {workflow::needlePathLps(session, t.commandedJoints()), {0, 255, 255}, 1});
     if (t.reached) {
       const auto& robot = *session.robot;
       const Eigen::Vector3d tip =

@@ -1,5 +1,6 @@
-// The session's files for people: the procedure report (report.md and the slices in report/) and
-// the exports 3D Slicer opens (fiducials.mrk.json, targets.mrk.json, image_to_robot.tfm). They
+// The session's files for people: the procedure report (report.md and the slices in report/), the
+// exports 3D Slicer opens (fiducials.mrk.json, targets.mrk.json, image_to_robot.tfm) and the
+// closed loop's (verification/: seeds.mrk.json, the targeting figure; tissues_fitted.yaml). They
 // are rendered on a thread of their own, the "reports" thread (issue 22.2): the event thread
 // hands over an immutable snapshot of the session and never waits. docs/ARCHITECTURE.md draws it.
 //
@@ -44,9 +45,12 @@ class Reports {
   // Slices through every target (at most 12; at a lock: the earlier pictures are dropped) or
   // through the target just reached (`reached_id`), with the tip where the verified steps put it.
   void slices(Snapshot session, bool all_targets, std::uint32_t reached_id);
+  // The confirmation CT's seeds for Slicer, the targeting figure, and the fitted tissues as a
+  // configs/tissues.yaml the next session can use.
+  void verification(Snapshot session);
 
  private:
-  enum class Kind { kExports, kReport, kSlices };
+  enum class Kind { kExports, kReport, kSlices, kVerification };
   struct Job {
     Kind kind = Kind::kReport;
     Snapshot session;
@@ -60,6 +64,7 @@ class Reports {
   void writeExports(const workflow::Session& session) const;
   void writeReport(const workflow::Session& session) const;
   void writeSlices(const workflow::Session& session, bool all_targets, std::uint32_t reached_id);
+  void writeVerification(const workflow::Session& session) const;
 
   const std::filesystem::path session_dir_;
   std::mutex mutex_;

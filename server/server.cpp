@@ -76,7 +76,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
       slices_(participant_),
       waitset_(participant_),
       loader_(waitset_),
-      detector_(waitset_),
+      analysis_(waitset_),
       reports_(session_dir_),
       journal_(std::move(journal)),
       crash_at_(std::getenv("IGNAV_CRASH_AT") ? std::getenv("IGNAV_CRASH_AT") : "") {
@@ -200,7 +200,7 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
       ++handled;
       if (!step(in)) return 3;
     }
-    for (auto& in : detector_.finished()) {
+    for (auto& in : analysis_.finished()) {
       ++handled;
       if (!step(std::move(in))) return 3;
     }
@@ -289,7 +289,11 @@ Status Server::recover(const std::vector<std::string>& lines) {
   }
   if (auto job = workflow::pendingDetection(session_)) {
     spdlog::info("marker detection #{} was under way: started again", job->job);
-    detector_.start(std::move(*job));
+    analysis_.start(std::move(*job));
+  }
+  if (auto job = workflow::pendingConfirmation(session_)) {
+    spdlog::info("confirmation CT measurement #{} was under way: started again", job->job);
+    analysis_.start(std::move(*job));
   }
   spdlog::info("recovered {} journal records: revision {}, phase {}, {} targets", lines.size(),
                session_.revision, workflow::toString(session_.phase), session_.targets.size());
@@ -299,6 +303,7 @@ Status Server::recover(const std::vector<std::string>& lines) {
 void Server::publishEverything() {
   state_.publishEverything(session_, readings());
   reports_.exports(snapshot());
+  reports_.verification(snapshot());
   reports_.report(snapshot());
 }
 
@@ -417,7 +422,9 @@ bool Server::reservedClientId(const std::string& client_id, std::uint64_t reques
 
 // A path the server cannot read is refused before acknowledging (the reducer does no I/O).
 std::optional<workflow::Reply> Server::checkPath(const Input& in) const {
-  if (in.kind != InputKind::kLoadVolume || in.path == kPhantomSource || in.path.empty() ||
+  const bool names_a_file =
+      in.kind == InputKind::kLoadVolume || in.kind == InputKind::kLoadConfirmation;
+  if (!names_a_file || in.path == kPhantomSource || in.path.empty() ||
       in.path.size() > workflow::kMaxPathLength) {
     return std::nullopt;
   }

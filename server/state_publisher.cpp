@@ -6,6 +6,8 @@
 #include <cmath>
 #include <vector>
 
+#include <Eigen/Geometry>
+
 #include "ignav/workflow/reducer.hpp"
 
 namespace ignav::server {
@@ -35,6 +37,7 @@ StatePublisher::StatePublisher(const protocol::Participant& p, std::string contr
       health_(p),
       approval_(p),
       motion_(p),
+      verification_(p),
       controller_name_(std::move(controller_name)),
       session_dir_(session_dir.string()),
       started_(Clock::now()) {}
@@ -53,11 +56,13 @@ void StatePublisher::publishEffects(const Session& s, const workflow::Effects& e
   for (auto id : e.targets_changed)
     publishTarget(s, id);
   if (e.approval_changed) publishApproval(s);
+  if (e.confirmation_changed || e.robot_changed) publishVerification(s);
   if (e.motion_changed || !e.controller.empty()) publishMotion(s, r.controller, r.lifecycle);
   if (e.workflow_changed) publishWorkflow(s);
 }
 
 void StatePublisher::publishEverything(const Session& s, const Readings& r) {
+  publishVerification(s);
   publishRobot(s);
   publishVolume(s, r.load_progress);
   publishRegistration(s);
@@ -199,11 +204,20 @@ void StatePublisher::publishTarget(const Session& s, std::uint32_t id) {
     m.lps = toPoint3(t.lps_mm);
     m.robot = toPoint3(t.robot_mm);
     m.registered = t.registered;
-    m.reachable = t.registered && t.solution.reachable();
+    m.reachable = t.plannable();
     if (t.registered) m.reach = kinematics::toString(t.solution.reach);
     m.message = t.message;
-    const auto& j = t.solution.joints;
+    const auto& j = t.commandedJoints();
     m.joints = {j.theta_c_rad, j.z_c_mm, j.z_s_mm};
+    if (t.compensated) {
+      const auto& c = *t.compensated;
+      const auto& n = t.solution.joints;
+      m.compensated = true;
+      m.aim_tissue = c.profile;
+      m.nominal_joints = {n.theta_c_rad, n.z_c_mm, n.z_s_mm};
+      m.nominal_landing_robot = toPoint3(c.nominal_landing_robot_mm);
+      m.predicted_landing_robot = toPoint3(c.landing_robot_mm);
+    }
     m.steps = stepsOf(t.steps);
     m.tre_mm = t.tre_mm;
     m.tre_warning = t.tre_warning;
@@ -217,6 +231,93 @@ void StatePublisher::publishTarget(const Session& s, std::uint32_t id) {
     target_.write(m);
     return;
   }
+}
+
+namespace {
+
+protocol::ErrorStats statsOf(const verification::Stats& s) {
+  return {static_cast<std::uint32_t>(s.count), s.mean, s.sd_sample, s.min, s.max, s.rms};
+}
+
+}  // namespace
+
+void StatePublisher::publishVerification(const Session& s) {
+  const workflow::Confirmation& c = s.confirmation;
+  protocol::VerificationState v;
+  v.status = c.measuring != 0 ? "measuring" : c.status;
+  v.source = c.source;
+  v.measuring_source = c.measuring_source;
+  v.message = c.measuring != 0 ? "measuring the confirmation CT " + c.measuring_source : c.message;
+  Eigen::Matrix4d image_to_robot = Eigen::Matrix4d::Identity();
+  if (c.registration) {
+    v.registration_reused = c.registration->reused;
+    v.marker_shift_mm = c.registration->marker_shift_mm;
+    v.fre_mm = c.registration->registration.fre_mm;
+    image_to_robot = c.registration->registration.imageToRobot();
+    v.image_to_robot = protocol::toRowMajor(image_to_robot);
+  }
+  v.detection_summary = c.detection_summary;
+  for (const auto& seed : c.seeds) {
+    protocol::SeedState m;
+    m.id = seed.id;
+    m.lps = toPoint3(seed.lps_mm);
+    m.robot = toPoint3((image_to_robot * seed.lps_mm.homogeneous()).head<3>());
+    m.length_mm = seed.length_mm;
+    m.width_mm = seed.width_mm;
+    m.placed = seed.placed;
+    m.rejected = seed.rejected;
+    for (const auto& t : c.targets)
+      if (t.seed_id == seed.id) m.target_id = t.error.target_id;
+    v.seeds.push_back(m);
+  }
+  for (const auto& t : c.targets) {
+    const auto& e = t.error;
+    protocol::MeasuredTargetState m;
+    m.target_id = e.target_id;
+    m.seed_id = t.seed_id;
+    m.matched = t.matched;
+    m.planned_robot = toPoint3(e.planned_robot_mm);
+    m.actual_robot = toPoint3(e.actual_robot_mm);
+    m.planned_lps = toPoint3(e.planned_lps_mm);
+    m.actual_lps = toPoint3(e.actual_lps_mm);
+    m.error_robot = toPoint3(e.error_robot_mm);
+    m.error_lps = toPoint3(e.error_lps_mm);
+    m.error_mm = e.error_mm;
+    m.lateral_mm = e.lateral_mm;
+    m.radial_mm = e.radial_mm;
+    m.tangential_mm = e.tangential_mm;
+    m.depth_mm = e.depth_mm;
+    if (std::isfinite(t.predicted_error_mm)) {
+      m.predicted_robot = toPoint3(t.predicted_robot_mm);
+      m.predicted_error_mm = t.predicted_error_mm;
+    }
+    v.targets.push_back(m);
+  }
+  v.missing_targets = c.missing_targets;
+  v.extra_seeds = c.extra_seeds;
+  if (c.summary) {
+    v.error = statsOf(c.summary->error);
+    v.lateral = statsOf(c.summary->lateral);
+    v.depth = statsOf(c.summary->depth);
+  }
+  v.summary = c.text;
+  for (const auto& f : s.fitted_tissues) {
+    protocol::FittedTissueState m;
+    m.name = f.profile.name;
+    m.lambda1 = f.fit.tissue.lambda1;
+    m.lambda2 = f.fit.tissue.lambda2;
+    m.lambda1_se = f.fit.standard_errors.size() > 0 ? f.fit.standard_errors[0] : 0.0;
+    m.lambda2_se = f.fit.standard_errors.size() > 1 ? f.fit.standard_errors[1] : 0.0;
+    m.rms_mm = f.fit.rms_mm;
+    m.rms_bicycle_mm = f.fit.rms_bicycle_mm;
+    m.rms_no_deflection_mm = f.fit.rms_no_deflection_mm;
+    m.targets = static_cast<std::uint32_t>(f.targets);
+    m.limit = f.fit.limit;
+    m.yaml = f.yaml;
+    v.fitted_tissues.push_back(m);
+  }
+  v.aim_tissue = s.aim_tissue ? s.aim_tissue->name : "";
+  verification_.write(v);
 }
 
 void StatePublisher::disposeTarget(std::uint32_t id) {

@@ -1,5 +1,5 @@
 // The state topics (docs/PROTOCOL.md): WorkflowState, RobotState, VolumeState, RegistrationState,
-// TargetState, ApprovalState, MotionState and Health, written from a Session and what the server
+// TargetState, ApprovalState, MotionState, VerificationState and Health, written from a Session and what the server
 // knows beside it (the controller's reading, a load's progress): each as its value (protocol's
 // types.hpp), which protocol converts and writes. The event thread's own: it is the only caller,
 // right after a step's journal record (effect_order.hpp).
@@ -56,6 +56,7 @@ class StatePublisher {
   void publishMotion(const workflow::Session& s, const actuation::ControllerStatus& reading,
                      const char* lifecycle);
   void publishHealth(const workflow::Session& s, const HealthFacts& facts);
+  void publishVerification(const workflow::Session& s);
 
  private:
   double uptimeS() const;
@@ -68,6 +69,7 @@ class StatePublisher {
   protocol::TopicWriter<protocol::Health> health_;
   protocol::TopicWriter<protocol::ApprovalState> approval_;
   protocol::TopicWriter<protocol::MotionState> motion_;
+  protocol::TopicWriter<protocol::VerificationState> verification_;
   const std::string controller_name_;
   const std::string session_dir_;
   const Clock::time_point started_;

@@ -100,9 +100,11 @@ class Server::Sink final : public workflow::EffectSink {
         if (last) reports.slices(s_.snapshot(), false, last->id);
       }
     }
+    if (e.confirmation_changed || e.tissue_fitted) reports.verification(s_.snapshot());
     if (!e.journal.empty()) reports.report(s_.snapshot());
     if (e.load_volume) s_.loader_.start(*e.load_volume, *now.robot, s_.session_dir_);
-    if (e.detect_fiducials) s_.detector_.start(*e.detect_fiducials);
+    if (e.detect_fiducials) s_.analysis_.start(*e.detect_fiducials);
+    if (e.measure_confirmation) s_.analysis_.start(*e.measure_confirmation);
     if (s_.igtl_) s_.igtl_->onState(now);
   }
 

@@ -73,6 +73,7 @@ struct Client::Impl {
   TopicWriter<EmergencyStop> emergency_stops;
   TopicReader<ApprovalState> approval;
   TopicReader<MotionState> motion;
+  TopicReader<VerificationState> verification;
   WaitSet waitset;
 
   template <typename T>
@@ -102,6 +103,7 @@ struct Client::Impl {
         emergency_stops(participant),
         approval(participant),
         motion(participant),
+        verification(participant),
         waitset(participant) {
     waitset.attach(replies.handle());
     waitset.attach(slice_replies.handle());
@@ -268,6 +270,8 @@ std::vector<std::string> Client::poll() {
   note("approval", drainInto(impl_->approval, mirror_.approval, state_, "approval"));
   note("motion", drainInto(impl_->motion, mirror_.motion, state_, "motion"));
   note("health", drainInto(impl_->health, mirror_.health, state_, "health"));
+  note("verification",
+       drainInto(impl_->verification, mirror_.verification, state_, "verification"));
   return changed;
 }
 

@@ -295,5 +295,7 @@ template class Writer<ignav_msg_ApprovalState>;
 template class Reader<ignav_msg_ApprovalState>;
 template class Writer<ignav_msg_MotionState>;
 template class Reader<ignav_msg_MotionState>;
+template class Writer<ignav_msg_VerificationState>;
+template class Reader<ignav_msg_VerificationState>;
 
 }  // namespace ignav::protocol

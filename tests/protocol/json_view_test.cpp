@@ -90,7 +90,9 @@ TEST(JsonView, TargetIsWhatBrowsersRead) {
     "reachable": true, "reach": "reachable", "message": "ok", "joints": [0.25, 12.5, 3.0],
     "steps": [100, -200, 3000000000], "tre_mm": 0.75, "tre_warning": false, "order": 2,
     "predicted_deviation_mm": 1.25, "status": "planned", "outside_volume": false,
-    "path_warning": "", "path_lps": [[0, 0, 0], [1, 2, 3]]})");
+    "path_warning": "", "path_lps": [[0, 0, 0], [1, 2, 3]], "compensated": false,
+    "aim_tissue": "", "nominal_joints": [0, 0, 0], "nominal_landing_robot": [0, 0, 0],
+    "predicted_landing_robot": [0, 0, 0]})");
   EXPECT_EQ(json(aTarget()), expected);
 }
 

@@ -42,12 +42,16 @@ inline ApprovalPolicy policy() {
 // moves after the journal), and reports a finished move as segment_done.
 class Bench {
  public:
-  explicit Bench(std::uint64_t first_request = 0) : sim_(axes()), request_(first_request) {
+  // tissue: the session's deflection predictions (server.yaml tissue:), as config_loaded gives it.
+  explicit Bench(std::uint64_t first_request = 0,
+                 std::optional<config::TissueProfile> tissue = std::nullopt)
+      : sim_(axes()), request_(first_request) {
     (void)sim_.connect();
     (void)sim_.home();
     s = newSession("bench", paperRobot(), "robot.yaml");
     Input config = internal(InputKind::kConfigLoaded);
     config.policy = policy();
+    config.tissue = std::move(tissue);
     feed(config);
     auto load = command(InputKind::kLoadVolume);
     load.path = "phantom:";

@@ -46,7 +46,7 @@ nlohmann::json replaySession(const ReplayArgs& args) {
   json targets = json::array();
   for (std::size_t i = 0; i < session->targets.size(); ++i) {
     const auto& t = session->targets[i];
-    const auto& j = t.solution.joints;
+    const auto& j = t.commandedJoints();
     targets.push_back({{"id", t.id},
                        {"order", i + 1},
                        {"status", t.status()},

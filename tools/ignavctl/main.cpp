@@ -3,6 +3,7 @@
 //   ignavctl targets add X,Y,Z | rm ID | ls | clear | lock | unlock
 //   ignavctl slice --view axial --lps X,Y,Z --out s.png | watch | run script.yaml
 //   ignavctl approval | approve [--yes] [--plan N --digest HEX] | motion | emergency-stop
+//   ignavctl verify [load PATH | place ID X,Y,Z | accept ID | reject SEED | fit NAME | aim NAME]
 //   ignavctl replay SESSION [--speed 1|10|max] [--until SEQ]
 //   and every other command by its name: ignavctl ping | add-target X,Y,Z | check-ready robot ...
 #include <yaml-cpp/yaml.h>
@@ -26,6 +27,7 @@
 
 #include "ignav/protocol/client.hpp"
 #include "ignav/workflow/inputs.hpp"
+#include "verification_view.hpp"
 
 namespace {
 
@@ -511,6 +513,16 @@ int main(int argc, char** argv) {
     const std::string usage = ignav::workflow::usageOf(spec);
     if (!usage.empty()) sub->add_option("args", derived_words, usage)->required();
   }
+  std::vector<std::string> verify_args;
+  double measure_wait_s = 300.0;
+  auto* verify = app.add_subcommand(
+      "verify",
+      "the confirmation CT's targeting errors (VerificationState); load PATH (measure a "
+      "confirmation CT and wait for it), place TARGET X,Y,Z | accept TARGET | reject SEED (the "
+      "click fallback), fit NAME (tissue from the errors), aim NAME|none (compensate for it)");
+  verify->add_option("args", verify_args);
+  verify->add_option("--wait-s", measure_wait_s,
+                     "load: how long to wait for the measurement (default 300)");
   std::string replay_dir, replay_speed = "1", server_config = "configs/server.yaml";
   std::uint64_t replay_until = 0;
   auto* replay = app.add_subcommand(
@@ -687,6 +699,55 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (*run) return runScript(client, script, script_out, as_json);
+    if (*verify) {
+      auto show = [&] {
+        client.poll();
+        if (as_json) {
+          std::cout << client.state().value("verification", json()).dump(2) << "\n";
+        } else {
+          ignav::ctl::printVerification(client.mirror());
+        }
+      };
+      if (verify_args.empty()) {
+        try {  // the topic's present arrives on its own after discovery
+          client.waitUntil([](const StateMirror& s) { return s.verification.has_value(); }, 2s);
+        } catch (const ignav::protocol::Timeout&) {
+        }
+        show();
+        return 0;
+      }
+      const std::string& verb = verify_args[0];
+      const std::vector<std::string> rest(verify_args.begin() + 1, verify_args.end());
+      auto id = [&](std::size_t i) {
+        if (rest.size() <= i) throw UsageError("verify " + verb + ": an id is missing");
+        return static_cast<std::uint32_t>(std::stoul(rest[i]));
+      };
+      if (verb == "load" && rest.size() == 1) {
+        // Accepted when the measurement starts; its outcome shows in VerificationState.
+        const auto r = client.send("load_confirmation", {rest[0], {}, {}});
+        if (!r.accepted) {
+          printReply(r, as_json);
+          return kExitRejected;
+        }
+        client.waitUntil(
+            [&](const StateMirror& s) {
+              return s.verification && s.workflow && s.workflow->revision > r.revision &&
+                     s.verification->status != "measuring";
+            },
+            std::chrono::seconds(static_cast<long>(measure_wait_s)));
+        show();
+        const auto& v = *client.mirror().verification;
+        return v.status == "measured" && v.source == rest[0] ? 0 : kExitRejected;
+      }
+      if (verb == "place" && rest.size() == 2) return send("place_seed", {"", {triple(rest[1])}, {id(0)}});
+      if (verb == "accept" && rest.size() == 1) return send("accept_seed", {"", {}, {id(0)}});
+      if (verb == "reject" && rest.size() == 1) return send("reject_seed", {"", {}, {id(0)}});
+      if (verb == "fit" && rest.size() == 1) return send("fit_tissue", {rest[0], {}, {}});
+      if (verb == "aim" && rest.size() == 1) return send("use_tissue", {rest[0], {}, {}});
+      throw UsageError(
+          "verify: load PATH | place TARGET X,Y,Z | accept TARGET | reject SEED | fit NAME | aim "
+          "NAME|none");
+    }
     if (*approval || *motion) {
       client.poll();
       const char* topic = *approval ? "approval" : "motion";

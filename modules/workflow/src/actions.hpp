@@ -95,4 +95,15 @@ Refusal adoptHome(Session& s, const Input& in, ActionOutput& out);
 Refusal republishEverything(Session& s, const Input& in, ActionOutput& out);
 Refusal answerPing(Session& s, const Input& in, ActionOutput& out);
 
+// ---- Actions: the closed loop (verification_actions.cpp) ----
+
+Refusal startConfirmation(Session& s, const Input& in, ActionOutput& out);
+Refusal adoptConfirmation(Session& s, const Input& in, ActionOutput& out);
+Refusal noteConfirmationFailure(Session& s, const Input& in, ActionOutput& out);
+Refusal placeSeed(Session& s, const Input& in, ActionOutput& out);
+Refusal acceptSeed(Session& s, const Input& in, ActionOutput& out);
+Refusal rejectSeed(Session& s, const Input& in, ActionOutput& out);
+Refusal fitTissue(Session& s, const Input& in, ActionOutput& out);
+Refusal useTissue(Session& s, const Input& in, ActionOutput& out);
+
 }  // namespace ignav::workflow::detail

@@ -74,6 +74,29 @@ const std::vector<InputSpec> kInputs = {
     {I::kPing, "ping", 20, R::kViewer, kCommand | kQuestion | kEveryPhase, kNone,
      "the server's clock (Unix s) and the session revision, answered at once: for clients "
      "measuring their clock offset and round trip"},
+    {I::kLoadConfirmation, "load_confirmation", 21, R::kPlanner, kCommand,
+     kNone.path("a server-side confirmation CT: DICOM folder or file, .nrrd/.nhdr, .mha/.mhd"),
+     "load a confirmation CT after motion and measure the targeting error of every reached "
+     "target, in the background: VerificationState shows measuring, then the seeds, the match "
+     "and the errors (or why the scan was refused; the measurement before stays)"},
+    {I::kPlaceSeed, "place_seed", 22, R::kPlanner, kCommand,
+     kNone.withIds(1, "a reached target").withPoints(1, "its seed on the confirmation CT (LPS)"),
+     "the click fallback: this target's seed is here (found or not); the match keeps it"},
+    {I::kAcceptSeed, "accept_seed", 23, R::kPlanner, kCommand,
+     kNone.withIds(1, "a measured target"),
+     "the seed matched to this target is its seed: the match keeps the pair"},
+    {I::kRejectSeed, "reject_seed", 24, R::kPlanner, kCommand,
+     kNone.withIds(1, "a seed (VerificationState.seeds)"),
+     "this is no seed of the plan (a calcification, a seed from before): matched again without it"},
+    {I::kFitTissue, "fit_tissue", 25, R::kPlanner, kCommand,
+     kNone.path("the new tissue profile's name (letters, digits, _ or -)"),
+     "fit the extended bicycle model's λ1, λ2 to the measured errors (seed 000); the profile is "
+     "usable by use_tissue, and written to the session folder as a configs/tissues.yaml entry"},
+    {I::kUseTissue, "use_tissue", 26, R::kPlanner, kCommand,
+     kNone.path("a tissue profile: the configured one or one fitted in this session; none: aim "
+                "without compensation"),
+     "aim every target so that the tip, deflected as this tissue's model predicts, lands on it "
+     "(compensated joints; the approval request shows nominal and compensated)"},
     {I::kConfigLoaded, "config_loaded", kNoWireKind, R::kApprover, kServer, kNone,
      "the server started with a valid robot config"},
     {I::kVolumeLoaded, "volume_loaded", kNoWireKind, R::kApprover, kServer, kNone,
@@ -90,6 +113,10 @@ const std::vector<InputSpec> kInputs = {
      kNone, "the controller reported a fault or stopped answering"},
     {I::kServerRestarted, "server_restarted", kNoWireKind, R::kApprover, kServer | kNeedsReading,
      kNone, "recovery finished: approvals die, the position is checked"},
+    {I::kConfirmationMeasured, "confirmation_measured", kNoWireKind, R::kApprover, kServer, kNone,
+     "the server loaded a confirmation CT and found the robot's markers and the seeds on it"},
+    {I::kConfirmationFailed, "confirmation_failed", kNoWireKind, R::kApprover, kServer, kNone,
+     "a confirmation CT could not be loaded or its markers were not found: why"},
 };
 
 bool inOrder() {

@@ -39,6 +39,16 @@ json journalRecord(const Input& in, const Session& after) {
     record["description"] = in.loaded.description;
     record["dims"] = {g.dims[0], g.dims[1], g.dims[2]};
   }
+  if (!in.seeds.empty()) {
+    json seeds = json::array();
+    for (const auto& s : in.seeds) {
+      seeds.push_back({{"id", s.id},
+                       {"lps", {s.lps_mm.x(), s.lps_mm.y(), s.lps_mm.z()}},
+                       {"length_mm", s.length_mm},
+                       {"width_mm", s.width_mm}});
+    }
+    record["seeds"] = seeds;
+  }
   if (!in.error.empty()) record["error"] = in.error;
   if (in.job != 0) record["job"] = in.job;
   if (!in.summary.empty()) record["summary"] = in.summary;
@@ -179,6 +189,16 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
     }
     for (const auto& id : r.value("ids", json::array())) {
       e.input.ids.push_back(integer<std::uint32_t>(id, "ids"));
+    }
+    for (const auto& s : r.value("seeds", json::array())) {
+      FoundSeed seed;
+      seed.id = integer<std::uint32_t>(s.at("id"), "seeds.id");
+      const json& p = s.at("lps");
+      seed.lps_mm = {p.at(0).get<double>(), p.at(1).get<double>(), p.at(2).get<double>()};
+      if (!seed.lps_mm.allFinite()) throw std::invalid_argument("seeds.lps: not finite");
+      seed.length_mm = s.value("length_mm", 0.0);
+      seed.width_mm = s.value("width_mm", 0.0);
+      e.input.seeds.push_back(seed);
     }
     e.input.error = r.value("error", "");
     e.input.job = integer(r, "job", std::uint64_t{0});

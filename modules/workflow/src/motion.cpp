@@ -117,12 +117,23 @@ Expected<std::optional<MotionRequest>> nextRequest(const Session& s, double time
     r.target_id = t.id;
     r.moves = plan->motions.front().moves;
     r.tre_mm = t.tre_mm;
-    const auto& j = t.solution.joints;
+    const auto& j = t.commandedJoints();
     // A registration given as a matrix has no fiducials to estimate the TRE from.
     const std::string tre = std::isnan(t.tre_mm) ? std::string("TRE unknown (registered by matrix)")
                                                  : fmt::format("expected TRE {:.2f} mm", t.tre_mm);
     where = fmt::format("T{} (θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm, {})", t.id,
                         j.theta_c_rad * kRadToDeg, j.z_c_mm, j.z_s_mm, tre);
+    if (t.compensated) {  // the operator approves the aim, and sees what it departs from
+      const auto& c = *t.compensated;
+      const auto& n = t.solution.joints;
+      where += fmt::format(
+          ", compensated for tissue '{}' (nominal θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm would "
+          "land {:.2f} mm off; predicted landing ({:.3f}, {:.3f}, {:.3f}) mm robot, {:.4f} mm "
+          "from the target)",
+          c.profile, n.theta_c_rad * kRadToDeg, n.z_c_mm, n.z_s_mm,
+          (c.nominal_landing_robot_mm - t.robot_mm).norm(), c.landing_robot_mm.x(),
+          c.landing_robot_mm.y(), c.landing_robot_mm.z(), c.residual_mm);
+    }
   } else {
     const Retraction back = retraction(robot, s.position);
     if (back.steps == actuation::Steps{}) return std::optional<MotionRequest>{};

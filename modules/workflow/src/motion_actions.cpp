@@ -131,6 +131,7 @@ Refusal arriveAtTarget(Session& s, const Input& in, ActionOutput& out) {
   if (Target* t = findTarget(s, target)) {
     t->reached = true;
     t->reached_s = in.time_s;
+    t->reached_joints = t->commandedJoints();
     out.effects.targets_changed.push_back(target);
   }
   return issueRequest(s, in, out.effects);

@@ -247,7 +247,7 @@ Refusal checkLockable(const Session& s) {
   }
   std::string bad;
   for (const auto& t : s.targets) {
-    if (!t.registered || !t.solution.reachable()) bad += (bad.empty() ? "" : "; ") + t.message;
+    if (!t.plannable()) bad += (bad.empty() ? "" : "; ") + t.message;
   }
   if (!bad.empty()) {
     return Rejection{ReplyCode::kUnreachableTargets, "remove or move these first: " + bad};

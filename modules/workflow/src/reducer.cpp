@@ -176,7 +176,7 @@ std::string Target::status() const {
   if (outside_volume && !reached) return "outside_volume";
   if (!registered) return "unregistered";
   if (reached) return "reached";
-  return solution.reachable() ? "planned" : "unreachable";
+  return plannable() ? "planned" : "unreachable";
 }
 
 Session newSession(std::string session_id, std::shared_ptr<const config::Robot> robot,
@@ -234,6 +234,13 @@ Step reduce(const Session& session, const Input& in) {
   // nor one a registration given by hand made moot. Wherever it arrives, it changes nothing then.
   if (isDetectionResult(in.kind) && (session.detecting == 0 || in.job != session.detecting)) {
     return reject({ReplyCode::kStaleDetection, detail::staleDetection(session, in)});
+  }
+  if ((in.kind == InputKind::kConfirmationMeasured || in.kind == InputKind::kConfirmationFailed) &&
+      (session.confirmation.measuring == 0 || in.job != session.confirmation.measuring)) {
+    return reject({ReplyCode::kStaleDetection,
+                   fmt::format("confirmation CT measurement #{} ({}) is not the one awaited (#{}): "
+                               "ignored",
+                               in.job, in.path, session.confirmation.measuring)});
   }
   const auto& table = transitionTable();
   const bool allowed = std::any_of(table.begin(), table.end(), [&](const Transition& t) {

@@ -93,6 +93,21 @@ const std::vector<ReplyCodeSpec> kCodes = {
      "overtaken by an emergency stop and not done. Such inputs are answered once the controller "
      "has been read after every command already sent to it: with a slow controller, up to one "
      "reading later (docs/ARCHITECTURE.md)"},
+    {C::kNothingReached, "nothing_reached",
+     "`load_confirmation` (or a seed command) before any target was reached: a confirmation CT "
+     "measures the seeds of reached targets"},
+    {C::kNoConfirmation, "no_confirmation",
+     "a seed command or `fit_tissue` without a measured confirmation CT "
+     "(VerificationState.status none, or unmatched for `fit_tissue`)"},
+    {C::kUnknownSeed, "unknown_seed", "\"no seed 12 on the confirmation CT (seeds 1-9)\""},
+    {C::kUnknownTissue, "unknown_tissue",
+     "`use_tissue` with a name that is neither the configured tissue nor one fitted in this "
+     "session; the message lists them"},
+    {C::kFitFailed, "fit_failed",
+     "`fit_tissue`: the errors do not determine the tissue (too few targets, all at one depth), "
+     "the fit does not converge, or no needle model is configured (server.yaml tissue:)"},
+    {C::kBadName, "bad_name",
+     "a tissue profile's name that is not 1-64 letters, digits, '_' or '-'"},
     {C::kJournalFailed, "journal_failed",
      "the session journal cannot be written (disk full, I/O error): nothing was done, and every "
      "later change is refused until the server is restarted; `Health.journal` says why "

@@ -74,8 +74,8 @@ std::string procedureReport(const Session& s, const std::vector<std::string>& im
       "| drift (mm, model) | reached (UTC) |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (std::size_t i = 0; i < s.targets.size(); ++i) {
     const auto& t = s.targets[i];
-    const auto& j = t.solution.joints;
-    const bool planned = t.registered && t.solution.reachable();
+    const auto& j = t.commandedJoints();
+    const bool planned = t.plannable();
     out += fmt::format(
         "| {} | T{} | {} | ({:.2f}, {:.2f}, {:.2f}) | {} | {} | {} | {} | {} | {} | {} | {} |\n",
         i + 1, t.id, t.status(), t.lps_mm.x(), t.lps_mm.y(), t.lps_mm.z(),
@@ -96,7 +96,7 @@ std::string procedureReport(const Session& s, const std::vector<std::string>& im
   }
   std::string notes;
   for (const auto& t : s.targets) {
-    if (!t.registered || !t.solution.reachable() || t.outside_volume || !t.path_warning.empty())
+    if (!t.plannable() || t.outside_volume || !t.path_warning.empty())
       notes += "- T" + std::to_string(t.id) + ": " + t.message + "\n";
   }
   if (!notes.empty()) out += "\n" + notes;

@@ -47,7 +47,7 @@ namespace {
 // half-millimetre samples measure the part outside well enough for a warning.
 void checkPath(const Session& s, Target& t) {
   if (!s.ct.volume || !t.solution.reachable()) return;
-  const auto path = needlePathLps(s, t.solution.joints);
+  const auto path = needlePathLps(s, t.commandedJoints());
   const auto& geometry = s.ct.volume->geometry;
   constexpr double kSample_mm = 0.5;
   double outside_mm = 0.0, total_mm = 0.0, worst_mm = 0.0;
@@ -70,6 +70,24 @@ void checkPath(const Session& s, Target& t) {
       outside_mm, total_mm, worst_mm);
 }
 
+// With a tissue profile to aim with (use_tissue): the joints whose deflected tip lands on the
+// target, or why there are none (the target is then not plannable). Reached targets keep what
+// they were reached with (Target::reached_joints).
+void aim(const Session& s, Target& t) {
+  if (!s.aim_tissue) return;
+  compensation::DeflectionModel model;
+  model.needle = s.aim_tissue->needle;
+  model.tissue = s.aim_tissue->tissue;
+  auto c = compensation::compensate(s.robot->kinematics, model, t.robot_mm);
+  if (!c) {
+    t.compensation_refusal = fmt::format("aiming for tissue '{}': {}", s.aim_tissue->name,
+                                         c.error().message);
+    return;
+  }
+  t.compensated = CompensatedAim{s.aim_tissue->name, c->compensated, c->compensated_landing_mm,
+                                 c->nominal_landing_mm, c->residual_mm};
+}
+
 }  // namespace
 
 void evaluate(const Session& s, Target& t) {
@@ -78,6 +96,8 @@ void evaluate(const Session& s, Target& t) {
   fresh.lps_mm = t.lps_mm;
   fresh.reached = t.reached;  // where the needle has been stays true whatever the registration
   fresh.reached_s = t.reached_s;
+  fresh.reached_joints = t.reached_joints;
+  if (t.reached) fresh.compensated = t.compensated;  // as it was reached
   t = fresh;
   const auto outside = checkInsideCt(s, t.lps_mm);
   t.outside_volume = outside.has_value();
@@ -97,10 +117,20 @@ void evaluate(const Session& s, Target& t) {
   }
   t.solution = *solution;
   t.message = fmt::format("target {}: {}", t.id, robot.kinematics.describe(t.solution, t.robot_mm));
-  if (t.solution.reachable()) t.steps = robot.transmission.toSteps(t.solution.joints).steps;
+  if (t.solution.reachable() && !t.reached) aim(s, t);
+  if (t.solution.reachable()) t.steps = robot.transmission.toSteps(t.commandedJoints()).steps;
   t.message += outside_note;
   if (!outside) checkPath(s, t);
   if (!t.path_warning.empty()) t.message += "; warning: " + t.path_warning;
+  if (!t.compensation_refusal.empty()) t.message += "; refused: " + t.compensation_refusal;
+  if (t.compensated) {
+    const auto& c = *t.compensated;
+    t.message += fmt::format(
+        "; aimed for tissue '{}': θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm (the nominal joints "
+        "would land {:.2f} mm off)",
+        c.profile, c.joints.theta_c_rad * 180.0 / M_PI, c.joints.z_c_mm, c.joints.z_s_mm,
+        (c.nominal_landing_robot_mm - t.robot_mm).norm());
+  }
   if (s.tissue && t.solution.reachable()) {
     // A model prediction only: the cannula's sideways drift after zc mm pushed into the tissue.
     const double zc = t.solution.joints.z_c_mm;

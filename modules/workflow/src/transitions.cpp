@@ -64,6 +64,22 @@ constexpr EveryPhaseAction kEveryPhaseActions[] = {
     {I::kPing, answerPing},
 };
 
+// The closed loop's inputs leave every phase as it is: noted once on the diagram, not drawn.
+bool isClosedLoop(InputKind kind) {
+  switch (kind) {
+    case I::kLoadConfirmation:
+    case I::kPlaceSeed:
+    case I::kAcceptSeed:
+    case I::kRejectSeed:
+    case I::kFitTissue:
+    case I::kConfirmationMeasured:
+    case I::kConfirmationFailed:
+      return true;
+    default:
+      return false;
+  }
+}
+
 Action everyPhaseAction(InputKind kind) {
   for (const auto& a : kEveryPhaseActions) {
     if (a.input == kind) return a.action;
@@ -174,6 +190,22 @@ std::vector<Transition> buildTable() {
   // resume returns to the phase the first interruption left (a move in flight: plan_locked, to be
   // approved again), or to done when nothing is left to move. Interruptions taken while
   // interrupted (manual after stop, emergency in manual) keep that phase (issue 27).
+  // The closed loop (issue 23): a confirmation CT is measured, its seeds corrected and a tissue
+  // fitted wherever the robot rests with targets planned; the measurement may end anywhere. The
+  // aim changes only with the plan open.
+  for (Phase p : {P::kPlanning, P::kPlanLocked, P::kAtTarget, P::kDone, P::kStopped, P::kManual}) {
+    t.push_back({p, I::kLoadConfirmation, always, p, startConfirmation, "measure the seeds"});
+    t.push_back({p, I::kPlaceSeed, always, p, placeSeed, "a seed clicked"});
+    t.push_back({p, I::kAcceptSeed, always, p, acceptSeed, "a match accepted"});
+    t.push_back({p, I::kRejectSeed, always, p, rejectSeed, "no seed"});
+    t.push_back({p, I::kFitTissue, always, p, fitTissue, "tissue fitted"});
+  }
+  for (Phase p : kAllPhases) {
+    if (p == P::kStartup) continue;
+    t.push_back({p, I::kConfirmationMeasured, always, p, adoptConfirmation, "seeds measured"});
+    t.push_back({p, I::kConfirmationFailed, always, p, noteConfirmationFailure, "scan refused"});
+  }
+  t.push_back({P::kPlanning, I::kUseTissue, always, P::kPlanning, useTissue, "aim for a tissue"});
   for (std::size_t i = 0; i < std::size(kResumePhases); ++i) {
     const Phase back = kResumePhases[i];
     t.push_back(
@@ -262,7 +294,7 @@ std::string mermaidDiagram() {
         (t.input == InputKind::kControllerFault || t.input == InputKind::kServerRestarted ||
          (detection_result && isInterruption(t.from))) &&
         t.from == t.to;
-    if (server_self_loop) continue;
+    if (server_self_loop || isClosedLoop(t.input)) continue;
     // resume's destinations are drawn once, as the phase the interruption left.
     const bool resume_back = t.input == InputKind::kResume;
     std::string line = std::string("  ") + toString(t.from) + " --> " +
@@ -276,6 +308,11 @@ std::string mermaidDiagram() {
   out += "  resume_target: the phase the interruption left (" + destinations + ")\n";
   out += "  note right of stopped: accepted in every phase: " + everywhere +
          "; check_ready in every phase but moving, emergency, fault and manual\n";
+  out +=
+      "  note left of done: the closed loop (load_confirmation, place_seed, accept_seed, "
+      "reject_seed, fit_tissue) leaves planning, plan_locked, at_target, done, stopped and "
+      "manual as they are; a measurement's outcome (confirmation_measured, confirmation_failed) "
+      "every phase but startup\n";
   out +=
       "  note right of fault: controller_fault and server_restarted leave the other phases "
       "as they are; a marker detection's outcome (fiducials_detected, "

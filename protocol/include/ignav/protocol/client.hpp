@@ -64,6 +64,7 @@ struct StateMirror {
   std::optional<ApprovalState> approval;
   std::optional<MotionState> motion;
   std::optional<Health> health;
+  std::optional<VerificationState> verification;
 };
 
 class Client {
@@ -98,7 +99,8 @@ class Client {
                     std::chrono::milliseconds timeout = std::chrono::seconds(30));
 
   // Drains the state topics into state(); returns the names of the topics that changed
-  // ("workflow", "robot", "volume", "registration", "target", "approval", "motion", "health").
+  // ("workflow", "robot", "volume", "registration", "target", "approval", "motion", "health",
+  // "verification").
   std::vector<std::string> poll();
   // Polls until `done(state())` holds (throws Timeout).
   void waitFor(const std::function<bool(const nlohmann::json&)>& done,

@@ -22,6 +22,7 @@ constexpr const char* kApproval = "ignav/approval";
 constexpr const char* kEmergencyStop = "ignav/emergency_stop";
 constexpr const char* kApprovalState = "ignav/state/approval";
 constexpr const char* kMotion = "ignav/state/motion";
+constexpr const char* kVerification = "ignav/state/verification";
 }  // namespace topic
 
 // State topics: reliable, transient-local, keep-last 1 per instance (a late joiner sees the

@@ -189,6 +189,70 @@ struct TargetState {
   bool outside_volume = false;
   std::string path_warning;
   std::vector<Point3> path_lps;
+  bool compensated = false;
+  std::string aim_tissue;
+  JointValues nominal_joints{};
+  Point3 nominal_landing_robot;
+  Point3 predicted_landing_robot;
+};
+
+struct ErrorStats {
+  std::uint32_t count = 0;
+  double mean_mm = 0.0, sd_mm = 0.0, min_mm = 0.0, max_mm = 0.0, rms_mm = 0.0;
+};
+
+struct SeedState {
+  std::uint32_t id = 0;
+  Point3 lps;
+  Point3 robot;
+  double length_mm = 0.0;
+  double width_mm = 0.0;
+  bool placed = false;
+  bool rejected = false;
+  std::uint32_t target_id = 0;
+};
+
+struct MeasuredTargetState {
+  std::uint32_t target_id = 0;
+  std::uint32_t seed_id = 0;
+  std::string matched;  // detected | accepted | placed
+  Point3 planned_robot, actual_robot, planned_lps, actual_lps, error_robot, error_lps;
+  double error_mm = 0.0;
+  double lateral_mm = 0.0;
+  double radial_mm = 0.0;
+  double tangential_mm = 0.0;
+  double depth_mm = 0.0;
+  std::optional<Point3> predicted_robot;
+  double predicted_error_mm = 0.0;
+};
+
+struct FittedTissueState {
+  std::string name;
+  double lambda1 = 0.0, lambda2 = 0.0, lambda1_se = 0.0, lambda2_se = 0.0;
+  double rms_mm = 0.0, rms_bicycle_mm = 0.0, rms_no_deflection_mm = 0.0;
+  std::uint32_t targets = 0;
+  std::string limit;
+  std::string yaml;
+};
+
+struct VerificationState {
+  std::string status;  // none | measuring | measured | unmatched
+  std::string source;
+  std::string measuring_source;
+  std::string message;
+  bool registration_reused = false;
+  double marker_shift_mm = 0.0;
+  double fre_mm = 0.0;
+  RowMajor4 image_to_robot{};
+  std::string detection_summary;
+  std::vector<SeedState> seeds;
+  std::vector<MeasuredTargetState> targets;
+  std::vector<std::uint32_t> missing_targets;
+  std::vector<std::uint32_t> extra_seeds;
+  ErrorStats error, lateral, depth;
+  std::string summary;
+  std::vector<FittedTissueState> fitted_tissues;
+  std::string aim_tissue;
 };
 
 struct PlannedMove {
@@ -340,7 +404,61 @@ struct Fields<TargetState> {
           "predicted_deviation_mm", &T::predicted_deviation_mm,
           [](auto& msg) { return std::tie(msg.predicted_deviation_mm, msg.deviation_predicted); }),
       IGNAV_FIELD(status), IGNAV_FIELD(outside_volume), IGNAV_FIELD(path_warning),
-      IGNAV_FIELD(path_lps));
+      IGNAV_FIELD(path_lps), IGNAV_FIELD(compensated), IGNAV_FIELD(aim_tissue),
+      IGNAV_FIELD(nominal_joints), IGNAV_FIELD(nominal_landing_robot),
+      IGNAV_FIELD(predicted_landing_robot));
+};
+
+template <>
+struct Fields<ErrorStats> {
+  using T = ErrorStats;
+  static constexpr auto list =
+      std::make_tuple(IGNAV_FIELD(count), IGNAV_FIELD(mean_mm), IGNAV_FIELD(sd_mm),
+                      IGNAV_FIELD(min_mm), IGNAV_FIELD(max_mm), IGNAV_FIELD(rms_mm));
+};
+
+template <>
+struct Fields<SeedState> {
+  using T = SeedState;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(id), IGNAV_FIELD(lps), IGNAV_FIELD(robot), IGNAV_FIELD(length_mm),
+      IGNAV_FIELD(width_mm), IGNAV_FIELD(placed), IGNAV_FIELD(rejected), IGNAV_FIELD(target_id));
+};
+
+template <>
+struct Fields<MeasuredTargetState> {
+  using T = MeasuredTargetState;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(target_id), IGNAV_FIELD(seed_id), IGNAV_FIELD(matched),
+      IGNAV_FIELD(planned_robot), IGNAV_FIELD(actual_robot), IGNAV_FIELD(planned_lps),
+      IGNAV_FIELD(actual_lps), IGNAV_FIELD(error_robot), IGNAV_FIELD(error_lps),
+      IGNAV_FIELD(error_mm), IGNAV_FIELD(lateral_mm), IGNAV_FIELD(radial_mm),
+      IGNAV_FIELD(tangential_mm), IGNAV_FIELD(depth_mm),
+      field("predicted_robot", &T::predicted_robot,
+            [](auto& msg) { return std::tie(msg.predicted_robot, msg.predicted); }),
+      IGNAV_FIELD(predicted_error_mm));
+};
+
+template <>
+struct Fields<FittedTissueState> {
+  using T = FittedTissueState;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(name), IGNAV_FIELD(lambda1), IGNAV_FIELD(lambda2), IGNAV_FIELD(lambda1_se),
+      IGNAV_FIELD(lambda2_se), IGNAV_FIELD(rms_mm), IGNAV_FIELD(rms_bicycle_mm),
+      IGNAV_FIELD(rms_no_deflection_mm), IGNAV_FIELD(targets), IGNAV_FIELD(limit),
+      IGNAV_FIELD(yaml));
+};
+
+template <>
+struct Fields<VerificationState> {
+  using T = VerificationState;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(status), IGNAV_FIELD(source), IGNAV_FIELD(measuring_source),
+      IGNAV_FIELD(message), IGNAV_FIELD(registration_reused), IGNAV_FIELD(marker_shift_mm),
+      IGNAV_FIELD(fre_mm), IGNAV_FIELD(image_to_robot), IGNAV_FIELD(detection_summary),
+      IGNAV_FIELD(seeds), IGNAV_FIELD(targets), IGNAV_FIELD(missing_targets),
+      IGNAV_FIELD(extra_seeds), IGNAV_FIELD(error), IGNAV_FIELD(lateral), IGNAV_FIELD(depth),
+      IGNAV_FIELD(summary), IGNAV_FIELD(fitted_tissues), IGNAV_FIELD(aim_tissue));
 };
 
 template <>
@@ -408,6 +526,7 @@ IGNAV_TOPIC_OF(TargetState, topic::kTarget, Qos::kState);
 IGNAV_TOPIC_OF(ApprovalState, topic::kApprovalState, Qos::kState);
 IGNAV_TOPIC_OF(MotionState, topic::kMotion, Qos::kState);
 IGNAV_TOPIC_OF(Health, topic::kHealth, Qos::kState);
+IGNAV_TOPIC_OF(VerificationState, topic::kVerification, Qos::kState);
 #undef IGNAV_TOPIC_OF
 
 }  // namespace ignav::protocol

@@ -39,6 +39,12 @@ enum class InputKind {
   kManual,
   kCheckReady,
   kPing,
+  kLoadConfirmation,
+  kPlaceSeed,
+  kAcceptSeed,
+  kRejectSeed,
+  kFitTissue,
+  kUseTissue,
   kConfigLoaded,
   kVolumeLoaded,
   kVolumeLoadFailed,
@@ -47,6 +53,8 @@ enum class InputKind {
   kSegmentDone,
   kControllerFault,
   kServerRestarted,
+  kConfirmationMeasured,
+  kConfirmationFailed,
 };
 
 // Who may give a command: each role may do what the one before it may, and more. Commands travel

@@ -79,6 +79,9 @@ std::optional<FiducialDetectionJob> pendingDetection(const Session& session);
 // runs it off its event thread) and returns the input that brings its outcome back to the
 // reducer: fiducials_detected with the matched image points, or fiducial_detection_failed.
 Input detectFiducials(const FiducialDetectionJob& job);
+// The confirmation CT measurement `session` awaits (Confirmation::measuring), to run again after a
+// crash; none when it awaits none. measureConfirmation() (closed_loop.hpp) runs it.
+std::optional<ConfirmationJob> pendingConfirmation(const Session& session);
 
 // The session journal: one JSON object per line, per accepted input that changes the session:
 //   {"v": 2, "revision": N, "t": Unix seconds, "input": "add_target", "phase": after,

@@ -62,6 +62,13 @@ enum class ReplyCode {
   kControllerChanged,
   kPositionMismatch,
   kSuperseded,
+  // The closed loop (issue 23): confirmation CT, seeds, tissue fits, compensated aiming.
+  kNothingReached,
+  kNoConfirmation,
+  kUnknownSeed,
+  kUnknownTissue,
+  kFitFailed,
+  kBadName,
   // The server.
   kJournalFailed,
   kInternal,

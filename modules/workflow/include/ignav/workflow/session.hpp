@@ -21,6 +21,7 @@
 #include "ignav/registration/fiducial_detection.hpp"
 #include "ignav/registration/point_registration.hpp"
 #include "ignav/volume/volume.hpp"
+#include "ignav/workflow/closed_loop.hpp"
 #include "ignav/workflow/inputs.hpp"
 
 namespace ignav::workflow {
@@ -110,6 +111,9 @@ struct Input {
   std::optional<ApprovalPolicy> policy;
   // kConfigLoaded: the tissue the session's deflection predictions use (none: no prediction).
   std::optional<config::TissueProfile> tissue;
+  // kConfirmationMeasured: the seeds found on the confirmation CT (`points`: the robot's markers
+  // there, in the model's order; `path`: the scan; `summary`: what the search found).
+  std::vector<FoundSeed> seeds;
   // What the controller said just before this input (approve, resume, reset_emergency, home and
   // the controller's own inputs): the reducer judges the robot by it, and replay sees the same.
   std::optional<actuation::ControllerStatus> controller;
@@ -153,6 +157,9 @@ struct Target {
   double predicted_deviation_mm = std::numeric_limits<double>::quiet_NaN();
   bool reached = false;    // the stylet tip was brought here (verified steps)
   double reached_s = 0.0;  // when (Unix seconds)
+  // The joints it was reached with (commandedJoints() then): what a confirmation CT measures and
+  // a tissue fit explains, whatever the registration or the aim changed since.
+  kinematics::Joints reached_joints;
   // A CT is loaded and the target lies outside it: tissue nobody has seen. add_target and
   // move_target refuse such points; a target becomes one when a CT that misses it is loaded later.
   bool outside_volume = false;
@@ -161,9 +168,16 @@ struct Target {
   // the scanned field.
   double path_outside_ct_mm = 0.0;
   std::string path_warning;
+  // Aiming with a tissue profile and the compensated pose is out of reach (or the model does not
+  // converge): why. The target is then unreachable for this plan.
+  std::string compensation_refusal;
   std::string message;  // person-readable reachability
   // "planned" | "reached" | "unreachable" | "unregistered" | "outside_volume"
   std::string status() const;
+  // Registered, reachable, and (aiming with a tissue) compensated: lock_plan may plan it.
+  bool plannable() const {
+    return registered && solution.reachable() && compensation_refusal.empty();
+  }
   // The joints the plan moves to: the compensated ones with a tissue profile, else the nominal.
   const kinematics::Joints& commandedJoints() const {
     return compensated ? compensated->joints : solution.joints;
@@ -264,7 +278,12 @@ struct Session {
   std::uint32_t next_target_id = 1;
   bool order_fixed = false;  // reorder_targets was used: lock_plan keeps the user's order
   ApprovalPolicy policy;
-  std::optional<config::TissueProfile> tissue;
+  std::optional<config::TissueProfile> tissue;  // the predictions' (server.yaml tissue:)
+  // The closed loop (issue 23): the confirmation CT and its errors, the tissues fitted from them,
+  // and the profile the plan aims with (use_tissue; none: nominal joints).
+  Confirmation confirmation;
+  std::vector<FittedTissue> fitted_tissues;
+  std::optional<config::TissueProfile> aim_tissue;
   actuation::Steps position;  // last verified absolute motor position (zero = home)
   std::optional<MotionRequest> pending;
   std::optional<ActiveMotion> motion;
@@ -333,6 +352,10 @@ struct Effects {
   std::optional<std::string> load_volume;  // path to load, then feed kVolumeLoaded/Failed
   // A marker detection to run, then feed kFiducialsDetected/kFiducialDetectionFailed.
   std::optional<FiducialDetectionJob> detect_fiducials;
+  // A confirmation CT to load and search, then feed kConfirmationMeasured/Failed.
+  std::optional<ConfirmationJob> measure_confirmation;
+  bool confirmation_changed = false;  // VerificationState
+  bool tissue_fitted = false;         // write the fitted profiles to the session folder
   bool approval_changed = false;
   bool motion_changed = false;
   // Halts (stop, abort) go to the controller before anything else, even the journal (DESIGN.md

@@ -89,6 +89,11 @@ IGNAV_PROTOCOL_MSG(PlannedMove, ignav_msg_PlannedMove);
 IGNAV_PROTOCOL_MSG(ApprovalState, ignav_msg_ApprovalState);
 IGNAV_PROTOCOL_MSG(MotionState, ignav_msg_MotionState);
 IGNAV_PROTOCOL_MSG(Health, ignav_msg_Health);
+IGNAV_PROTOCOL_MSG(ErrorStats, ignav_msg_ErrorStats);
+IGNAV_PROTOCOL_MSG(SeedState, ignav_msg_SeedState);
+IGNAV_PROTOCOL_MSG(MeasuredTargetState, ignav_msg_MeasuredTargetState);
+IGNAV_PROTOCOL_MSG(FittedTissueState, ignav_msg_FittedTissueState);
+IGNAV_PROTOCOL_MSG(VerificationState, ignav_msg_VerificationState);
 #undef IGNAV_PROTOCOL_MSG
 
 // A sample written from a value points into the value (strings, byte and number sequences) and

@@ -1,0 +1,68 @@
+// load_confirmation's measuring job (issue 23): the scan loaded, the robot's markers found (as
+// auto_fiducials finds them) and the seeds found clear of them. Pure but slow (I/O, a threshold
+// scan of the whole volume): the server runs it on its analysis thread; the reducer gets the
+// outcome as confirmation_measured (markers and seeds) or confirmation_failed (why).
+#include <fmt/format.h>
+
+#include "ignav/verification/seed_detection.hpp"
+#include "ignav/volume/load.hpp"
+#include "ignav/workflow/reducer.hpp"
+
+namespace ignav::workflow {
+
+std::optional<ConfirmationJob> pendingConfirmation(const Session& s) {
+  if (s.confirmation.measuring == 0 || !s.robot) return std::nullopt;
+  return ConfirmationJob{s.confirmation.measuring, s.confirmation.measuring_source, s.robot};
+}
+
+Input measureConfirmation(const ConfirmationJob& job) {
+  Input in;
+  in.kind = InputKind::kConfirmationFailed;
+  in.job = job.job;
+  in.path = job.source;
+  if (!job.robot) {
+    in.error = "no robot to search the markers of";
+    return in;
+  }
+  auto loaded = volume::loadVolume(job.source, {});
+  if (!loaded) {
+    in.error = "cannot load " + job.source + ": " + loaded.error().message;
+    return in;
+  }
+  FiducialDetectionJob markers;
+  markers.volume = std::make_shared<const volume::Volume>(std::move(loaded->volume));
+  markers.ct_source = job.source;
+  markers.search = job.robot->config.registration.fiducials;
+  markers.model_mm.assign(job.robot->feature_points_mm.begin(),
+                          job.robot->feature_points_mm.end());
+  const Input found = detectFiducials(markers);
+  if (found.kind != InputKind::kFiducialsDetected) {
+    in.error = fmt::format(
+        "markers_missing: the robot's markers were not found on {} ({}): the scan cannot be "
+        "registered to the robot (another patient or frame, or not a scan of the robot?)",
+        job.source, found.error);
+    return in;
+  }
+  verification::SeedSearch search;
+  search.markers_lps_mm = found.points;
+  auto seeds = verification::findSeeds(*markers.volume, search);
+  if (!seeds) {
+    in.error = "the seed search on " + job.source + " failed: " + seeds.error().message;
+    return in;
+  }
+  in.kind = InputKind::kConfirmationMeasured;
+  in.points = found.points;
+  in.summary = seeds->summary;
+  std::uint32_t id = 0;
+  for (const auto& c : seeds->seeds) {
+    FoundSeed s;
+    s.id = ++id;
+    s.lps_mm = c.centroid_lps_mm;
+    s.length_mm = c.length_mm;
+    s.width_mm = c.width_mm;
+    in.seeds.push_back(s);
+  }
+  return in;
+}
+
+}  // namespace ignav::workflow

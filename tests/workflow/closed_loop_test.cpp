@@ -1,0 +1,313 @@
+// The closed loop in the reducer (issue 23), without DDS: the robot moves to its targets on the
+// simulated controller (workflow/bench.hpp), a confirmation CT's outcome is fed as the analysis
+// thread would (markers and seeds placed where a known truth puts them), and the errors, the
+// refusals, the click fallback, the tissue fit and the compensated aim are checked against that
+// truth and against independent computations (forward kinematics, the deflection model).
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include <numeric>
+
+#include "ignav/compensation/compensation.hpp"
+#include "ignav/config/tissue_profiles.hpp"
+#include "ignav/workflow/reducer.hpp"
+#include "workflow/bench.hpp"
+
+namespace ignav::workflow {
+namespace {
+
+using rig::Bench;
+using test::paperRobot;
+
+constexpr double kDeg = M_PI / 180.0;
+// Six targets at six depths and six planes (the fit needs them apart).
+const std::vector<kinematics::Joints> kJoints = {
+    {30 * kDeg, 10, 25}, {-60 * kDeg, 20, 30}, {150 * kDeg, 5, 35},
+    {90 * kDeg, 15, 20}, {200 * kDeg, 25, 28}, {-120 * kDeg, 30, 15}};
+
+config::TissueProfile profile(const std::string& name, double lambda1, double lambda2) {
+  auto profiles = config::loadTissueProfiles(IGNAV_SOURCE_DIR "/configs/tissues.yaml");
+  config::TissueProfile p;
+  p.name = name;
+  p.needle = profiles.value().needle;
+  p.tissue = {lambda1, lambda2};
+  return p;
+}
+
+// A session that moved to `count` targets and retracted: done.
+Bench insertedBench(std::size_t count, std::optional<config::TissueProfile> tissue = {}) {
+  Bench b(0, std::move(tissue));
+  for (std::size_t i = 0; i < count; ++i)
+    b.addRobotTarget(kJoints[i]);
+  EXPECT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  while (b.s.pending) {
+    EXPECT_TRUE(b.send(b.approvePending()).accepted);
+    b.runMotion();
+  }
+  EXPECT_EQ(b.s.phase, Phase::kDone);
+  return b;
+}
+
+// What the analysis thread reports for a scan whose markers and seeds lie where `scan_to_session`
+// (a rigid motion of the whole scan, image LPS -> image LPS) puts them: the markers of the
+// planning CT, and a seed at each robot-frame point.
+Input scanned(const Session& s, std::uint64_t job, const std::vector<Eigen::Vector3d>& seeds_robot,
+              const Eigen::Isometry3d& scan_to_session = Eigen::Isometry3d::Identity()) {
+  Input in;
+  in.kind = InputKind::kConfirmationMeasured;
+  in.job = job;
+  in.path = "/scans/confirmation";
+  in.summary = "test scan";
+  const Eigen::Isometry3d session_to_scan = scan_to_session.inverse();
+  for (const auto& m : s.registration->image_mm)
+    in.points.push_back(session_to_scan * m);
+  std::uint32_t id = 0;
+  for (const auto& p : seeds_robot) {
+    FoundSeed seed;
+    seed.id = ++id;
+    seed.lps_mm = session_to_scan * s.registration->toImage(p);
+    seed.length_mm = 3.0;
+    seed.width_mm = 0.8;
+    in.seeds.push_back(seed);
+  }
+  return in;
+}
+
+// A command whose path is a name (fit_tissue, use_tissue), with a fresh request id.
+Input named(Bench& b, InputKind kind, const std::string& name) {
+  Input in = b.command(kind);
+  in.path = name;
+  return in;
+}
+
+std::uint64_t startMeasuring(Bench& b) {
+  auto load = b.command(InputKind::kLoadConfirmation);
+  load.path = "/scans/confirmation";
+  const Step step = b.feed(load);
+  EXPECT_TRUE(step.effects.replies.at(0).accepted) << step.effects.replies.at(0).message;
+  EXPECT_TRUE(step.effects.measure_confirmation.has_value());
+  return b.s.confirmation.measuring;
+}
+
+std::vector<Eigen::Vector3d> plannedPlus(const Session& s, const std::vector<Eigen::Vector3d>& d) {
+  std::vector<Eigen::Vector3d> out;
+  for (std::size_t i = 0; i < d.size(); ++i)
+    out.push_back(s.targets[i].robot_mm + d[i]);
+  return out;
+}
+
+const std::vector<Eigen::Vector3d> kOffsets = {
+    {1.2, -0.8, -1.5}, {-2.0, 0.6, 0.9}, {0.4, 2.1, -0.7}, {-1.1, -1.3, 0.4}};
+
+TEST(ClosedLoop, ErrorsAreTheSeedsDisplacementsInTheRobotFrame) {
+  Bench b = insertedBench(4);
+  const auto job = startMeasuring(b);
+  ASSERT_NE(job, 0u);
+  EXPECT_EQ(b.s.phase, Phase::kDone);  // measuring changes no phase
+  b.feed(scanned(b.s, job, plannedPlus(b.s, kOffsets)));
+  const Confirmation& c = b.s.confirmation;
+  ASSERT_EQ(c.status, "measured") << c.message;
+  EXPECT_EQ(c.measuring, 0u);
+  ASSERT_TRUE(c.registration.has_value());
+  EXPECT_TRUE(c.registration->reused);
+  ASSERT_EQ(c.targets.size(), 4u);
+  double sum = 0.0;
+  for (std::size_t i = 0; i < 4; ++i) {
+    const auto& e = c.targets[i].error;
+    EXPECT_EQ(e.target_id, b.s.targets[i].id);
+    EXPECT_LT((e.error_robot_mm - kOffsets[i]).norm(), 1e-9);
+    EXPECT_NEAR(e.depth_mm, -kOffsets[i].z(), 1e-9);  // + deeper, deeper is -z
+    EXPECT_NEAR(e.lateral_mm, kOffsets[i].head<2>().norm(), 1e-9);
+    EXPECT_EQ(c.targets[i].matched, "detected");
+    sum += kOffsets[i].norm();
+  }
+  ASSERT_TRUE(c.summary.has_value());
+  EXPECT_NEAR(c.summary->error.mean, sum / 4.0, 1e-9);
+  EXPECT_TRUE(c.missing_targets.empty());
+  EXPECT_TRUE(c.extra_seeds.empty());
+}
+
+TEST(ClosedLoop, AScanOfAMovedPatientIsRegisteredAnewAndMeasuresTheSame) {
+  Bench b = insertedBench(4);
+  const auto job = startMeasuring(b);
+  // The whole scan 6 mm and 2° away from the planning CT: markers and seeds alike.
+  Eigen::Isometry3d moved = Eigen::Isometry3d::Identity();
+  moved.rotate(Eigen::AngleAxisd(2 * kDeg, Eigen::Vector3d::UnitZ()));
+  moved.pretranslate(Eigen::Vector3d(4.0, -3.0, 3.0));
+  b.feed(scanned(b.s, job, plannedPlus(b.s, kOffsets), moved));
+  const Confirmation& c = b.s.confirmation;
+  ASSERT_EQ(c.status, "measured") << c.message;
+  EXPECT_FALSE(c.registration->reused);
+  EXPECT_GT(c.registration->marker_shift_mm, 4.0);
+  for (std::size_t i = 0; i < 4; ++i)
+    EXPECT_LT((c.targets[i].error.error_robot_mm - kOffsets[i]).norm(), 1e-6) << i;
+}
+
+TEST(ClosedLoop, BadScansAreRefusedWithTheReasonAndTheMeasurementBeforeStays) {
+  Bench b = insertedBench(4);
+  b.feed(scanned(b.s, startMeasuring(b), plannedPlus(b.s, kOffsets)));
+  ASSERT_EQ(b.s.confirmation.status, "measured");
+  const auto before = b.s.confirmation.targets;
+  auto expectRefused = [&](const Input& in, const std::string& why) {
+    b.feed(in);
+    const Confirmation& c = b.s.confirmation;
+    EXPECT_EQ(c.status, "measured");
+    EXPECT_EQ(c.measuring, 0u);
+    ASSERT_EQ(c.targets.size(), before.size());
+    EXPECT_EQ(c.targets[0].error.error_robot_mm, before[0].error.error_robot_mm);
+    EXPECT_NE(c.message.find(why), std::string::npos) << c.message;
+    EXPECT_NE(c.message.find("stays"), std::string::npos) << c.message;
+  };
+  // Another patient or frame: the markers 50 mm off.
+  Eigen::Isometry3d far = Eigen::Isometry3d::Identity();
+  far.pretranslate(Eigen::Vector3d(50.0, 0.0, 0.0));
+  expectRefused(scanned(b.s, startMeasuring(b), plannedPlus(b.s, kOffsets), far), "far");
+  // No seeds in the scan.
+  expectRefused(scanned(b.s, startMeasuring(b), {}), "no_seeds");
+  // The analysis thread could not find the markers (or load the scan).
+  Input failed;
+  failed.kind = InputKind::kConfirmationFailed;
+  failed.job = startMeasuring(b);
+  failed.path = "/scans/other";
+  failed.error = "markers_missing: the robot's markers were not found";
+  expectRefused(failed, "markers_missing");
+  // An outcome nobody waits for changes nothing at all.
+  const auto revision = b.s.revision;
+  const Step stale = b.feed(scanned(b.s, 999, plannedPlus(b.s, kOffsets)));
+  EXPECT_EQ(b.s.revision, revision);
+  EXPECT_EQ(stale.effects.replies.at(0).error_code, "stale_detection");
+}
+
+TEST(ClosedLoop, MoreSeedsThanTargetsNeedAPersonWhoRejectsTheExtra) {
+  Bench b = insertedBench(3);
+  auto seeds = plannedPlus(b.s, {kOffsets[0], kOffsets[1], kOffsets[2]});
+  seeds.push_back(b.s.targets[0].robot_mm + Eigen::Vector3d(0.0, 0.0, 8.0));  // a stray seed
+  b.feed(scanned(b.s, startMeasuring(b), seeds));
+  ASSERT_EQ(b.s.confirmation.status, "unmatched") << b.s.confirmation.message;
+  EXPECT_NE(b.s.confirmation.message.find("more_seeds_than_targets"), std::string::npos)
+      << b.s.confirmation.message;
+  EXPECT_TRUE(b.s.confirmation.targets.empty());
+  // An unknown seed id is refused; rejecting the stray one (#4) gives the measurement.
+  EXPECT_EQ(b.send(b.command(InputKind::kRejectSeed, {}, {99})).error_code, "unknown_seed");
+  const auto r = b.send(b.command(InputKind::kRejectSeed, {}, {4}));
+  ASSERT_TRUE(r.accepted) << r.message;
+  ASSERT_EQ(b.s.confirmation.status, "measured") << b.s.confirmation.message;
+  ASSERT_EQ(b.s.confirmation.targets.size(), 3u);
+  EXPECT_LT((b.s.confirmation.targets[0].error.error_robot_mm - kOffsets[0]).norm(), 1e-9);
+}
+
+TEST(ClosedLoop, APlacedSeedWinsOverTheDetectionAndAMissingOneIsReported) {
+  Bench b = insertedBench(3);
+  // Target 3's seed was not found; target 2's was found 1 mm from where it truly is.
+  auto seeds = plannedPlus(b.s, {kOffsets[0], kOffsets[1]});
+  b.feed(scanned(b.s, startMeasuring(b), seeds));
+  const Confirmation& c = b.s.confirmation;
+  ASSERT_EQ(c.status, "measured") << c.message;
+  ASSERT_EQ(c.missing_targets, std::vector<std::uint32_t>{b.s.targets[2].id});
+  EXPECT_NE(c.text.find("no seed for T" + std::to_string(b.s.targets[2].id)), std::string::npos);
+  // The person clicks the missing seed on the confirmation CT.
+  const Eigen::Vector3d clicked = b.s.registration->toImage(b.s.targets[2].robot_mm + kOffsets[2]);
+  ASSERT_TRUE(b.send(b.command(InputKind::kPlaceSeed, {clicked}, {b.s.targets[2].id})).accepted);
+  ASSERT_EQ(c.targets.size(), 3u);
+  EXPECT_TRUE(c.missing_targets.empty());
+  EXPECT_EQ(c.targets[2].matched, "placed");
+  EXPECT_LT((c.targets[2].error.error_robot_mm - kOffsets[2]).norm(), 1e-9);
+  // Accepting a detected match keeps it; a target that was never reached has no seed.
+  ASSERT_TRUE(b.send(b.command(InputKind::kAcceptSeed, {}, {b.s.targets[0].id})).accepted);
+  EXPECT_EQ(c.targets[0].matched, "accepted");
+  EXPECT_EQ(b.send(b.command(InputKind::kPlaceSeed, {clicked}, {77})).error_code,
+            "unknown_target");
+}
+
+TEST(ClosedLoop, SeedCommandsBeforeAnyMeasurementAndLoadsBeforeAnyMotionAreRefused) {
+  Bench b;
+  b.addRobotTarget(kJoints[0]);
+  auto load = b.command(InputKind::kLoadConfirmation);
+  load.path = "/scans/confirmation";
+  EXPECT_EQ(b.send(load).error_code, "nothing_reached");
+  EXPECT_EQ(b.send(b.command(InputKind::kRejectSeed, {}, {1})).error_code, "no_confirmation");
+  EXPECT_EQ(b.send(named(b, InputKind::kFitTissue, "gel")).error_code, "no_confirmation");
+  EXPECT_EQ(b.send(named(b, InputKind::kFitTissue, "a name with spaces")).error_code, "bad_name");
+}
+
+// The loop closed in the model: the seeds land where a tissue the session was not told deflects
+// the needle; the fit recovers it; aiming with the fitted profile lands on the targets.
+TEST(ClosedLoop, TheFittedTissueIsTheHiddenOneAndAimingWithItLandsOnTheTargets) {
+  const auto told = profile("agar", 0.49, 0.22);
+  Bench b = insertedBench(6, told);
+  compensation::DeflectionModel hidden;
+  hidden.needle = told.needle;
+  hidden.tissue = {0.30, 0.15};
+  std::vector<Eigen::Vector3d> landed;
+  for (const auto& t : b.s.targets) {
+    landed.push_back(
+        compensation::predictLanding(paperRobot()->kinematics, hidden, t.reached_joints)
+            .value()
+            .tip_mm);
+  }
+  b.feed(scanned(b.s, startMeasuring(b), landed));
+  ASSERT_EQ(b.s.confirmation.status, "measured") << b.s.confirmation.message;
+  // What the told tissue had predicted is on every row.
+  for (const auto& m : b.s.confirmation.targets)
+    EXPECT_TRUE(std::isfinite(m.predicted_error_mm));
+  const auto fitted = b.send(named(b, InputKind::kFitTissue, "hidden_gel"));
+  ASSERT_TRUE(fitted.accepted) << fitted.message;
+  ASSERT_EQ(b.s.fitted_tissues.size(), 1u);
+  const auto& f = b.s.fitted_tissues[0];
+  EXPECT_NEAR(f.profile.tissue.lambda1, 0.30, 1e-3) << fitted.message;
+  EXPECT_NEAR(f.profile.tissue.lambda2, 0.15, 1e-3) << fitted.message;
+  EXPECT_NE(f.yaml.find("hidden_gel:"), std::string::npos) << f.yaml;
+
+  // Aim with it: only with the plan open, only a known name.
+  EXPECT_EQ(b.send(named(b, InputKind::kUseTissue, "hidden_gel")).error_code, "wrong_phase");
+  ASSERT_TRUE(b.send(b.command(InputKind::kUnlockPlan)).accepted);
+  ASSERT_TRUE(b.send(b.command(InputKind::kClearTargets)).accepted);
+  const auto unknown = b.send(named(b, InputKind::kUseTissue, "granite"));
+  EXPECT_EQ(unknown.error_code, "unknown_tissue");
+  EXPECT_NE(unknown.message.find("agar, hidden_gel"), std::string::npos) << unknown.message;
+  ASSERT_TRUE(b.send(named(b, InputKind::kUseTissue, "hidden_gel")).accepted);
+  std::vector<double> nominal_off, compensated_off;
+  for (std::size_t i = 0; i < 4; ++i) {
+    const auto& t = b.target(b.addRobotTarget(kJoints[i]));
+    ASSERT_TRUE(t.compensated.has_value()) << t.message;
+    // Independently: where the hidden tissue takes each set of joints.
+    const auto at = [&](const kinematics::Joints& j) {
+      return compensation::predictLanding(paperRobot()->kinematics, hidden, j).value().tip_mm;
+    };
+    nominal_off.push_back((at(t.solution.joints) - t.robot_mm).norm());
+    compensated_off.push_back((at(t.compensated->joints) - t.robot_mm).norm());
+    EXPECT_LT(compensated_off.back(), 0.01) << t.message;  // the fit's own small error
+    EXPECT_EQ(t.steps, paperRobot()->transmission.toSteps(t.compensated->joints).steps);
+  }
+  const double mean_nominal =
+      std::accumulate(nominal_off.begin(), nominal_off.end(), 0.0) / static_cast<double>(nominal_off.size());
+  const double mean_compensated =
+      std::accumulate(compensated_off.begin(), compensated_off.end(), 0.0) / static_cast<double>(compensated_off.size());
+  EXPECT_GT(mean_nominal, 5.0 * mean_compensated);
+  // The approval request shows the nominal and the compensated joints and the landing point.
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+  ASSERT_TRUE(b.s.pending.has_value());
+  EXPECT_NE(b.s.pending->summary.find("compensated for tissue 'hidden_gel'"), std::string::npos)
+      << b.s.pending->summary;
+  EXPECT_NE(b.s.pending->summary.find("predicted landing"), std::string::npos);
+
+  // The journal holds all of it: replayed, the same session.
+  Session replayed = newSession("bench", paperRobot(), "robot.yaml");
+  auto reload = [](const std::string&) -> Expected<LoadedCt> {
+    LoadedCt ct;
+    ct.volume = ignav::test::phantomCtGrid(*paperRobot());
+    ct.source = "phantom:";
+    return ct;
+  };
+  auto again = replayJournal(replayed, b.journal, reload, "journal");
+  ASSERT_TRUE(again) << again.error().message;
+  EXPECT_EQ(again->revision, b.s.revision);
+  ASSERT_EQ(again->fitted_tissues.size(), 1u);
+  EXPECT_EQ(again->fitted_tissues[0].profile.tissue.lambda1, f.profile.tissue.lambda1);
+  ASSERT_TRUE(again->pending.has_value());
+  EXPECT_EQ(again->pending->digest, b.s.pending->digest);
+}
+
+}  // namespace
+}  // namespace ignav::workflow
