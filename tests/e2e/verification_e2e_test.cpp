@@ -128,8 +128,9 @@ TEST(VerificationE2E, ErrorsMeasuredOnAConfirmationCtAreTheSeedsTrueDisplacement
 }
 
 // The loop closed offline: the seeds land where a tissue the server was not told deflects the
-// needle (agar, seed 000's Table I, in the extended bicycle model); verify measures the errors
-// and fits the tissue from them; aiming with the fitted tissue lands closer on the same targets.
+// needle (agar, seed 000's Table I, in the extended bicycle model): `ignav-plan
+// confirmation-phantom` makes that confirmation CT; verify measures the errors and fits the tissue
+// from them; aiming with the fitted tissue lands closer on the same targets.
 TEST(VerificationE2E, ATissueHiddenFromTheServerIsFittedFromTheErrorsAndCompensatesThem) {
   const std::filesystem::path ct_dir = std::filesystem::temp_directory_path() /
                                        ("ignav_e2e_hidden_tissue_" + std::to_string(::getpid()));
@@ -144,6 +145,38 @@ TEST(VerificationE2E, ATissueHiddenFromTheServerIsFittedFromTheErrorsAndCompensa
   server.stop();
   const std::filesystem::path session = server.sessionDir();
 
+  // The physical world: the tool deposits each seed where agar deflects the needle.
+  const std::string robot_yaml = IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml";
+  const auto [made_status, made_out] =
+      runPlan("confirmation-phantom " + session.string() + " --robot " + robot_yaml + " --out " +
+              ct_dir.string() +
+              " --hidden-tissue agar --tissues " IGNAV_SOURCE_DIR "/configs/tissues.yaml --json");
+  ASSERT_EQ(made_status, 0) << made_out;
+  const json truth = json::parse(made_out);
+  EXPECT_EQ(truth["hidden_tissue"]["name"], "agar");
+  EXPECT_EQ(truth["hidden_tissue"]["lambda1"], 0.49);
+  EXPECT_EQ(truth["hidden_tissue"]["lambda2"], 0.22);
+  json written = truth;  // the truth file, beside the series, holds all of it
+  for (const char* key : {"out_dir", "files", "truth_path"})
+    written.erase(key);
+  const std::string truth_file = ct_dir.string() + "_truth.json";
+  EXPECT_EQ(truth["truth_path"], truth_file);
+  EXPECT_EQ(json::parse(std::ifstream(truth_file)), written);
+  ASSERT_EQ(truth["targets"].size(), targets.size()) << made_out;
+  // A second scan into the same folder would mix two series; a folder under a file cannot be.
+  for (const auto& [out_dir, reason] :
+       {std::pair<std::string, std::string>{ct_dir.string(), "the output folder is not empty"},
+        {truth_file + "/ct", "cannot make the output folder"}}) {
+    const auto [refused_status, refused_out] = runPlan(
+        "confirmation-phantom " + session.string() + " --robot " + robot_yaml + " --out " + out_dir,
+        true);
+    EXPECT_NE(refused_status, 0) << refused_out;
+    EXPECT_NE(refused_out.find(reason), std::string::npos) << refused_out;
+  }
+
+  // The tool's truth against the recipe done here by hand: each target's joints (from the state,
+  // as the server moved there) landed in agar by the model, mapped by the phantom's true
+  // robot -> image transform.
   const auto& robot = *test::paperRobot();
   auto profiles = config::loadTissueProfiles(IGNAV_SOURCE_DIR "/configs/tissues.yaml");
   ASSERT_TRUE(profiles) << profiles.error().message;
@@ -162,21 +195,20 @@ TEST(VerificationE2E, ATissueHiddenFromTheServerIsFittedFromTheErrorsAndCompensa
     const auto landing = compensation::predictLanding(robot.kinematics, hidden, joints);
     ASSERT_TRUE(landing) << landing.error().message;
     landed[id] = landing->tip_mm;
-    volume::PhantomSeed seed;
-    seed.centre_lps_mm = (robot_to_image_true * landing->tip_mm.homogeneous()).head<3>();
-    seed.axis_lps = robot_to_image_true.topLeftCorner<3, 3>() * Eigen::Vector3d::UnitZ();
-    rp->spec.seeds.push_back(seed);
   }
-  auto ct = volume::makePhantom(rp->spec);
-  ASSERT_TRUE(ct) << ct.error().message;
-  ASSERT_TRUE(volume::writeDicomSeries(*ct, ct_dir.string()));
+  for (const auto& row : truth["targets"]) {
+    const auto id = row["id"].get<std::uint32_t>();
+    ASSERT_EQ(landed.count(id), 1u) << row.dump();
+    EXPECT_LT((vec(row["planned_robot_mm"]) - planned[id]).norm(), 1e-6) << row.dump();
+    EXPECT_LT((vec(row["landing_robot_mm"]) - landed[id]).norm(), 1e-6) << row.dump();
+    const Eigen::Vector3d lps = (robot_to_image_true * landed[id].homogeneous()).head<3>();
+    EXPECT_LT((vec(row["landing_lps_mm"]) - lps).norm(), 1e-6) << row.dump();
+  }
 
   const auto markups = ct_dir.string() + "_seeds.mrk.json";
-  const auto [status, out] = runPlan("verify " + session.string() + " " + ct_dir.string() +
-                                     " --robot " IGNAV_SOURCE_DIR
-                                     "/configs/robots/torabi2014.yaml --fit-tissue hidden_agar "
-                                     "--markups " +
-                                     markups + " --json");
+  const auto [status, out] =
+      runPlan("verify " + session.string() + " " + ct_dir.string() + " --robot " + robot_yaml +
+              " --fit-tissue hidden_agar --markups " + markups + " --json");
   ASSERT_EQ(status, 0) << out;
   const json v = json::parse(out);
   const Eigen::Matrix4d session_image_to_robot = imageToRobot(state);
@@ -223,6 +255,7 @@ TEST(VerificationE2E, ATissueHiddenFromTheServerIsFittedFromTheErrorsAndCompensa
       << " mm, compensated " << compensated_sum / static_cast<double>(ids.size()) << " mm";
   std::filesystem::remove_all(ct_dir);
   std::filesystem::remove(markups);
+  std::filesystem::remove(truth_file);
 }
 
 }  // namespace

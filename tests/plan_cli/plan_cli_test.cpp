@@ -343,4 +343,47 @@ TEST(PlanCli, DeflectionFitTakesEntryNoiseAndRefusesWhatIsNoPath) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(PlanCli, ConfirmationPhantomRefusesWhatItCannotMakeAndSaysWhy) {
+  // (A session whose targets were reached, and the output folder's refusals:
+  // tests/e2e/verification_e2e_test.cpp.) Each refusal exits 2, names the cause, writes nothing.
+  const auto dir = freshDir("ignav_cli_confirmation_phantom");
+  const std::string tissues = std::string(IGNAV_SOURCE_DIR) + "/configs/tissues.yaml";
+  const std::string out = " --out " + (dir / "ct").string();
+  auto refused = [&](const std::string& args, const std::string& reason) {
+    const ProcessResult run = plan("confirmation-phantom " + args + " --robot " + kRobot, true);
+    EXPECT_EQ(run.exit_code, 2) << args << ": " << run.out;
+    EXPECT_NE(run.out.find(reason), std::string::npos) << run.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "ct")) << args;
+  };
+  refused((dir / "no_such_session").string() + out, "no_such_session/journal.jsonl: no journal");
+  // An unknown tissue, with the names there are (before the session is even read).
+  refused((dir / "no_such_session").string() + out + " --hidden-tissue jelly --tissues " + tissues,
+          "tissue 'jelly' is not a profile (there are: agar, none, plastisol)");
+  refused((dir / "no_such_session").string() + out + " --noise-hu -3", "--noise-hu: -3");
+  // A session that only loaded its configuration: nothing was registered, nothing reached.
+  std::filesystem::create_directories(dir / "unregistered");
+  writeFile(dir / "unregistered" / "journal.jsonl",
+            R"({"input":"config_loaded","phase":"imaging","revision":1,"t":1795586245.8,"v":2})"
+            "\n");
+  refused((dir / "unregistered").string() + out, "the session was never registered");
+  // Registered on the phantom (the server's records of its own scan, the markers it found) and a
+  // target planned, but the robot never moved: no seed.
+  const auto planned = dir / "planned";
+  ASSERT_EQ(plan("phantom " + (planned / "phantom_ct").string() + " --robot " + kRobot +
+                 " --oblique --noise-hu 8")
+                .exit_code,
+            0);
+  writeFile(planned / "journal.jsonl",
+            R"({"input":"config_loaded","phase":"imaging","revision":1,"t":1795586245.8,"v":2}
+{"client_id":"operator","input":"load_volume","path":"phantom:","phase":"imaging","request_id":1,"revision":2,"role":"planner","t":1795586246.1,"v":2}
+{"description":"phantom","dims":[128,128,112],"input":"volume_loaded","phase":"registration","revision":3,"source":"phantom:","t":1795586246.2,"v":2}
+{"client_id":"operator","input":"auto_fiducials","phase":"registration","request_id":2,"revision":4,"role":"planner","t":1795586246.26,"v":2}
+{"input":"fiducials_detected","job":4,"path":"phantom:","phase":"planning","points":[[6.158585053950858,-15.407456080467309,51.079785483625],[1.572726955181352,-3.9382509226811635,13.057330898622126],[-1.1242165933521449,29.34596079791048,-5.448820108265366]],"revision":5,"summary":"","t":1795586246.261,"v":2}
+{"client_id":"operator","input":"add_target","phase":"planning","points":[[5.132937589135416,19.1567455355339,-22.486840785845004]],"request_id":3,"revision":6,"role":"planner","t":1795586246.266,"v":2}
+)");
+  refused(planned.string() + out, "no target of this session was reached");
+  EXPECT_EQ(plan("confirmation-phantom --robot " + kRobot + out).exit_code, 2);  // no session
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace

@@ -22,4 +22,12 @@ inline nlohmann::json pointJson(const Eigen::Vector3d& p) {
   return nlohmann::json::array({p.x(), p.y(), p.z()});
 }
 
+// A 4 x 4 matrix as rows: [[m00, m01, m02, m03], ...].
+inline nlohmann::json matrixRowsJson(const Eigen::Matrix4d& m) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r)
+    rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
+  return rows;
+}
+
 }  // namespace ignav::plan

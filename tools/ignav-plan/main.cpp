@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "confirmation_phantom.hpp"
 #include "deflection_commands.hpp"
 #include "ignav/config/robot_config.hpp"
 #include "ignav/kinematics/ik_study.hpp"
@@ -293,6 +294,35 @@ int main(int argc, char** argv) {
                          "fit λ1, λ2 to the measured errors; NAME for the tissues.yaml entry");
   verify_cmd->add_option("--tissues", verify_args.tissues_path,
                          "tissue profiles (the needle, when the session had no tissue)");
+  ignav::plan::ConfirmationPhantomArgs confirm_args;
+  bool confirm_json = false;
+  auto* confirm = app.add_subcommand(
+      "confirmation-phantom",
+      "the confirmation CT of a session on the built-in phantom: a seed where each reached "
+      "target's needle really landed");
+  confirm->add_option("session", confirm_args.session_dir, "session folder")->required();
+  confirm->add_option("--robot", confirm_args.robot_path, "the robot YAML the server ran with")
+      ->required();
+  confirm->add_option("--out", confirm_args.out_dir, "folder for the DICOM series (new or empty)")
+      ->required();
+  confirm->add_option("--hidden-tissue", confirm_args.hidden_tissue,
+                      "a tissue profile the server is not told: the needle deflects in it "
+                      "(default: none, each seed at its joints' nominal tip)");
+  confirm->add_option("--tissues", confirm_args.tissues_path, "tissue profiles (YAML)");
+  confirm->add_option("--noise-hu", confirm_args.noise_hu, "the CT's Gaussian noise SD (HU)");
+  confirm->add_option("--slice-mm", confirm_args.slice_mm,
+                      "slice spacing and thickness (mm; default the phantom's 1.25)");
+  confirm->add_option("--seed", confirm_args.seed, "the noise's seed (deterministic)");
+  confirm->add_option(
+      "--truth", confirm_args.truth_path,
+      "where the ground truth goes (JSON; default OUT_truth.json, beside the series)");
+  confirm->add_flag("--json", confirm_json, "print the truth and what was written as JSON");
+  confirm->footer(
+      "The physical world, not the server: each reached target's seed lies where the joints the\n"
+      "motion went to (nominal, or compensated when the session aimed with a tissue) land in\n"
+      "the hidden tissue (extended bicycle model), mapped by the phantom's true robot -> image\n"
+      "transform. The truth file holds per target planned_robot_mm, landing_robot_mm,\n"
+      "landing_lps_mm and the hidden tissue; `ignav-plan verify SESSION OUT` measures it.\n");
   ignav::plan::FindFiducialsArgs find_args;
   double min_hu = 0.0;
   auto* find = app.add_subcommand("find-fiducials", "locate marker beads on a CT");
@@ -368,6 +398,12 @@ int main(int argc, char** argv) {
       const auto verified = ignav::plan::verifySession(verify_args);
       std::cout << (verify_json ? verified.dump(2) + "\n"
                                 : ignav::plan::verificationTable(verified));
+      return 0;
+    }
+    if (*confirm) {
+      const auto truth = ignav::plan::confirmationPhantom(confirm_args);
+      std::cout << (confirm_json ? truth.dump(2) + "\n"
+                                 : ignav::plan::confirmationPhantomText(truth));
       return 0;
     }
     if (*find) {

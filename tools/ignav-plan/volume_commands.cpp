@@ -35,13 +35,6 @@ LoadedVolume load(const std::string& path, const std::string& uid, bool fill) {
   return std::move(v).value();
 }
 
-json matrix(const Eigen::Matrix4d& m) {
-  json rows = json::array();
-  for (int r = 0; r < 4; ++r)
-    rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
-  return rows;
-}
-
 }  // namespace
 
 json volumeInfo(const VolumeInfoArgs& args) {
@@ -62,7 +55,7 @@ json volumeInfo(const VolumeInfoArgs& args) {
               {"modality", v.modality},
               {"dims", {g.dims[0], g.dims[1], g.dims[2]}},
               {"spacing_mm", {g.spacing_mm.x(), g.spacing_mm.y(), g.spacing_mm.z()}},
-              {"ijk_to_lps", matrix(g.ijkToLps())},
+              {"ijk_to_lps", matrixRowsJson(g.ijkToLps())},
               {"hu_min", lo},
               {"hu_max", hi},
               {"warnings", loaded.warnings},
@@ -129,7 +122,7 @@ json render(const RenderArgs& args) {
           {"height", slice->height},
           {"pixel_size_mm", slice->pixel_size_mm},
           // LPS = pixel_to_lps · (u, v, 0, 1): u = column, v = row, pixel centres at integers.
-          {"pixel_to_lps", matrix(m)},
+          {"pixel_to_lps", matrixRowsJson(m)},
           {"window", {{"width", slice->window.width}, {"level", slice->window.level}}},
           {"marks", marks}};
 }
@@ -149,7 +142,7 @@ json phantom(const PhantomArgs& args) {
       model.push_back({p.x(), p.y(), p.z()});
     robot_json = {{"robot", robot->config.name},
                   {"feature_points_robot_mm", model},
-                  {"image_to_robot_true", matrix(rp->image_to_robot_true)}};
+                  {"image_to_robot_true", matrixRowsJson(rp->image_to_robot_true)}};
   }
   spec.oblique = args.oblique;
   spec.noise_sigma_hu = args.noise_hu;
@@ -170,7 +163,7 @@ json phantom(const PhantomArgs& args) {
               {"files", files->size()},
               {"dims", {spec.dims[0], spec.dims[1], spec.dims[2]}},
               {"fiducials_lps_mm", fiducials},
-              {"ijk_to_lps", matrix(v->geometry.ijkToLps())}};
+              {"ijk_to_lps", matrixRowsJson(v->geometry.ijkToLps())}};
   if (!robot_json.is_null()) out.update(robot_json);
   return out;
 }

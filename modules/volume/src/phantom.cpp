@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <limits>
 #include <random>
+#include <string>
 
 namespace ignav::volume {
 namespace {
@@ -196,6 +197,30 @@ Status checkSeeds(const PhantomSpec& spec) {
 
 }  // namespace
 
+Expected<PhantomSpec> withSliceSpacing(PhantomSpec spec, double slice_mm) {
+  constexpr double kMaxSlices = 4096;
+  auto mm = [](double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", v);
+    return std::string(buf);
+  };
+  if (!(slice_mm > 0.0) || !std::isfinite(slice_mm)) {
+    return makeError(
+        ErrorCode::kInvalidArgument,
+        "phantom: the slice spacing must be a positive number of mm, not " + mm(slice_mm));
+  }
+  const double extent_mm = (spec.dims[2] - 1) * spec.spacing_mm.z();
+  const double slices = std::max(1.0, std::round(extent_mm / slice_mm) + 1.0);
+  if (!(slices <= kMaxSlices)) {
+    return makeError(ErrorCode::kInvalidArgument,
+                     "phantom: " + mm(slice_mm) + " mm slices across " + mm(extent_mm) +
+                         " mm would take " + mm(slices) + " slices; at most " + mm(kMaxSlices));
+  }
+  spec.dims[2] = static_cast<int>(slices);
+  spec.spacing_mm.z() = slice_mm;
+  return spec;
+}
+
 Geometry phantomGeometry(const PhantomSpec& spec) {
   Geometry g;
   g.dims = spec.dims;
@@ -223,6 +248,10 @@ Expected<Volume> makePhantom(const PhantomSpec& spec) {
   }
   if (!(spec.fiducial_radius_mm > 0.0)) {
     return makeError(ErrorCode::kInvalidArgument, "phantom: fiducial_radius_mm must be positive");
+  }
+  if (!(spec.noise_sigma_hu >= 0.0) || !std::isfinite(spec.noise_sigma_hu)) {
+    return makeError(ErrorCode::kInvalidArgument,
+                     "phantom: noise_sigma_hu must be finite and not negative");
   }
   if (auto ok = checkSeeds(spec); !ok) return ok.error();
   vol.modality = "CT";

@@ -23,6 +23,8 @@ struct PhantomSeed {
 
 struct PhantomSpec {
   std::array<int, 3> dims{96, 96, 64};
+  // A voxel averages its whole cell, so spacing_mm.z() is the slice thickness too (contiguous
+  // slices, the partial volume of a scanner's slice profile); withSliceSpacing changes it.
   Eigen::Vector3d spacing_mm{0.8, 0.8, 1.25};
   bool oblique = false;  // tilt the grid 12° about an in-plane diagonal axis
   // The box and the fiducial centres are in LPS (mm), with the grid centred on (0, 0, 0).
@@ -41,16 +43,24 @@ struct PhantomSpec {
   std::vector<PhantomSeed> seeds;
   double seed_hu = 7000.0;
   double seed_psf_sigma_mm = 0.4;
+  // The CT's own noise: white, Gaussian, this SD (HU) in every voxel, added before the values
+  // are rounded to whole HU (which adds 1/12 HU² of variance). 0: none.
   double noise_sigma_hu = 0.0;
   std::uint64_t seed = 1;  // noise and UIDs are deterministic functions of the seed
 };
+
+// The same field of view cut into slices slice_mm apart and as thick: dims[2] is chosen so the
+// grid's extent across the slices stays within half a slice of spec's (the grid stays centred
+// on LPS 0, 0, 0); everything else is kept. Errors for a slice_mm that is not finite and
+// positive, or that would need more than 4096 slices.
+Expected<PhantomSpec> withSliceSpacing(PhantomSpec spec, double slice_mm);
 
 // The phantom's grid: its voxel geometry alone, centred on LPS (0, 0, 0), without rendering it.
 Geometry phantomGeometry(const PhantomSpec& spec);
 
 // The phantom as a volume (HU, scale 1). Errors for non-positive sizes, a fiducial that is not
-// finite, or a seed that is not finite or has a zero axis or a non-positive size (named by its
-// number, from 1).
+// finite, a noise SD that is negative or not finite, or a seed that is not finite or has a zero
+// axis or a non-positive size (named by its number, from 1).
 Expected<Volume> makePhantom(const PhantomSpec& spec);
 
 struct DicomWriteOptions {

@@ -1,0 +1,253 @@
+#include "confirmation_phantom.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+
+#include <Eigen/Geometry>
+
+#include <fmt/format.h>
+
+#include "ignav/compensation/compensation.hpp"
+#include "ignav/config/robot_config.hpp"
+#include "ignav/config/tissue_profiles.hpp"
+#include "ignav/registration/robot_phantom.hpp"
+#include "ignav/volume/phantom.hpp"
+#include "session_commands.hpp"
+
+namespace ignav::plan {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// The planning phantom's series takes its UIDs from seed 1; the confirmation scan's must differ
+// from them whatever --seed is (another series of the same phantom, not the same one rewritten).
+constexpr std::uint64_t kConfirmationUidSalt = 0x636f6e6669726dull;  // "confirm"
+// How far the stylet is pushed on to see which way its tip goes (mm).
+constexpr double kTangentStep_mm = 0.01;
+
+// A new or empty folder we can write into; checked before anything is rendered.
+void prepareOutDir(const std::string& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir)) {
+    throw CliError{dir + ": cannot make the output folder" +
+                   (ec ? " (" + ec.message() + ")" : " (not a folder)")};
+  }
+  const auto entries = std::distance(fs::directory_iterator(dir, ec), fs::directory_iterator());
+  if (entries > 0) {
+    throw CliError{fmt::format(
+        "{}: the output folder is not empty ({} entries): the new series would mix with what is "
+        "there; give a new or empty folder",
+        dir, entries)};
+  }
+  const fs::path probe = fs::path(dir) / ".ignav_write_probe";
+  const bool writable = static_cast<bool>(std::ofstream(probe));
+  fs::remove(probe, ec);
+  if (!writable) throw CliError{dir + ": the output folder is not writable"};
+}
+
+// Beside the series, not in it: a DICOM reader would try the file (and DCMTK complain of it).
+std::string defaultTruthPath(const std::string& out_dir) {
+  fs::path dir = fs::path(out_dir).lexically_normal();
+  if (dir.filename().empty()) dir = dir.parent_path();  // "ct/" is "ct"
+  return dir.string() + "_truth.json";
+}
+
+struct Landed {
+  Eigen::Vector3d tip_mm;
+  Eigen::Vector3d direction;  // the stylet's tangent at the tip, unit, into the body
+};
+
+// Where the needle ends for these joints, in the robot frame: deflected by the hidden tissue, or
+// the nominal forward kinematics without one. Its direction there is the way the tip goes when
+// the stylet is pushed on a little (the same model, so the same deflection).
+Landed land(const kinematics::Kinematics& kinematics,
+            const std::optional<compensation::DeflectionModel>& hidden,
+            const kinematics::Joints& joints, std::uint32_t id) {
+  auto tip = [&](const kinematics::Joints& j) -> Eigen::Vector3d {
+    if (!hidden) return kinematics.forward(j).tip_mm;
+    auto landing = compensation::predictLanding(kinematics, *hidden, j);
+    if (!landing) throw CliError{fmt::format("target {}: {}", id, landing.error().message)};
+    return landing->tip_mm;
+  };
+  Landed out;
+  out.tip_mm = tip(joints);
+  kinematics::Joints further = joints;
+  further.z_s_mm += kTangentStep_mm;
+  const Eigen::Vector3d step = tip(further) - out.tip_mm;
+  out.direction =
+      step.norm() > 1e-9 ? step.normalized() : Eigen::Vector3d(-Eigen::Vector3d::UnitZ());
+  return out;
+}
+
+json jointsJson(const kinematics::Joints& j) {
+  return {{"theta_c_rad", j.theta_c_rad}, {"z_c_mm", j.z_c_mm}, {"z_s_mm", j.z_s_mm}};
+}
+
+}  // namespace
+
+json confirmationPhantom(const ConfirmationPhantomArgs& args) {
+  // The arguments first, then the session: a mistyped name costs no replay.
+  std::optional<compensation::DeflectionModel> hidden;
+  json hidden_json;  // null: no tissue, the needle lands on its nominal tip
+  if (!args.hidden_tissue.empty()) {
+    auto profiles = config::loadTissueProfiles(args.tissues_path);
+    if (!profiles) throw CliError{profiles.error().message};
+    auto profile = config::tissueProfile(*profiles, args.hidden_tissue);
+    if (!profile) throw CliError{"--hidden-tissue: " + profile.error().message};
+    hidden.emplace();
+    hidden->needle = profile->needle;  // with the tissue's own curvature when it has one
+    hidden->tissue = profile->tissue;
+    hidden_json = {{"name", profile->name},
+                   {"lambda1", profile->tissue.lambda1},
+                   {"lambda2", profile->tissue.lambda2},
+                   {"curvature_per_mm", profile->needle.curvature_per_mm},
+                   {"wheelbase_mm", profile->needle.wheelbase_mm},
+                   {"source", profile->source}};
+  }
+  if (!(args.noise_hu >= 0.0) || !std::isfinite(args.noise_hu)) {
+    throw CliError{fmt::format("--noise-hu: {} is not a noise SD (finite, ≥ 0 HU)", args.noise_hu)};
+  }
+
+  const workflow::Session session = replayedSession({args.session_dir, args.robot_path}).session;
+  const config::Robot& robot = *session.robot;
+  if (!session.registration) {
+    throw CliError{args.session_dir +
+                   ": the session was never registered: no target of it was placed in the robot's "
+                   "frame, so there is no seed to deposit"};
+  }
+  std::vector<const workflow::Target*> reached;
+  for (const auto& t : session.targets) {
+    if (t.reached) reached.push_back(&t);
+  }
+  if (reached.empty()) {
+    throw CliError{args.session_dir +
+                   ": no target of this session was reached: there is no seed to deposit"};
+  }
+
+  // The same phantom as the server's `phantom:` scan: the robot where it was, its markers too.
+  auto rp = registration::makeRobotPhantom(robot.kinematics, robot.config.registration.scan);
+  if (!rp) throw CliError{rp.error().message};
+  volume::PhantomSpec spec = rp->spec;
+  if (args.slice_mm != 0.0) {
+    auto sliced = volume::withSliceSpacing(spec, args.slice_mm);
+    if (!sliced) throw CliError{"--slice-mm: " + sliced.error().message};
+    spec = *sliced;
+  }
+  spec.noise_sigma_hu = args.noise_hu;
+  spec.seed = args.seed;
+  const Eigen::Matrix4d robot_to_image_true = rp->image_to_robot_true.inverse();
+  const Eigen::Matrix3d rotation_true = robot_to_image_true.topLeftCorner<3, 3>();
+  const volume::Geometry grid = volume::phantomGeometry(spec);
+
+  json targets = json::array();
+  double sum_mm = 0.0, max_mm = 0.0;
+  for (const workflow::Target* t : reached) {
+    const kinematics::Joints& joints = t->commandedJoints();
+    const Landed landed = land(robot.kinematics, hidden, joints, t->id);
+    volume::PhantomSeed seed;
+    seed.centre_lps_mm = (robot_to_image_true * landed.tip_mm.homogeneous()).head<3>();
+    seed.axis_lps = rotation_true * landed.direction;
+    const Eigen::Vector3d ijk = grid.toIjk(seed.centre_lps_mm);
+    for (int a = 0; a < 3; ++a) {
+      if (!(ijk[a] >= 0.0 && ijk[a] <= grid.dims[a] - 1)) {
+        throw CliError{fmt::format(
+            "target {}: its seed at LPS ({:.1f}, {:.1f}, {:.1f}) mm lies outside the scan "
+            "({} x {} x {} voxels around LPS 0, 0, 0)",
+            t->id, seed.centre_lps_mm.x(), seed.centre_lps_mm.y(), seed.centre_lps_mm.z(),
+            grid.dims[0], grid.dims[1], grid.dims[2])};
+      }
+    }
+    spec.seeds.push_back(seed);
+    const double off_mm = (landed.tip_mm - t->robot_mm).norm();
+    sum_mm += off_mm;
+    max_mm = std::max(max_mm, off_mm);
+    targets.push_back({{"id", t->id},
+                       {"aimed_with", t->compensated ? t->compensated->profile : "nominal"},
+                       {"joints", jointsJson(joints)},
+                       {"planned_robot_mm", pointJson(t->robot_mm)},
+                       {"landing_robot_mm", pointJson(landed.tip_mm)},
+                       {"landing_lps_mm", pointJson(seed.centre_lps_mm)},
+                       {"seed_axis_lps", pointJson(seed.axis_lps)},
+                       {"landing_off_plan_mm", off_mm}});
+  }
+
+  const std::string truth_path =
+      args.truth_path.empty() ? defaultTruthPath(args.out_dir) : args.truth_path;
+  prepareOutDir(args.out_dir);
+  if (!std::ofstream(truth_path, std::ios::app)) {
+    throw CliError{truth_path + ": cannot write the truth file"};
+  }
+  auto ct = volume::makePhantom(spec);
+  if (!ct) throw CliError{ct.error().message};
+  volume::DicomWriteOptions options;
+  options.seed = args.seed ^ kConfirmationUidSalt;
+  options.series_description = "ignav confirmation phantom";
+  auto files = volume::writeDicomSeries(*ct, args.out_dir, options);
+  if (!files) throw CliError{files.error().message};
+
+  const auto& g = ct->geometry;
+  json truth = {{"session", args.session_dir},
+                {"session_id", session.session_id},
+                {"robot", robot.config.name},
+                {"hidden_tissue", hidden_json},
+                {"session_tissue", session.tissue ? json(session.tissue->name) : json()},
+                {"image_to_robot_true", matrixRowsJson(rp->image_to_robot_true)},
+                {"ct",
+                 {{"dims", {g.dims[0], g.dims[1], g.dims[2]}},
+                  {"spacing_mm", pointJson(g.spacing_mm)},
+                  {"noise_hu", spec.noise_sigma_hu},
+                  {"seed_psf_sigma_mm", spec.seed_psf_sigma_mm},
+                  {"seed", spec.seed},
+                  {"markers_lps_mm", json::array()}}},
+                {"targets", targets},
+                {"landing_off_plan_mm",
+                 {{"mean", sum_mm / static_cast<double>(reached.size())}, {"max", max_mm}}}};
+  for (const auto& m : spec.fiducials_lps_mm)
+    truth["ct"]["markers_lps_mm"].push_back(pointJson(m));
+  std::ofstream out(truth_path, std::ios::trunc);
+  out << truth.dump(2) << "\n";
+  if (!out) throw CliError{truth_path + ": cannot write the truth file"};
+  truth["out_dir"] = args.out_dir;
+  truth["files"] = files->size();
+  truth["truth_path"] = truth_path;
+  return truth;
+}
+
+std::string confirmationPhantomText(const json& truth) {
+  const json& ct = truth["ct"];
+  std::string out = fmt::format(
+      "confirmation phantom: {} seeds in {} x {} x {} voxels of {:.2f} x {:.2f} x {:.2f} mm, "
+      "noise {:g} HU -> {}\n",
+      truth["targets"].size(), ct["dims"][0].get<int>(), ct["dims"][1].get<int>(),
+      ct["dims"][2].get<int>(), ct["spacing_mm"][0].get<double>(),
+      ct["spacing_mm"][1].get<double>(), ct["spacing_mm"][2].get<double>(),
+      ct["noise_hu"].get<double>(), truth["out_dir"].get<std::string>());
+  const json& tissue = truth["hidden_tissue"];
+  out += tissue.is_null()
+             ? std::string("no hidden tissue: each seed lies at its joints' nominal tip\n")
+             : fmt::format("hidden tissue {} (λ1 {:g}, λ2 {:g}); the session's own profile: {}\n",
+                           tissue["name"].get<std::string>(), tissue["lambda1"].get<double>(),
+                           tissue["lambda2"].get<double>(),
+                           truth["session_tissue"].is_null()
+                               ? std::string("none")
+                               : truth["session_tissue"].get<std::string>());
+  out += fmt::format("the truth: {}\n\n{:>4}  {:>10}  {:>26}  {:>26}  {:>8}\n",
+                     truth["truth_path"].get<std::string>(), "id", "aimed", "planned (robot mm)",
+                     "landing (robot mm)", "off mm");
+  auto p3 = [](const json& p) {
+    return fmt::format("({:7.2f},{:7.2f},{:7.2f})", p[0].get<double>(), p[1].get<double>(),
+                       p[2].get<double>());
+  };
+  for (const auto& t : truth["targets"]) {
+    out += fmt::format("{:>4}  {:>10}  {:>26}  {:>26}  {:8.2f}\n", t["id"].get<unsigned>(),
+                       t["aimed_with"].get<std::string>(), p3(t["planned_robot_mm"]),
+                       p3(t["landing_robot_mm"]), t["landing_off_plan_mm"].get<double>());
+  }
+  return out;
+}
+
+}  // namespace ignav::plan
