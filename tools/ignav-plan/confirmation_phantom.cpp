@@ -146,7 +146,8 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
   json targets = json::array();
   double sum_mm = 0.0, max_mm = 0.0;
   for (const workflow::Target* t : reached) {
-    const kinematics::Joints& joints = t->commandedJoints();
+    // The joints it was reached with, whatever the registration or the aim changed since.
+    const kinematics::Joints& joints = t->reached_joints;
     const Landed landed = land(robot.kinematics, hidden, joints, t->id);
     volume::PhantomSeed seed;
     seed.centre_lps_mm = (robot_to_image_true * landed.tip_mm.homogeneous()).head<3>();
