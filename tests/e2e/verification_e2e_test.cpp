@@ -7,6 +7,10 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <iterator>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "ignav/compensation/compensation.hpp"
 #include "ignav/config/tissue_profiles.hpp"
@@ -52,6 +56,28 @@ std::vector<std::uint32_t> insertAll(protocol::Client& op,
   return ids;
 }
 
+// `--figure` and `--report` wrote a PNG (as wide as three panels) and a Markdown report whose
+// table shows each target's error as the JSON does, with the figure linked beside it.
+void expectReportFiles(const std::filesystem::path& dir, const json& verified) {
+  const cv::Mat figure = cv::imread((dir / "targeting.png").string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(figure.empty()) << "no PNG at " << dir / "targeting.png";
+  EXPECT_GT(figure.cols, 3 * figure.rows / 2);
+  EXPECT_EQ(verified["figure"], (dir / "targeting.png").string());
+  std::ifstream in(dir / "targeting.md");
+  const std::string report((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_FALSE(report.empty()) << "no report at " << dir / "targeting.md";
+  EXPECT_NE(report.find("](targeting.png)"), std::string::npos) << report;
+  for (const auto& row : verified["targets"]) {
+    const std::string id = "| " + std::to_string(row["id"].get<std::uint32_t>()) + " |";
+    const auto at = report.find(id);
+    ASSERT_NE(at, std::string::npos) << id << "\n" << report;
+    const std::string line = report.substr(at, report.find('\n', at) - at);
+    EXPECT_NE(line.find(fmt::format("| {:.2f} |", row["error_mm"].get<double>())),
+              std::string::npos)
+        << line;
+  }
+}
+
 TEST(VerificationE2E, ErrorsMeasuredOnAConfirmationCtAreTheSeedsTrueDisplacements) {
   const std::filesystem::path ct_dir = std::filesystem::temp_directory_path() /
                                        ("ignav_e2e_confirmation_" + std::to_string(::getpid()));
@@ -89,10 +115,16 @@ TEST(VerificationE2E, ErrorsMeasuredOnAConfirmationCtAreTheSeedsTrueDisplacement
   ASSERT_TRUE(volume::writeDicomSeries(*ct, ct_dir.string()));
 
   const std::string robot_yaml = IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml";
-  const auto [status, out] = runPlan("verify " + session.string() + " " + ct_dir.string() +
-                                     " --robot " + robot_yaml + " --json");
+  const std::filesystem::path report_dir = ct_dir.string() + "_report";
+  std::filesystem::create_directories(report_dir);
+  const auto [status, out] =
+      runPlan("verify " + session.string() + " " + ct_dir.string() + " --robot " + robot_yaml +
+              " --json --figure " + (report_dir / "targeting.png").string() + " --report " +
+              (report_dir / "targeting.md").string());
   ASSERT_EQ(status, 0) << out;
   const json v = json::parse(out);
+  expectReportFiles(report_dir, v);
+  std::filesystem::remove_all(report_dir);
   EXPECT_TRUE(v["registration"]["reused"].get<bool>()) << v["registration"].dump();
   EXPECT_LT(v["registration"]["marker_shift_mm"].get<double>(), 0.5);
   ASSERT_EQ(v["targets"].size(), targets.size()) << out;

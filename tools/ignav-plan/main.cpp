@@ -294,6 +294,10 @@ int main(int argc, char** argv) {
                          "fit λ1, λ2 to the measured errors; NAME for the tissues.yaml entry");
   verify_cmd->add_option("--tissues", verify_args.tissues_path,
                          "tissue profiles (the needle, when the session had no tissue)");
+  verify_cmd->add_option("--figure", verify_args.figure_out,
+                         "write planned vs actual in the feasible volume (.png)");
+  verify_cmd->add_option("--report", verify_args.report_out,
+                         "write the targeting report: a table like the paper's Table V (.md)");
   ignav::plan::ConfirmationPhantomArgs confirm_args;
   bool confirm_json = false;
   auto* confirm = app.add_subcommand(

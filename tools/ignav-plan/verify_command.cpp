@@ -1,6 +1,8 @@
 #include "verify_command.hpp"
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 
 #include <fmt/format.h>
 
@@ -11,7 +13,9 @@
 #include "ignav/verification/confirmation_registration.hpp"
 #include "ignav/verification/seed_detection.hpp"
 #include "ignav/verification/targeting_error.hpp"
+#include "ignav/verification/targeting_report.hpp"
 #include "ignav/volume/load.hpp"
+#include "ignav/volume/render.hpp"
 #include "ignav/workflow/reducer.hpp"
 #include "session_commands.hpp"
 
@@ -82,6 +86,77 @@ void writeMarkups(const std::string& path, const std::vector<verification::Targe
   if (auto written = registration::writeMarkupsJson("seeds", points, path); !written) {
     throw CliError{path + ": " + written.error().message};
   }
+}
+
+// How far the model expected each target's landing to miss, as the session planned it, for the
+// column beside the measured error: a compensated aim's residual (the joints moved to were
+// those), else the size of the cannula's predicted sideways drift; NaN without a tissue profile.
+std::map<std::uint32_t, double> predictedErrors(
+    const std::map<std::uint32_t, const workflow::Target*>& by_id) {
+  std::map<std::uint32_t, double> out;
+  for (const auto& [id, target] : by_id) {
+    out[id] = target->compensated ? target->compensated->residual_mm
+                                  : std::abs(target->predicted_deviation_mm);
+  }
+  return out;
+}
+
+void writeFigure(const VerifyArgs& args, const workflow::Session& session,
+                 const verification::Verification& verified) {
+  verification::FigureOptions options;
+  options.title = fmt::format("Targeting error, session {}: planned vs actual (robot frame, mm)",
+                              session.session_id);
+  auto png = verification::targetingFigurePng(
+      verified.errors, verified.summary, verification::feasibleVolume(session.robot->kinematics),
+      options);
+  if (!png) throw CliError{args.figure_out + ": " + png.error().message};
+  if (auto written = volume::writePng(*png, args.figure_out); !written) {
+    throw CliError{args.figure_out + ": " + written.error().message};
+  }
+}
+
+// The figure as the report's Markdown links it: relative to the report's folder.
+std::string figureLink(const VerifyArgs& args) {
+  namespace fs = std::filesystem;
+  const fs::path report_dir = fs::absolute(args.report_out).parent_path();
+  return fs::absolute(args.figure_out).lexically_relative(report_dir).generic_string();
+}
+
+void writeReport(const VerifyArgs& args, const workflow::Session& session,
+                 const verification::Verification& verified,
+                 const std::map<std::uint32_t, const workflow::Target*>& by_id, const json& out) {
+  std::string md = fmt::format(
+      "# Targeting error: session {}\n\n- confirmation CT: `{}`\n- registration: {}\n- seeds: "
+      "{}\n\n",
+      session.session_id, args.confirmation_ct, out["registration"]["message"].get<std::string>(),
+      out["seeds"]["summary"].get<std::string>());
+  md += verification::targetingTableMarkdown(verified.errors, verified.summary,
+                                             predictedErrors(by_id));
+  md += "\n" + verified.text + ".\n";
+  if (!out["missing_targets"].empty()) {
+    md += "\nTargets without a seed: " + out["missing_targets"].dump() + ".\n";
+  }
+  if (!out["extra_seeds_lps_mm"].empty()) {
+    md += "\nSeeds no target claims (LPS, mm): " + out["extra_seeds_lps_mm"].dump() + ".\n";
+  }
+  if (out.contains("tissue_fit")) {
+    const json& f = out["tissue_fit"];
+    md += fmt::format(
+        "\nTissue `{}` fitted to these landings: λ1 {:.3f} ± {:.3f}, λ2 {:.3f} ± {:.3f}; RMS "
+        "{:.3f} mm (plain bicycle model {:.3f}, no deflection {:.3f}).\n",
+        f["name"].get<std::string>(), f["lambda1"].get<double>(),
+        f["standard_errors"][0].get<double>(), f["lambda2"].get<double>(),
+        f["standard_errors"][1].get<double>(), f["rms_mm"].get<double>(),
+        f["rms_bicycle_mm"].get<double>(), f["rms_no_deflection_mm"].get<double>());
+  }
+  if (!args.figure_out.empty()) {
+    md += "\n![planned (blue circles) vs actual (red crosses) in the feasible volume](" +
+          figureLink(args) + ")\n";
+  }
+  std::ofstream file(args.report_out, std::ios::trunc);
+  file << md;
+  file.close();
+  if (!file) throw CliError{args.report_out + ": cannot write the report"};
 }
 
 }  // namespace
@@ -183,6 +258,14 @@ json verifySession(const VerifyArgs& args) {
       {"text", verified->text}};
   if (!args.fit_tissue_name.empty())
     out["tissue_fit"] = fitTissue(args, session, verified->errors, by_id);
+  if (!args.figure_out.empty()) {
+    writeFigure(args, session, *verified);
+    out["figure"] = args.figure_out;
+  }
+  if (!args.report_out.empty()) {
+    writeReport(args, session, *verified, by_id, out);
+    out["report"] = args.report_out;
+  }
   return out;
 }
 

@@ -25,6 +25,10 @@ struct VerifyArgs {
   // tissue profile's, else `tissues_path`'s.
   std::string fit_tissue_name;
   std::string tissues_path = "configs/tissues.yaml";
+  // The session report's artifacts: a PNG like the paper's Figs. 14-15 (planned vs actual in
+  // the feasible volume) and a Markdown report with a table like its Table V.
+  std::string figure_out;
+  std::string report_out;
 };
 
 // Per target `id`, `planned_robot_mm`, `actual_robot_mm`, `error_mm` (and the LPS points, the
