@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "ignav/registration/slicer_export.hpp"
+#include "ignav/verification/targeting_report.hpp"
 #include "ignav/volume/slice.hpp"
 #include "ignav/workflow/reducer.hpp"
 
@@ -59,9 +60,9 @@ volume::Overlays overlaysFor(const Session& session) {
                          0.25});
   }
   for (const auto& t : session.targets) {
-    const volume::Rgb colour = !t.registered            ? volume::Rgb{160, 160, 160}
-                               : t.plannable()          ? volume::Rgb{0, 255, 0}
-                                                        : volume::Rgb{255, 60, 60};
+    const volume::Rgb colour = !t.registered   ? volume::Rgb{160, 160, 160}
+                               : t.plannable() ? volume::Rgb{0, 255, 0}
+                                               : volume::Rgb{255, 60, 60};
     o.points.push_back({t.lps_mm, "T" + std::to_string(t.id), colour, 5});
   }
   return o;
@@ -189,14 +190,27 @@ void Reports::writeVerification(const Session& session) const {
       for (const auto& t : c.targets) {
         if (t.seed_id != seed.id) continue;
         label = "T" + std::to_string(t.error.target_id);
-        description += fmt::format("; {:.2f} mm from target {}", t.error.error_mm,
-                                   t.error.target_id);
+        description +=
+            fmt::format("; {:.2f} mm from target {}", t.error.error_mm, t.error.target_id);
       }
       seeds.push_back({label, seed.lps_mm, description, true});
     }
     // On the confirmation CT's LPS: open it with that scan.
     (void)registration::writeMarkupsJson("ignav seeds (" + c.source + ")", seeds,
                                          (dir / "seeds.mrk.json").string());
+    std::vector<verification::TargetError> errors;
+    for (const auto& t : c.targets)
+      errors.push_back(t.error);
+    verification::FigureOptions options;
+    options.title = "session " + session.session_id + ": " + c.source;
+    const auto png = verification::targetingFigurePng(
+        errors, c.summary.value_or(verification::ErrorSummary{}),
+        verification::feasibleVolume(session.robot->kinematics), options);
+    if (png) {
+      (void)volume::writePng(*png, (dir / "targeting.png").string());
+    } else {
+      spdlog::error("reports: the targeting figure: {}", png.error().message);
+    }
   }
   if (!session.fitted_tissues.empty()) {
     const auto& needle = session.fitted_tissues.front().profile.needle;

@@ -224,6 +224,35 @@ inline protocol::Reply approveShown(protocol::Client& c) {
   return c.approve(a["plan_id"].get<std::uint64_t>(), a["digest"].get<std::string>());
 }
 
+// Plans the targets (robot frame) and moves to each in turn, approving every motion as shown,
+// until the procedure is done. Returns the targets' ids.
+inline std::vector<std::uint32_t> insertAll(protocol::Client& op,
+                                            const std::vector<Eigen::Vector3d>& targets_robot) {
+  std::vector<std::uint32_t> ids{plannedTarget(op, targets_robot.front())};
+  for (std::size_t i = 1; i < targets_robot.size(); ++i) {
+    const auto added = op.send("add_target", {"", {lpsOf(op.state(), targets_robot[i])}, {}});
+    EXPECT_TRUE(added.accepted) << added.message;
+    ids.push_back(added.target_id);
+  }
+  lockAndWaitForApproval(op);
+  for (std::size_t motion = 0; motion <= targets_robot.size(); ++motion) {
+    op.waitFor(
+        [](const nlohmann::json& s) { return stateText(s, "approval", "status") == "pending"; },
+        std::chrono::seconds(10));
+    const auto approved = approveShown(op);
+    EXPECT_TRUE(approved.accepted) << approved.message;
+    op.waitFor(
+        [&](const nlohmann::json& s) {
+          return (phaseIs(s, "at_target") || phaseIs(s, "done")) &&
+                 s["workflow"]["revision"].get<std::uint64_t>() > approved.revision &&
+                 stateText(s, "motion", "state") == "idle";
+        },
+        std::chrono::seconds(60));
+  }
+  EXPECT_TRUE(phaseIs(op.state(), "done")) << op.state()["workflow"].dump();
+  return ids;
+}
+
 class ServerProcess {
  public:
   // Each test passes its own domain id so that tests running in parallel never meet.

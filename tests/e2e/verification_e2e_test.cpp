@@ -29,33 +29,6 @@ Eigen::Vector3d vec(const json& p) {
   return {p.at(0).get<double>(), p.at(1).get<double>(), p.at(2).get<double>()};
 }
 
-// Plans the targets (robot frame) and moves to each in turn, approving every motion as shown,
-// until the procedure is done. Returns the targets' ids.
-std::vector<std::uint32_t> insertAll(protocol::Client& op,
-                                     const std::vector<Eigen::Vector3d>& targets_robot) {
-  std::vector<std::uint32_t> ids{plannedTarget(op, targets_robot.front())};
-  for (std::size_t i = 1; i < targets_robot.size(); ++i) {
-    const auto added = op.send("add_target", {"", {lpsOf(op.state(), targets_robot[i])}, {}});
-    EXPECT_TRUE(added.accepted) << added.message;
-    ids.push_back(added.target_id);
-  }
-  lockAndWaitForApproval(op);
-  for (std::size_t motion = 0; motion <= targets_robot.size(); ++motion) {
-    op.waitFor([](const json& s) { return stateText(s, "approval", "status") == "pending"; }, 10s);
-    const auto approved = approveShown(op);
-    EXPECT_TRUE(approved.accepted) << approved.message;
-    op.waitFor(
-        [&](const json& s) {
-          return (phaseIs(s, "at_target") || phaseIs(s, "done")) &&
-                 s["workflow"]["revision"].get<std::uint64_t>() > approved.revision &&
-                 stateText(s, "motion", "state") == "idle";
-        },
-        60s);
-  }
-  EXPECT_TRUE(phaseIs(op.state(), "done")) << op.state()["workflow"].dump();
-  return ids;
-}
-
 // `--figure` and `--report` wrote a PNG (as wide as three panels) and a Markdown report whose
 // table shows each target's error as the JSON does, with the figure linked beside it.
 void expectReportFiles(const std::filesystem::path& dir, const json& verified) {

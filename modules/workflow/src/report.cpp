@@ -3,6 +3,7 @@
 #include <cmath>
 #include <ctime>
 
+#include "ignav/verification/targeting_report.hpp"
 #include "ignav/workflow/reducer.hpp"
 
 namespace ignav::workflow {
@@ -35,6 +36,52 @@ std::string motionSection(const Session& s) {
                     m.approved_by, utc(m.approved_s),
                     m.ended_s >= 0 ? fmt::format("{:.2f}", m.ended_s - m.approved_s) : "—",
                     m.ended_s >= 0 ? m.outcome : "under way");
+  }
+  return out;
+}
+
+// The confirmation CT's targeting errors (issue 23): the paper's Table V for this session, with
+// what the model had predicted, the figure (the reports thread writes it), the fitted tissues.
+std::string verificationSection(const Session& s) {
+  const Confirmation& c = s.confirmation;
+  std::string out;
+  if (c.status != "none" || c.measuring != 0) {
+    out += "\n## Targeting error (confirmation CT)\n\n";
+    out += fmt::format("- confirmation CT: {} ({})\n- {}\n", c.source.empty() ? "—" : c.source,
+                       c.status, c.message);
+    if (c.measuring != 0) out += "- measuring " + c.measuring_source + "\n";
+  }
+  if (c.summary && !c.targets.empty()) {
+    std::vector<verification::TargetError> errors;
+    std::map<std::uint32_t, double> predicted;
+    for (const auto& m : c.targets) {
+      errors.push_back(m.error);
+      if (std::isfinite(m.predicted_error_mm)) predicted[m.error.target_id] = m.predicted_error_mm;
+    }
+    out +=
+        "\n" + verification::targetingTableMarkdown(
+                   errors, *c.summary, predicted.empty() ? std::nullopt : std::optional(predicted));
+    out +=
+        "\n\"predicted\" is the model's landing error for the joints used: the tissue a target "
+        "was aimed for (use_tissue), else the session's tissue.\n";
+    out += "\n![planned vs actual in the feasible volume](verification/targeting.png)\n";
+  }
+  if (!s.fitted_tissues.empty()) {
+    out += "\n### Tissues fitted from the errors\n\n";
+    for (const auto& f : s.fitted_tissues) {
+      const auto& se = f.fit.standard_errors;
+      out += fmt::format(
+          "- **{}** from {} targets: λ1 {:.3f} ± {:.3f}, λ2 {:.3f} ± {:.3f}; RMS {:.3f} mm "
+          "(plain bicycle {:.3f}, no deflection {:.3f}){}\n",
+          f.profile.name, f.targets, f.fit.tissue.lambda1, se.size() > 0 ? se[0] : 0.0,
+          f.fit.tissue.lambda2, se.size() > 1 ? se[1] : 0.0, f.fit.rms_mm, f.fit.rms_bicycle_mm,
+          f.fit.rms_no_deflection_mm, f.fit.limit.empty() ? "" : "; " + f.fit.limit);
+    }
+    out += "\nAs a configs/tissues.yaml: `tissues_fitted.yaml` in this folder.\n";
+  }
+  if (s.aim_tissue) {
+    out +=
+        fmt::format("\nThe plan aims for tissue '{}' (compensated joints).\n", s.aim_tissue->name);
   }
   return out;
 }
@@ -101,6 +148,7 @@ std::string procedureReport(const Session& s, const std::vector<std::string>& im
   }
   if (!notes.empty()) out += "\n" + notes;
   out += motionSection(s);
+  out += verificationSection(s);
   if (!images.empty()) {
     out +=
         "\n## Slices\n\nThrough each target: the feasible region (green), the targets, the "
