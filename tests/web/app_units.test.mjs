@@ -1,5 +1,5 @@
 // The web viewer's pure helpers (tools/ignav-web/app/src/geometry.ts, status.ts, clock.ts,
-// approval.ts and alerts.ts), bundled on the fly with the app's own esbuild and checked against
+// approval.ts, alerts.ts and verification.ts), bundled on the fly with the app's own esbuild and checked against
 // closed-form cases.
 //   node --test tests/web/app_units.test.mjs
 import assert from "node:assert/strict";
@@ -25,6 +25,7 @@ const s = await load("status.ts");
 const clock = await load("clock.ts");
 const ap = await load("approval.ts");
 const alerts = await load("alerts.ts");
+const ver = await load("verification.ts");
 
 const near = (actual, expected, tolerance = 1e-9) =>
   assert.ok(
@@ -291,4 +292,68 @@ test("targets outside the CT, and paths that leave it", () => {
   delete old.path_warning;
   assert.deepEqual([s.targetDisplay(old, "planning").status, s.targetDisplay(old, "planning").path_warning], ["reachable", ""]);
   assert.equal(s.kStatusColour.outside_volume !== s.kStatusColour.unreachable, true);
+});
+
+// ---- the closed loop (issue 23) --------------------------------------------------------------
+
+const stats = (count, mean_mm, sd_mm, min_mm, max_mm, rms_mm) => ({ count, mean_mm, sd_mm, min_mm, max_mm, rms_mm });
+
+test("seedMarkers: a seed's robot point through the planning registration's inverse lands on the planning CT", () => {
+  // image -> robot: rotate 90° about z, scale 2, translate (5, -7, 11): robot = 2·(-y, x, z) + t.
+  const image_to_robot = [0, -2, 0, 5, 2, 0, 0, -7, 0, 0, 2, 11, 0, 0, 0, 1];
+  const registration = { status: "registered", image_to_robot };
+  // The seed at planning LPS (1, 2, 3) is at robot 2·(-2, 1, 3) + t = (1, -5, 17).
+  const row = {
+    target_id: 4, seed_id: 9, matched: "detected", planned_robot: [0, 0, 0], actual_robot: [1, -5, 17],
+    planned_lps: [50, 50, 50], actual_lps: [99, 99, 99], error_mm: 1.5,
+  };
+  const verification = {
+    status: "measured", targets: [row], extra_seeds: [12, 13],
+    seeds: [
+      { id: 9, lps: [99, 99, 99], robot: [1, -5, 17], rejected: false, target_id: 4 },
+      { id: 12, lps: [0, 0, 0], robot: [5, -7, 11], rejected: false, target_id: 0 }, // planning LPS 0
+      { id: 13, lps: [0, 0, 0], robot: [5, -7, 11], rejected: true, target_id: 0 }, // rejected: not drawn
+    ],
+  };
+  const targets = { 4: { id: 4, lps: [1.5, 2, 3] } };
+  const markers = ver.seedMarkers(verification, registration, targets);
+  assert.equal(markers.length, 2);
+  assert.equal(markers[0].seed_id, 9);
+  assert.equal(markers[0].target_id, 4);
+  near(markers[0].lps, [1, 2, 3], 1e-12);
+  near(markers[0].planned_lps, [1.5, 2, 3]); // the target's marker, where the line goes
+  assert.equal(markers[1].seed_id, 12);
+  assert.equal(markers[1].target_id, 0);
+  near(markers[1].lps, [0, 0, 0], 1e-12);
+  assert.equal(markers[1].planned_lps, null);
+  // Without a registration: the confirmation CT's LPS (the same frame when it was reused); a
+  // target gone from the plan: the row's planned LPS.
+  const bare = ver.seedMarkers(verification, { status: "none", image_to_robot: [] }, {});
+  near(bare[0].lps, [99, 99, 99]);
+  near(bare[0].planned_lps, [50, 50, 50]);
+  // Nothing measured (none, measuring): nothing drawn.
+  assert.deepEqual(ver.seedMarkers({ ...verification, status: "measuring" }, registration, targets), []);
+  assert.deepEqual(ver.seedMarkers(undefined, registration, targets), []);
+});
+
+test("the summary's numbers: mean ± sample SD, max, min, RMS; one value has no SD; signed depth", () => {
+  // Errors 1, 2, 3, 4 mm: mean 2.5, sample SD √(5/3) = 1.29, RMS √7.5 = 2.74.
+  const e = stats(4, 2.5, Math.sqrt(5 / 3), 1, 4, Math.sqrt(7.5));
+  assert.equal(ver.meanSd(e), "2.50 ± 1.29 mm");
+  assert.equal(ver.extremes(e), "max 4.00 · min 1.00 · RMS 2.74 mm (n = 4)");
+  assert.equal(ver.meanSd(stats(1, 2.345, 0, 2.345, 2.345, 2.345)), "2.35 mm");
+  assert.equal(ver.meanSd(stats(0, 0, 0, 0, 0, 0)), "–");
+  assert.equal(ver.meanSd(undefined), "–");
+  // Depth is signed: + deeper than planned; what rounds to zero is 0.00.
+  assert.equal(ver.meanSd(stats(2, 0.5, 0.1, -0.001, 1, 0.7), true), "+0.50 ± 0.10 mm");
+  assert.equal(ver.extremes(stats(2, -0.5, 0.1, -1.2, -0.001, 0.7), true), "max 0.00 · min -1.20 · RMS 0.70 mm (n = 2)");
+  assert.equal(ver.withSe(0.49, 0.1234), "0.490 ± 0.123");
+  assert.equal(ver.fixed(-0.004, 2), "0.00");
+});
+
+test("measuredByTarget: each measured target's row by id", () => {
+  const rows = ver.measuredByTarget({ targets: [{ target_id: 3, error_mm: 1 }, { target_id: 7, error_mm: 2 }] });
+  assert.equal(rows.get(7).error_mm, 2);
+  assert.equal(rows.has(4), false);
+  assert.equal(ver.measuredByTarget(undefined).size, 0);
 });

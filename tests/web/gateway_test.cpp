@@ -99,6 +99,10 @@ TEST(Gateway, BrowserDrivesTheServerAndSeesItsVerdicts) {
   waitForServer(tab, hello);
   tab.waitState([](const json& s) { return s.contains("workflow"); });
   EXPECT_EQ(tab.state()["workflow"]["phase"], "imaging");
+  // The closed loop's topic (issue 23) reaches browsers as every other does: nothing measured.
+  tab.waitState([](const json& s) { return s.contains("verification"); });
+  EXPECT_EQ(tab.state()["verification"]["status"], "none");
+  EXPECT_TRUE(tab.state()["verification"]["targets"].empty());
 
   // A command the workflow refuses comes back as the server's reply, not a gateway error.
   const json early = tab.request(command("add_target", {{"points", {{1, 2, 3}}}}));

@@ -7,12 +7,15 @@
 // approval down from the server's expiry, and an expired request cannot be approved; a double
 // click approves once; with the gateway or the server gone a banner says so and nothing that
 // would send a command (the emergency stop included) looks active, and a restarted gateway
-// restores the page; an emergency stop puts up its own banner.
+// restores the page; an emergency stop puts up its own banner. And the closed loop (issue 23): a
+// confirmation CT of the reached target (ignav-plan confirmation-phantom, the seed where agar,
+// hidden from the server, deflects the needle) loaded from the page shows the seed beside its
+// target, the error in the targets table and the summary, checked against the phantom's truth.
 //
 //   node tests/web/viewer_e2e.mjs --source SRC --build BUILD --out DIR [--chromium PATH] [--domain N]
 //        [--app-dir DIR]   (the bundled app; default BUILD/tools/ignav-web/app)
 //
-// Screenshots of every stage go to --out (01-loaded.png ... 08-server-gone.png; failure.png).
+// Screenshots of every stage go to --out (01-loaded.png ... 09-server-gone.png; failure.png).
 import { execFileSync } from "node:child_process";
 import fs from "node:fs";
 import os from "node:os";
@@ -592,6 +595,96 @@ async function run(pages) {
   check(!(await isVisible(page, "phase-banner")), "a phase banner outside an emergency");
   await shot(page, "06-reached.png");
 
+  step("a confirmation CT (agar hidden from the server): the seed beside its target, the error, the summary");
+  {
+    // The physical world for this session: the seed where agar deflects the needle at the joints
+    // the robot went to, and the truth of where it is (ignav-plan confirmation-phantom).
+    const confirmationDir = path.join(tmp, "confirmation");
+    const made = JSON.parse(
+      execFileSync(path.join(build, "tools/ignav-plan/ignav-plan"), [
+        "confirmation-phantom", state.health.session_dir,
+        "--robot", path.join(source, "configs/robots/torabi2014.yaml"),
+        "--out", confirmationDir,
+        "--hidden-tissue", "agar", "--tissues", path.join(source, "configs/tissues.yaml"), "--json",
+      ]).toString(),
+    );
+    const truth = made.targets.find((t) => t.id === reachable);
+    check(truth !== undefined, `the confirmation phantom has no seed for T${reachable}: ${JSON.stringify(made.targets)}`);
+    // What a perfect localiser reports through the session's registration (which carries its own
+    // small error, checked above): the seed's true position in that robot frame, less the plan.
+    const expectedError = dist(apply(registered, truth.landing_lps_mm), target.robot);
+    console.log(`   seed at LPS ${fmt(truth.landing_lps_mm)}, ${truth.landing_off_plan_mm.toFixed(3)} mm off the plan ` +
+      `(true frame); ${expectedError.toFixed(3)} mm through the session's registration`);
+    await byTestId(page, "confirmation-path").fill(confirmationDir);
+    await expectAccepted(page, "load_confirmation", () => byTestId(page, "action-load_confirmation").click());
+    await waitText(page, "verification-status", /^measured$/, 60000);
+
+    // The table: the error column, as measured.
+    const shownError = Number.parseFloat(await waitText(page, `target-error-${reachable}`, /^\d+\.\d\d$/));
+    console.log(`   T${reachable}: error column ${shownError} mm; predicted ${await byTestId(page, `target-predicted-${reachable}`).textContent()}; ` +
+      `aim ${await byTestId(page, `target-aim-${reachable}`).textContent()}`);
+    check(Math.abs(shownError - expectedError) < 0.1 + 0.005, `the error column shows ${shownError} mm, the truth is ${expectedError.toFixed(3)} mm`);
+    // The summary panel: one target, its error as mean (no SD of one), max = min = RMS; no target
+    // without a seed, no extra seed; the server's sentence.
+    const summary = await waitText(page, "verification-summary", /1 target\(s\): error \d+\.\d\d/);
+    console.log(`   summary: ${summary}`);
+    check(Math.abs(Number(summary.match(/error (\d+\.\d\d)/)[1]) - expectedError) < 0.105, `the summary says "${summary}"`);
+    const mean = await byTestId(page, "verification-error").textContent();
+    check(mean === `${shownError.toFixed(2)} mm`, `the error's mean shows "${mean}", the column ${shownError}`);
+    const extremes = await byTestId(page, "verification-error-extremes").textContent();
+    const e = shownError.toFixed(2);
+    check(extremes === `max ${e} · min ${e} · RMS ${e} mm (n = 1)`, `max, min, RMS show "${extremes}"`);
+    for (const [testid, want] of [["verification-missing", "none"], ["verification-extra", "none"]]) {
+      const text = await byTestId(page, testid).textContent();
+      check(text === want, `[data-testid=${testid}] shows "${text}", not "${want}"`);
+    }
+    console.log(`   registration: ${await byTestId(page, "verification-registration").textContent()}`);
+
+    // The seed on the slices: the axial view through its true position (off the view's middle,
+    // so that the mapping is tested) draws it there, on the plane, a red cross over the CT.
+    for (let i = 0; i < 3; ++i) await byTestId(page, "zoom-in").click(); // about 0.14 mm per pixel
+    await goTo(page, truth.landing_lps_mm, [6.3, -4.1]);
+    const drawn = await page.waitForFunction(
+      (id) => {
+        const seeds = JSON.parse(document.querySelector('canvas[data-view="axial"]').dataset.seeds ?? "[]");
+        return seeds.find((s) => s.target_id === id && s.on_plane) ?? false;
+      },
+      reachable,
+      { timeout: kTimeoutMs },
+    ).then((handle) => handle.jsonValue());
+    const { m } = await axialSlice(page);
+    const drawnLps = apply(m, [drawn.u, drawn.v, 0]);
+    const off = dist(drawnLps, truth.landing_lps_mm);
+    console.log(`   seed S${drawn.seed_id} drawn at pixel (${drawn.u.toFixed(1)}, ${drawn.v.toFixed(1)}) = LPS ${fmt(drawnLps)}, ` +
+      `${off.toFixed(3)} mm from the truth`);
+    check(off < 0.2, `the seed is drawn ${off} mm from where it is`);
+    const [r, g, b] = await page.locator('canvas[data-view="axial"]').evaluate(
+      (c, [u, v]) => [...c.getContext("2d").getImageData(Math.round(u), Math.round(v), 1, 1).data],
+      [drawn.u, drawn.v],
+    );
+    check(r > 150 && r - Math.max(g, b) > 60, `the seed's pixel is (${r}, ${g}, ${b}), not the seed's red`);
+    await shot(page, "07-confirmation.png");
+
+    // The click fallback from the table: accept the seed as this target's.
+    await expectAccepted(page, "accept_seed", () => byTestId(page, `target-accept-seed-${reachable}`).click());
+    await page.waitForFunction((id) => window.ignav.state().verification?.targets.find((t) => t.target_id === id)?.matched === "accepted",
+      reachable, { timeout: kTimeoutMs });
+    await page.waitForFunction(
+      (id) => /\(accepted\)/.test(document.querySelector(`[data-testid="target-error-${id}"]`)?.title ?? ""),
+      reachable, { timeout: kTimeoutMs },
+    ).catch(async () => {
+      const title = await byTestId(page, `target-error-${reachable}`).getAttribute("title");
+      throw new Error(`the error cell does not say the seed was accepted: "${title}"`);
+    });
+    // ... and reject it (not a seed of this plan): the target has none now, and says so.
+    await expectAccepted(page, "reject_seed", () => byTestId(page, `target-reject-seed-${reachable}`).click());
+    await waitText(page, `target-error-${reachable}`, /^no seed$/);
+    await waitText(page, "verification-missing", new RegExp(`^T${reachable}$`));
+    console.log(`   rejected: ${await byTestId(page, "verification-status").textContent()}; ` +
+      `${await byTestId(page, "verification-summary").textContent().catch(() => "(no summary)")}`);
+    await shot(page, "07-confirmation-rejected.png");
+  }
+
   step("emergency stop: a banner says what happened and what to do");
   await expectAccepted(page, "emergency_stop", () => byTestId(page, "estop-button").click());
   await waitText(page, "phase", /^emergency$/);
@@ -602,7 +695,7 @@ async function run(pages) {
     check(/^EMERGENCY STOP/.test(text) && /Reset emergency/.test(text), `the emergency banner says "${text}"`);
   }
   check((await controls(page)).commands.includes("reset_emergency"), "reset_emergency is not offered");
-  await shot(page, "07-emergency.png");
+  await shot(page, "08-emergency.png");
 
   step("the server dies (SIGKILL): the gateway says so within seconds, and the page cuts itself off");
   const killed = Date.now();
@@ -614,7 +707,7 @@ async function run(pages) {
   await checkCutOff(page, "ignav-server");
   const healthz = await (await fetch(new URL("/healthz", url))).json();
   check(healthz.server === false, `the gateway's /healthz says ${JSON.stringify(healthz)}`);
-  await shot(page, "08-server-gone.png");
+  await shot(page, "09-server-gone.png");
 
   fs.rmSync(tmp, { recursive: true, force: true });
 }

@@ -18,6 +18,7 @@ import { Panels, byId } from "./panels";
 import { GatewaySocket, type SocketStatus } from "./socket";
 import type { Answer, HelloMessage, Request, ServerState, Vec3, ViewName } from "./state";
 import { targetDisplay } from "./status";
+import { seedMarkers } from "./verification";
 import {
   type ClickMode,
   type Overlay,
@@ -219,6 +220,7 @@ function overlay(): Overlay {
       };
     }),
     tip_lps: state.motion?.tip_lps ?? null,
+    seeds: seedMarkers(state.verification, state.registration, state.targets),
     centre_lps: settings?.centre_lps ?? null,
   };
 }
@@ -274,7 +276,8 @@ function render(): void {
   panels.workflow(state.workflow, hello, state.motion);
   panels.volume(state.volume);
   panels.registration(state.registration, pendingFiducials);
-  panels.targets(state.targets, state.workflow, state.approval, state.motion);
+  panels.targets(state.targets, state.workflow, state.approval, state.motion, state.verification, hello);
+  panels.verification(state.verification);
   panels.approval(state.approval, hello);
   panels.motion(state.motion);
   for (const view of views) view.draw();

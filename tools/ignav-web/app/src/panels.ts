@@ -1,8 +1,9 @@
 // The panels around the slice views: connection, workflow, volume, registration, targets,
-// approval, motion and the last reply. Each is rebuilt only when what it shows has changed, so
-// that a stream of motion updates neither flickers the table nor swallows a click on it. While
-// the page cannot reach the server, a banner says so and every control that would send a
-// command is disabled, the emergency stop included (alerts.ts).
+// approval, motion, the targeting error measured on a confirmation CT and the last reply. Each is
+// rebuilt only when what it shows has changed, so that a stream of motion updates neither
+// flickers the table nor swallows a click on it. While the page cannot reach the server, a banner
+// says so and every control that would send a command is disabled, the emergency stop included
+// (alerts.ts).
 import { connectionView, phaseBanner } from "./alerts";
 import { approvalView } from "./approval";
 import { formatLps } from "./geometry";
@@ -13,12 +14,15 @@ import type {
   HelloMessage,
   MotionState,
   RegistrationState,
+  MeasuredTargetState,
   TargetState,
   Vec3,
+  VerificationState,
   VolumeState,
   WorkflowState,
 } from "./state";
 import { targetDisplay } from "./status";
+import { extremes, fixed, meanSd, measuredByTarget, registrationText, withSe } from "./verification";
 
 export interface PanelActions {
   goTo(lps: Vec3): void;
@@ -61,6 +65,36 @@ function facts(rows: [string, string, string?, string?][]): HTMLElement {
 const mm = (x: number, digits = 2) => `${x.toFixed(digits)} mm`;
 
 const approvalKey = (a: ApprovalState) => `${a.plan_id}:${a.digest}`;
+
+const formatRobot = (p: Vec3) => `(${p.map((x) => fixed(x, 2)).join(", ")})`;
+
+// How the target is aimed: nominal, or compensated for a tissue's deflection (use_tissue).
+function aimCell(target: TargetState): HTMLElement {
+  const testid = { "data-testid": `target-aim-${target.id}` };
+  if (target.compensated === undefined) return el("td", testid, "–"); // a server before issue 23
+  if (!target.compensated) return el("td", { ...testid, title: "the nominal joints (no tissue model)" }, "nominal");
+  const [theta_c_rad, z_c_mm, z_s_mm] = target.nominal_joints ?? [0, 0, 0];
+  const title =
+    `aimed so that ${target.aim_tissue ?? "?"}'s model lands the tip on the target; nominal joints ` +
+    `θc ${(theta_c_rad * kDegPerRad).toFixed(1)}°, zc ${fixed(z_c_mm, 2)}, zs ${fixed(z_s_mm, 2)} mm` +
+    (target.nominal_landing_robot ? ` would land at ${formatRobot(target.nominal_landing_robot)}` : "") +
+    (target.predicted_landing_robot ? `; these land at ${formatRobot(target.predicted_landing_robot)} (robot, mm)` : "");
+  return el("td", { ...testid, class: "compensated", title }, `compensated: ${target.aim_tissue ?? "?"}`);
+}
+
+// The targeting error measured on the confirmation CT: its norm, the seed and the split in the
+// tooltip; "no seed" for a reached target without one.
+function errorCell(id: number, row: MeasuredTargetState | undefined, missing: boolean): HTMLElement {
+  const testid = `target-error-${id}`;
+  if (row) {
+    const title =
+      `seed S${row.seed_id} (${row.matched}): lateral ${fixed(row.lateral_mm, 2)} mm, ` +
+      `depth ${fixed(row.depth_mm, 2, true)} mm (+ deeper than planned); error ${formatRobot(row.error_robot)} mm (robot)`;
+    return el("td", { "data-testid": testid, title }, fixed(row.error_mm, 2));
+  }
+  if (missing) return el("td", { "data-testid": testid, class: "warning", title: "reached, and no seed found" }, "no seed");
+  return el("td", { "data-testid": testid }, "–");
+}
 
 export class Panels {
   private readonly keys = new Map<string, string>();
@@ -172,21 +206,31 @@ export class Panels {
     workflow: WorkflowState | undefined,
     approval: ApprovalState | undefined,
     motion: MotionState | undefined,
+    verification: VerificationState | undefined,
+    hello: HelloMessage | null,
   ): void {
     const phase = workflow?.phase ?? "";
-    const allowed = this.connected ? (workflow?.allowed_commands ?? []) : [];
+    // As the workflow buttons: allowed now, and permitted to this gateway's identity at all.
+    const permitted = new Set(this.connected ? (hello?.permitted ?? []) : []);
+    const allowed = (workflow?.allowed_commands ?? []).filter((c) => permitted.has(c));
     // Motion matters to the table only as "which target is it moving to".
     const moving = motion ? { state: motion.state, target_id: motion.target_id } : undefined;
     const pending = approval ? { status: approval.status, target_id: approval.target_id } : undefined;
-    if (!this.changed("targets", [targets, phase, allowed, moving, pending])) return;
+    // The confirmation CT matters as each target's measured row and the targets without a seed.
+    const measured = measuredByTarget(verification);
+    const missing = new Set(verification?.status === "measured" ? verification.missing_targets : []);
+    if (!this.changed("targets", [targets, phase, allowed, moving, pending, [...measured.values()], [...missing]])) return;
 
     const list = Object.values(targets ?? {}).sort((a, b) => a.order - b.order || a.id - b.id);
     const canReorder = allowed.includes("reorder_targets");
     const canRemove = allowed.includes("remove_target");
+    const canAccept = allowed.includes("accept_seed");
+    const canReject = allowed.includes("reject_seed");
     const rows = list.map((target, index) => {
       const shown = targetDisplay(target, phase, approval, motion);
       const [theta_c_rad, z_c_mm, z_s_mm] = target.joints;
       const known = target.registered && target.reachable;
+      const row = measured.get(target.id);
       const button = (label: string, testid: string, enabled: boolean, title: string, act: () => void) => {
         const b = el("button", { "data-testid": testid, title }, label);
         b.disabled = !enabled;
@@ -201,7 +245,19 @@ export class Panels {
         [ids[index], ids[index + offset]] = [ids[index + offset]!, ids[index]!];
         this.actions.command("reorder_targets", ids);
       };
-      const row = el(
+      const seedButtons = row
+        ? [
+            button(`✓S${row.seed_id}`, `target-accept-seed-${target.id}`, canAccept && row.matched === "detected",
+              `accept: S${row.seed_id} is T${target.id}'s seed (keep the pair)`, () =>
+                this.actions.command("accept_seed", [target.id]),
+            ),
+            button(`✗S${row.seed_id}`, `target-reject-seed-${target.id}`, canReject,
+              `reject: S${row.seed_id} is no seed of this plan (match again without it)`, () =>
+                this.actions.command("reject_seed", [row.seed_id]),
+            ),
+          ]
+        : [];
+      const tr = el(
         "tr",
         { "data-testid": `target-row-${target.id}`, title: `T${target.id}: ${shown.detail}` },
         el("td", {}, String(target.order)),
@@ -219,6 +275,13 @@ export class Panels {
         el("td", {}, known ? target.steps.join(", ") : "–"),
         el("td", { class: target.tre_warning ? "warning" : "" }, target.registered ? target.tre_mm.toFixed(2) : "–"),
         el("td", {}, target.predicted_deviation_mm === null ? "–" : target.predicted_deviation_mm.toFixed(2)),
+        aimCell(target),
+        errorCell(target.id, row, missing.has(target.id)),
+        el(
+          "td",
+          { "data-testid": `target-predicted-${target.id}`, title: "the model's landing, off the plan" },
+          row?.predicted_robot ? fixed(row.predicted_error_mm, 2) : "–",
+        ),
         el(
           "td",
           { class: "actions" },
@@ -227,10 +290,11 @@ export class Panels {
           button("✕", `target-delete-${target.id}`, canRemove, "delete", () =>
             this.actions.command("remove_target", [target.id]),
           ),
+          ...seedButtons,
         ),
       );
-      row.addEventListener("click", () => this.actions.goTo(target.lps));
-      return row;
+      tr.addEventListener("click", () => this.actions.goTo(target.lps));
+      return tr;
     });
     byId("targets-body").replaceChildren(...rows);
     byId("targets-empty").hidden = rows.length > 0;
@@ -307,6 +371,67 @@ export class Panels {
     approve.hidden = view.approve_hidden;
     approve.disabled = view.approve_disabled;
     approve.textContent = view.approve_label;
+  }
+
+  // The confirmation CT's measurement: where it stands, the summary (mean ± SD, max, min, RMS),
+  // the targets without a seed and the extra seeds, and the tissues fitted from the errors.
+  verification(verification: VerificationState | undefined): void {
+    if (!this.changed("verification", verification)) return;
+    const body = byId("verification-body");
+    if (!verification || verification.status === "none" || verification.status === "") {
+      body.replaceChildren(
+        el("p", { class: "small", "data-testid": "verification-status" },
+          "no confirmation CT measured: load one after motion (Workflow)"),
+        verification?.message ? el("p", { class: "bad", "data-testid": "verification-message" }, verification.message) : "",
+      );
+      return;
+    }
+    const v = verification;
+    const measuring = v.status === "measuring";
+    const ids = (prefix: string, list: number[]) => (list.length ? list.map((id) => `${prefix}${id}`).join(", ") : "none");
+    const rows: [string, string, string?, string?][] = [
+      ["status", measuring ? `measuring ${v.measuring_source}` : v.status, "verification-status"],
+      ["confirmation CT", v.source || "–", "verification-source"],
+    ];
+    if (v.message) rows.push(["message", v.message, "verification-message"]);
+    if (v.source) {
+      rows.push(
+        ["registration", registrationText(v), "verification-registration"],
+        ["seeds found", v.detection_summary || "–", "verification-detection"],
+        ["error", meanSd(v.error), "verification-error", "|error|: mean ± sample SD"],
+        ["", extremes(v.error), "verification-error-extremes"],
+        ["lateral", `${meanSd(v.lateral)} · ${extremes(v.lateral)}`, "verification-lateral", "across the insertion axis"],
+        ["depth", `${meanSd(v.depth, true)} · ${extremes(v.depth, true)}`, "verification-depth", "+ deeper than planned; the mean is the depth bias"],
+        ["missing targets", ids("T", v.missing_targets), "verification-missing", "reached, without a seed"],
+        ["extra seeds", ids("S", v.extra_seeds), "verification-extra", "matched to no target"],
+      );
+    }
+    rows.push(["aim tissue", v.aim_tissue || "none (nominal joints)", "verification-aim-tissue"]);
+    const parts: (Node | string)[] = [];
+    if (v.summary) parts.push(el("pre", { "data-testid": "verification-summary" }, v.summary));
+    parts.push(facts(rows));
+    if (v.fitted_tissues.length > 0) {
+      const head = el("tr", {}, ...["tissue", "λ1 ± SE", "λ2 ± SE", "RMS (mm)", "bicycle", "none", "targets", ""].map((h) => el("th", {}, h)));
+      const body = v.fitted_tissues.map((t) =>
+        el(
+          "tr",
+          { "data-testid": `fitted-tissue-${t.name}`, title: t.yaml },
+          el("td", {}, t.name),
+          el("td", {}, withSe(t.lambda1, t.lambda1_se)),
+          el("td", {}, withSe(t.lambda2, t.lambda2_se)),
+          el("td", {}, fixed(t.rms_mm, 3)),
+          el("td", {}, fixed(t.rms_bicycle_mm, 3)),
+          el("td", {}, fixed(t.rms_no_deflection_mm, 3)),
+          el("td", {}, String(t.targets)),
+          el("td", { class: "warning" }, t.limit),
+        ),
+      );
+      parts.push(
+        el("p", { class: "small" }, "tissues fitted from the errors (RMS of measured − predicted landing: this model, the plain bicycle model, no deflection):"),
+        el("table", { class: "fitted", "data-testid": "fitted-tissues" }, el("thead", {}, head), el("tbody", {}, ...body)),
+      );
+    }
+    body.replaceChildren(...parts);
   }
 
   motion(motion: MotionState | undefined): void {

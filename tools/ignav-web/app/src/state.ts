@@ -67,6 +67,14 @@ export interface TargetState {
   // A CT is loaded and the target lies outside it (never imaged): lock_plan refuses it.
   outside_volume?: boolean; // absent from servers that predate issue 26, as are:
   path_warning?: string; // "" or: the planned path leaves the loaded CT (where, for how long)
+  // Aimed with a tissue profile (use_tissue, issue 23): `joints` are then the compensated joints,
+  // whose tip that tissue's model deflects onto the target; the nominal ones (exact IK), where
+  // they would land and where the compensated ones land. Absent from servers before issue 23.
+  compensated?: boolean;
+  aim_tissue?: string;
+  nominal_joints?: [number, number, number];
+  nominal_landing_robot?: Vec3;
+  predicted_landing_robot?: Vec3;
 }
 
 export interface PlannedMove {
@@ -123,6 +131,83 @@ export interface HealthState {
   server_time_unix_s?: number;
 }
 
+// ---- the closed loop (issue 23): the confirmation CT, its seeds and the targeting error -------
+
+export interface ErrorStats {
+  count: number;
+  mean_mm: number;
+  sd_mm: number; // sample SD (n - 1)
+  min_mm: number;
+  max_mm: number;
+  rms_mm: number;
+}
+
+export interface SeedState {
+  id: number;
+  lps: Vec3; // on the confirmation CT
+  robot: Vec3; // through the confirmation CT's registration
+  length_mm: number; // 0 for a placed one
+  width_mm: number;
+  placed: boolean; // by place_seed
+  rejected: boolean; // by reject_seed
+  target_id: number; // matched to (0: none)
+}
+
+export interface MeasuredTargetState {
+  target_id: number;
+  seed_id: number;
+  matched: string; // detected | accepted | placed
+  planned_robot: Vec3;
+  actual_robot: Vec3;
+  planned_lps: Vec3;
+  actual_lps: Vec3; // on the confirmation CT
+  error_robot: Vec3; // actual - planned
+  error_lps: Vec3;
+  error_mm: number;
+  lateral_mm: number; // across the insertion axis
+  radial_mm: number;
+  tangential_mm: number;
+  depth_mm: number; // + deeper than planned
+  predicted_robot: Vec3 | null; // the model's landing, when it predicted one
+  predicted_error_mm: number; // its distance from the plan (when predicted)
+}
+
+export interface FittedTissueState {
+  name: string;
+  lambda1: number;
+  lambda2: number;
+  lambda1_se: number; // standard errors
+  lambda2_se: number;
+  rms_mm: number; // measured - predicted landing
+  rms_bicycle_mm: number; // the plain bicycle model on the same data
+  rms_no_deflection_mm: number; // the errors as measured
+  targets: number;
+  limit: string; // "" or the admissibility limit a parameter ended on
+  yaml: string; // the configs/tissues.yaml entry
+}
+
+export interface VerificationState {
+  status: string; // none | measuring | measured | unmatched (message says why)
+  source: string; // the confirmation CT measured
+  measuring_source: string; // the one being measured ("" none)
+  message: string;
+  registration_reused: boolean; // the session's registration (the markers where they were)
+  marker_shift_mm: number;
+  fre_mm: number;
+  image_to_robot: number[]; // the confirmation CT's
+  detection_summary: string;
+  seeds: SeedState[];
+  targets: MeasuredTargetState[]; // per measured target
+  missing_targets: number[]; // reached, without a seed
+  extra_seeds: number[]; // seed ids matched to no target
+  error: ErrorStats; // |error|
+  lateral: ErrorStats; // |lateral|
+  depth: ErrorStats; // signed
+  summary: string; // mean ± SD, max, min, RMS, missing, extra
+  fitted_tissues: FittedTissueState[];
+  aim_tissue: string; // the profile the plan aims with ("" none)
+}
+
 // Every topic is absent until the server first publishes it.
 export interface ServerState {
   workflow?: WorkflowState;
@@ -133,6 +218,7 @@ export interface ServerState {
   approval?: ApprovalState;
   motion?: MotionState;
   health?: HealthState;
+  verification?: VerificationState; // absent from servers before issue 23
 }
 
 // ---- gateway messages (docs/WEB.md) ------------------------------------------------------

@@ -1,5 +1,6 @@
 // One slice view: a canvas showing the server's slice (the CT with the feasible region) and,
-// drawn here, the fiducials, targets, planned paths and the needle tip. At most one slice request
+// drawn here, the fiducials, targets, planned paths, the needle tip and the seeds found on a
+// confirmation CT (a red cross, joined to its target by a thin line). At most one slice request
 // per view is in flight; when the wanted slice changes meanwhile, the newest is asked for once
 // the answer is in (a scroll of ten steps costs two requests, not ten). Each view asks for its
 // own slice only when its own plane or pan changes: scrolling one view asks for no other. While
@@ -20,6 +21,7 @@ import {
   norm,
 } from "./geometry";
 import type { Answer, SliceRequest, Vec3, ViewName } from "./state";
+import type { SeedMarker } from "./verification";
 
 export const kSizePx = 512;
 
@@ -52,6 +54,7 @@ export interface Overlay {
   pending_fiducials: Vec3[]; // clicked, not yet sent
   targets: TargetMarker[];
   tip_lps: Vec3 | null;
+  seeds: SeedMarker[]; // on the planning CT (verification.ts)
   centre_lps: Vec3 | null;
 }
 
@@ -96,6 +99,8 @@ const kRetryLater = new Set(["disconnected", "no_server"]);
 const kKeptSlices = 6;
 
 const kMarkerRadiusPx = 7;
+export const kSeedColour = "#ff1744"; // a matched seed: red, as in the targeting figure
+export const kExtraSeedColour = "#ff9100"; // a seed matched to no target
 const kHitRadiusCss = 10; // how near a press must be to a marker to grab it
 const kDragThresholdCss = 3; // a press that moves less is a click
 
@@ -306,6 +311,40 @@ export class SliceView {
       this.marker(position, dragged || near(target.lps), target.colour, `T${target.id}`, "disc");
     }
     if (overlay.tip_lps) this.marker(at(overlay.tip_lps), near(overlay.tip_lps), "#ffffff", "tip", "cross");
+    this.drawSeeds(overlay.seeds, at, near);
+  }
+
+  // The seeds last: what was measured lies over what was planned. A thin line from each target to
+  // its seed (solid when both are on the plane), and the seed's cross. For tests and tools, the
+  // canvas says where each seed was drawn (PNG pixels).
+  private drawSeeds(
+    seeds: SeedMarker[],
+    at: (p: Vec3) => readonly [number, number],
+    near: (p: Vec3) => boolean,
+  ): void {
+    const ctx = this.ctx;
+    const drawn: { seed_id: number; target_id: number; u: number; v: number; on_plane: boolean }[] = [];
+    for (const seed of seeds) {
+      const colour = seed.target_id ? kSeedColour : kExtraSeedColour;
+      const [u, v] = at(seed.lps);
+      const onPlane = near(seed.lps);
+      if (seed.planned_lps) {
+        const [pu, pv] = at(seed.planned_lps);
+        ctx.strokeStyle = colour;
+        ctx.lineWidth = 1;
+        ctx.globalAlpha = onPlane && near(seed.planned_lps) ? 0.9 : 0.35;
+        ctx.setLineDash(onPlane ? [] : [3, 3]);
+        ctx.beginPath();
+        ctx.moveTo(pu, pv);
+        ctx.lineTo(u, v);
+        ctx.stroke();
+        ctx.globalAlpha = 1;
+        ctx.setLineDash([]);
+      }
+      this.marker([u, v], onPlane, colour, seed.target_id ? "" : `S${seed.seed_id}?`, "cross");
+      drawn.push({ seed_id: seed.seed_id, target_id: seed.target_id, u, v, on_plane: onPlane });
+    }
+    this.canvas.dataset.seeds = JSON.stringify(drawn);
   }
 
   // A polyline, solid where it runs within the tolerance of the plane and dashed and faint
@@ -420,6 +459,18 @@ export class SliceView {
     return best;
   }
 
+  // The seed marker under a CSS position, if any (only those drawn on the plane).
+  private seedAt(frame: SliceFrame, css: [number, number]): SeedMarker | undefined {
+    const s = this.canvasScale();
+    const tolerance = this.host.planeToleranceMm(frame.normal);
+    return this.host.overlay().seeds.find((seed) => {
+      const q = project(frame, seed.lps);
+      if (Math.abs(q.distance_mm) > tolerance) return false;
+      const [x, y] = cssFromPixel(s, q.u, q.v);
+      return Math.hypot(x - css[0], y - css[1]) <= kHitRadiusCss;
+    });
+  }
+
   private listen(): void {
     const canvas = this.canvas;
     canvas.addEventListener("pointerdown", (event) => {
@@ -445,10 +496,18 @@ export class SliceView {
         this.draw();
         return;
       }
-      // The tooltip of the marker under the pointer: a target's verdict and the server's reason.
+      // The tooltip of the marker under the pointer: a target's verdict and the server's reason,
+      // or a seed's target and error.
       const id = this.targetAt(shown.frame, css);
       const target = this.host.overlay().targets.find((t) => t.id === id);
-      canvas.title = target ? `T${target.id}: ${target.tooltip}` : "";
+      const seed = target ? undefined : this.seedAt(shown.frame, css);
+      canvas.title = target
+        ? `T${target.id}: ${target.tooltip}`
+        : seed
+          ? seed.target_id
+            ? `seed S${seed.seed_id} of T${seed.target_id}: error ${seed.error_mm?.toFixed(2) ?? "?"} mm`
+            : `seed S${seed.seed_id}: matched to no target`
+          : "";
     });
     canvas.addEventListener("pointerup", (event) => {
       const shown = this.shown;
