@@ -47,6 +47,27 @@ echo
 $ctl targets ls | tee "$session/summary.txt"
 $ctl motion | tee -a "$session/summary.txt"
 echo
+
+echo "== the closed loop (docs/VERIFICATION.md): confirmation CT, errors, a fitted tissue, a compensated pass"
+# The world: seeds where a gel the server is not told (configs/demo/hidden_tissue.yaml) deflected
+# the needle, with the CT's noise and partial volume. The server measures them on its own.
+hidden="--hidden-tissue phantom_gel --tissues configs/demo/hidden_tissue.yaml --noise-hu 8"
+# shellcheck disable=SC2086
+"$plan" confirmation-phantom "$session" --robot "$robot" --out "$out/confirmation_1" $hidden
+$ctl verify load "$PWD/$out/confirmation_1" | tee "$session/verification_1.txt"
+$ctl verify fit phantom_gel_fitted
+$ctl run configs/demo/compensated.yaml --out-dir "$session"
+# shellcheck disable=SC2086
+"$plan" confirmation-phantom "$session" --robot "$robot" --out "$out/confirmation_2" $hidden
+$ctl verify load "$PWD/$out/confirmation_2" | tee "$session/verification_2.txt"
+python3 - "$session" <<'PY'
+import re, sys
+mean = [float(re.search(r"error ([0-9.]+) ±", open(f"{sys.argv[1]}/verification_{i}.txt").read()).group(1))
+        for i in (1, 2)]
+print(f"mean targeting error: {mean[0]:.2f} mm as planned, {mean[1]:.2f} mm aimed for the fitted "
+      f"tissue ({mean[0] / max(mean[1], 1e-9):.0f}x smaller)")
+PY
+echo
 echo "== what 3D Slicer sees over OpenIGTLink (docs/OPENIGTLINK.md): workphase, registration, tip"
 igtl_port=$(sed -n 's/.*igtl_port=\([0-9]*\).*/\1/p' "$out/server.ready")
 if [ -n "$igtl_port" ]; then
@@ -127,7 +148,8 @@ echo
 echo "Session folder: $out/"
 ls -1 "$out"
 echo "The server's session: $session/ (journal.jsonl, phantom_ct/, image_to_robot.tfm, fiducials and"
-echo "targets .mrk.json, slices with overlays, summary.txt)."
+echo "targets .mrk.json, slices with overlays, summary.txt, report.md with the targeting errors of"
+echo "both passes' confirmation CTs (verification/targeting.png, seeds.mrk.json; tissues_fitted.yaml))."
 echo "In 3D Slicer: load phantom_ct/ (DICOM), fiducials.mrk.json and image_to_robot.tfm, then put"
 echo "feasible_volume.ply (robot frame) under the transform to see it in the CT. The slice PNGs (with"
 echo "their pixel -> LPS mapping in the matching .json) and IK_STUDY.md open in any viewer."
