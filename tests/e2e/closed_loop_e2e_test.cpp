@@ -18,10 +18,6 @@ namespace {
 using nlohmann::json;
 using namespace std::chrono_literals;
 
-Eigen::Vector3d vec(const json& p) {
-  return {p.at(0).get<double>(), p.at(1).get<double>(), p.at(2).get<double>()};
-}
-
 const std::vector<Eigen::Vector3d> kTargets = {
     {8, 12, -175}, {-6, 10, -182}, {4, -9, -170}, {10, -4, -186}};
 

@@ -63,6 +63,11 @@ inline bool phaseIs(const nlohmann::json& s, const char* phase) {
 }
 
 // The registration a client sees, as a 4x4 image -> robot matrix.
+// A point of a JSON view ([x, y, z]).
+inline Eigen::Vector3d vec(const nlohmann::json& p) {
+  return {p.at(0).get<double>(), p.at(1).get<double>(), p.at(2).get<double>()};
+}
+
 inline Eigen::Matrix4d imageToRobot(const nlohmann::json& state) {
   return protocol::matrixFromState(state["registration"]["image_to_robot"]);
 }

@@ -25,10 +25,6 @@ namespace {
 using nlohmann::json;
 using namespace std::chrono_literals;
 
-Eigen::Vector3d vec(const json& p) {
-  return {p.at(0).get<double>(), p.at(1).get<double>(), p.at(2).get<double>()};
-}
-
 // `--figure` and `--report` wrote a PNG (as wide as three panels) and a Markdown report whose
 // table shows each target's error as the JSON does, with the figure linked beside it.
 void expectReportFiles(const std::filesystem::path& dir, const json& verified) {

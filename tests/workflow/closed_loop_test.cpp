@@ -22,9 +22,9 @@ using test::paperRobot;
 
 constexpr double kDeg = M_PI / 180.0;
 // Six targets at six depths and six planes (the fit needs them apart).
-const std::vector<kinematics::Joints> kJoints = {
-    {30 * kDeg, 10, 25}, {-60 * kDeg, 20, 30}, {150 * kDeg, 5, 35},
-    {90 * kDeg, 15, 20}, {200 * kDeg, 25, 28}, {-120 * kDeg, 30, 15}};
+const std::vector<kinematics::Joints> kJoints = {{30 * kDeg, 10, 25},  {-60 * kDeg, 20, 30},
+                                                 {150 * kDeg, 5, 35},  {90 * kDeg, 15, 20},
+                                                 {200 * kDeg, 25, 28}, {-120 * kDeg, 30, 15}};
 
 config::TissueProfile profile(const std::string& name, double lambda1, double lambda2) {
   auto profiles = config::loadTissueProfiles(IGNAV_SOURCE_DIR "/configs/tissues.yaml");
@@ -216,8 +216,7 @@ TEST(ClosedLoop, APlacedSeedWinsOverTheDetectionAndAMissingOneIsReported) {
   // Accepting a detected match keeps it; a target that was never reached has no seed.
   ASSERT_TRUE(b.send(b.command(InputKind::kAcceptSeed, {}, {b.s.targets[0].id})).accepted);
   EXPECT_EQ(c.targets[0].matched, "accepted");
-  EXPECT_EQ(b.send(b.command(InputKind::kPlaceSeed, {clicked}, {77})).error_code,
-            "unknown_target");
+  EXPECT_EQ(b.send(b.command(InputKind::kPlaceSeed, {clicked}, {77})).error_code, "unknown_target");
 }
 
 TEST(ClosedLoop, SeedCommandsBeforeAnyMeasurementAndLoadsBeforeAnyMotionAreRefused) {
@@ -254,7 +253,7 @@ TEST(ClosedLoop, TheFittedTissueIsTheHiddenOneAndAimingWithItLandsOnTheTargets) 
   const auto fitted = b.send(named(b, InputKind::kFitTissue, "hidden_gel"));
   ASSERT_TRUE(fitted.accepted) << fitted.message;
   ASSERT_EQ(b.s.fitted_tissues.size(), 1u);
-  const auto& f = b.s.fitted_tissues[0];
+  const FittedTissue f = b.s.fitted_tissues[0];  // a copy: the list grows below
   EXPECT_NEAR(f.profile.tissue.lambda1, 0.30, 1e-3) << fitted.message;
   EXPECT_NEAR(f.profile.tissue.lambda2, 0.15, 1e-3) << fitted.message;
   EXPECT_NE(f.yaml.find("hidden_gel:"), std::string::npos) << f.yaml;
@@ -263,9 +262,14 @@ TEST(ClosedLoop, TheFittedTissueIsTheHiddenOneAndAimingWithItLandsOnTheTargets) 
   EXPECT_EQ(b.send(named(b, InputKind::kUseTissue, "hidden_gel")).error_code, "wrong_phase");
   ASSERT_TRUE(b.send(b.command(InputKind::kUnlockPlan)).accepted);
   ASSERT_TRUE(b.send(b.command(InputKind::kClearTargets)).accepted);
+  // The measurement outlives the plan's targets: the fit still has its joints.
+  const auto again_fitted = b.send(named(b, InputKind::kFitTissue, "hidden_gel_again"));
+  ASSERT_TRUE(again_fitted.accepted) << again_fitted.message;
+  EXPECT_NEAR(b.s.fitted_tissues.at(1).profile.tissue.lambda1, 0.30, 1e-3);
   const auto unknown = b.send(named(b, InputKind::kUseTissue, "granite"));
   EXPECT_EQ(unknown.error_code, "unknown_tissue");
-  EXPECT_NE(unknown.message.find("agar, hidden_gel"), std::string::npos) << unknown.message;
+  EXPECT_NE(unknown.message.find("agar, hidden_gel, hidden_gel_again"), std::string::npos)
+      << unknown.message;
   ASSERT_TRUE(b.send(named(b, InputKind::kUseTissue, "hidden_gel")).accepted);
   std::vector<double> nominal_off, compensated_off;
   for (std::size_t i = 0; i < 4; ++i) {
@@ -280,10 +284,11 @@ TEST(ClosedLoop, TheFittedTissueIsTheHiddenOneAndAimingWithItLandsOnTheTargets) 
     EXPECT_LT(compensated_off.back(), 0.01) << t.message;  // the fit's own small error
     EXPECT_EQ(t.steps, paperRobot()->transmission.toSteps(t.compensated->joints).steps);
   }
-  const double mean_nominal =
-      std::accumulate(nominal_off.begin(), nominal_off.end(), 0.0) / static_cast<double>(nominal_off.size());
+  const double mean_nominal = std::accumulate(nominal_off.begin(), nominal_off.end(), 0.0) /
+                              static_cast<double>(nominal_off.size());
   const double mean_compensated =
-      std::accumulate(compensated_off.begin(), compensated_off.end(), 0.0) / static_cast<double>(compensated_off.size());
+      std::accumulate(compensated_off.begin(), compensated_off.end(), 0.0) /
+      static_cast<double>(compensated_off.size());
   EXPECT_GT(mean_nominal, 5.0 * mean_compensated);
   // The approval request shows the nominal and the compensated joints and the landing point.
   ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
@@ -303,7 +308,7 @@ TEST(ClosedLoop, TheFittedTissueIsTheHiddenOneAndAimingWithItLandsOnTheTargets) 
   auto again = replayJournal(replayed, b.journal, reload, "journal");
   ASSERT_TRUE(again) << again.error().message;
   EXPECT_EQ(again->revision, b.s.revision);
-  ASSERT_EQ(again->fitted_tissues.size(), 1u);
+  ASSERT_EQ(again->fitted_tissues.size(), 2u);
   EXPECT_EQ(again->fitted_tissues[0].profile.tissue.lambda1, f.profile.tissue.lambda1);
   ASSERT_TRUE(again->pending.has_value());
   EXPECT_EQ(again->pending->digest, b.s.pending->digest);

@@ -6,8 +6,8 @@
 #include <cmath>
 #include <set>
 
-#include <Eigen/Geometry>
 #include <fmt/format.h>
+#include <Eigen/Geometry>
 
 #include "actions.hpp"
 #include "ignav/verification/seed_matching.hpp"
@@ -89,7 +89,8 @@ void rematch(Session& s) {
   std::vector<verification::TargetPoint> open;
   for (const Target* t : reachedTargets(s)) {
     const auto review = c.reviews.find(t->id);
-    const FoundSeed* seed = review == c.reviews.end() ? nullptr : seedById(c, review->second.seed_id);
+    const FoundSeed* seed =
+        review == c.reviews.end() ? nullptr : seedById(c, review->second.seed_id);
     if (seed && !seed->rejected) {
       pairs[t->id] = {seed, review->second.how};
       used.insert(seed->id);
@@ -132,14 +133,14 @@ void rematch(Session& s) {
       c.missing_targets.push_back(t->id);
       continue;
     }
-    auto error = verification::targetError({t->id, t->robot_mm}, pair->second.first->lps_mm,
-                                           image_to_robot);
+    auto error =
+        verification::targetError({t->id, t->robot_mm}, pair->second.first->lps_mm, image_to_robot);
     if (!error) {  // a finite similarity and finite points: cannot happen
       c.status = "unmatched";
       c.message = "target " + std::to_string(t->id) + ": " + error.error().message;
       return;
     }
-    MeasuredTarget m{*error, pair->second.first->id, pair->second.second};
+    MeasuredTarget m{*error, pair->second.first->id, pair->second.second, t->reached_joints};
     predict(s, *t, m);
     c.targets.push_back(m);
     errors.push_back(*error);
@@ -159,10 +160,9 @@ Refusal needsMeasurement(const Session& s) {
 }
 
 bool isProfileName(const std::string& name) {
-  return !name.empty() && name.size() <= 64 &&
-         std::all_of(name.begin(), name.end(), [](char ch) {
-           return std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-';
-         });
+  return !name.empty() && name.size() <= 64 && std::all_of(name.begin(), name.end(), [](char ch) {
+    return std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-';
+  });
 }
 
 // The profiles use_tissue may name: the configured one and those fitted in this session.
@@ -256,9 +256,9 @@ Refusal placeSeed(Session& s, const Input& in, ActionOutput& out) {
   if (auto bad = needsMeasurement(s)) return bad;
   const Target* t = findTarget(s, in.ids[0]);
   if (!t || !t->reached) {
-    return Rejection{ReplyCode::kUnknownTarget,
-                     fmt::format("no reached target {}: seeds belong to reached targets",
-                                 in.ids[0])};
+    return Rejection{
+        ReplyCode::kUnknownTarget,
+        fmt::format("no reached target {}: seeds belong to reached targets", in.ids[0])};
   }
   Confirmation& c = s.confirmation;
   const auto review = c.reviews.find(t->id);
@@ -278,8 +278,8 @@ Refusal placeSeed(Session& s, const Input& in, ActionOutput& out) {
   c.reviews[t->id] = {placed->id, "placed"};
   rematch(s);
   out.effects.confirmation_changed = true;
-  out.note = fmt::format("target {}'s seed placed by hand (seed #{}); {}", t->id, placed->id,
-                         c.message);
+  out.note =
+      fmt::format("target {}'s seed placed by hand (seed #{}); {}", t->id, placed->id, c.message);
   return std::nullopt;
 }
 
@@ -306,9 +306,9 @@ Refusal rejectSeed(Session& s, const Input& in, ActionOutput& out) {
   const auto seed = std::find_if(c.seeds.begin(), c.seeds.end(),
                                  [&](const FoundSeed& x) { return x.id == in.ids[0]; });
   if (seed == c.seeds.end()) {
-    return Rejection{ReplyCode::kUnknownSeed,
-                     fmt::format("no seed {} on the confirmation CT (seeds {})", in.ids[0],
-                                 seedIds(c))};
+    return Rejection{
+        ReplyCode::kUnknownSeed,
+        fmt::format("no seed {} on the confirmation CT (seeds {})", in.ids[0], seedIds(c))};
   }
   seed->rejected = true;
   for (auto r = c.reviews.begin(); r != c.reviews.end();) {
@@ -340,8 +340,7 @@ Refusal fitTissue(Session& s, const Input& in, ActionOutput& out) {
   model.needle = s.tissue->needle;
   std::vector<compensation::TargetingRecord> records;
   for (const auto& m : c.targets) {
-    const Target* t = findTarget(s, m.error.target_id);
-    records.push_back({"T" + std::to_string(t->id), m.error.planned_robot_mm, t->reached_joints,
+    records.push_back({"T" + std::to_string(m.error.target_id), m.error.planned_robot_mm, m.joints,
                        m.error.actual_robot_mm});
   }
   auto fit = compensation::fitTissueFromTargeting(s.robot->kinematics, model, records);

@@ -50,9 +50,13 @@ struct MeasuredTarget {
   verification::TargetError error;
   std::uint32_t seed_id = 0;
   std::string matched;  // "detected" | "accepted" | "placed"
+  // The joints it was reached with (Target::reached_joints): what a tissue fit explains, kept
+  // here so that a fit still works once the plan's targets are cleared for the next pass.
+  kinematics::Joints joints;
   // Where the model (the session's tissue, joints as commanded) predicted the tip would land,
   // robot frame; NaN without a tissue. Its distance from the plan: what the model had predicted.
-  Eigen::Vector3d predicted_robot_mm = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::Vector3d predicted_robot_mm =
+      Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   double predicted_error_mm = std::numeric_limits<double>::quiet_NaN();
 };
 
@@ -62,7 +66,7 @@ struct Confirmation {
   // the match needs a person: ambiguous or more seeds than targets; `message` says why)
   std::string status = "none";
   std::string source;
-  std::string message;  // for a person: the outcome, or why the last scan was refused
+  std::string message;          // for a person: the outcome, or why the last scan was refused
   std::uint64_t measuring = 0;  // the job under way (0: none)
   std::string measuring_source;
   std::vector<Eigen::Vector3d> markers_lps_mm;  // on the confirmation CT, in the model's order
