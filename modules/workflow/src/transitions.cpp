@@ -187,9 +187,6 @@ std::vector<Transition> buildTable() {
     t.push_back(
         {p, I::kFiducialDetectionFailed, always, p, noteDetectionFailure, "no markers matched"});
   }
-  // resume returns to the phase the first interruption left (a move in flight: plan_locked, to be
-  // approved again), or to done when nothing is left to move. Interruptions taken while
-  // interrupted (manual after stop, emergency in manual) keep that phase (issue 27).
   // The closed loop (issue 23): a confirmation CT is measured, its seeds corrected and a tissue
   // fitted wherever the robot rests with targets planned; the measurement may end anywhere. The
   // aim changes only with the plan open.
@@ -206,6 +203,9 @@ std::vector<Transition> buildTable() {
     t.push_back({p, I::kConfirmationFailed, always, p, noteConfirmationFailure, "scan refused"});
   }
   t.push_back({P::kPlanning, I::kUseTissue, always, P::kPlanning, useTissue, "aim for a tissue"});
+  // resume returns to the phase the first interruption left (a move in flight: plan_locked, to be
+  // approved again), or to done when nothing is left to move. Interruptions taken while
+  // interrupted (manual after stop, emergency in manual) keep that phase (issue 27).
   for (std::size_t i = 0; i < std::size(kResumePhases); ++i) {
     const Phase back = kResumePhases[i];
     t.push_back(
