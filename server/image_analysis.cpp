@@ -112,11 +112,11 @@ void ImageAnalysis::loop() {
         queued_confirmation_.reset();
       }
     }
-    Input in = detection ? runTimed(*detection, "marker detection", detection->ct_source,
-                                    InputKind::kFiducialDetectionFailed, workflow::detectFiducials)
-                         : runTimed(*confirmation, "confirmation CT measurement",
-                                    confirmation->source, InputKind::kConfirmationFailed,
-                                    workflow::measureConfirmation);
+    Input in = detection
+                   ? runTimed(*detection, "marker detection", detection->ct_source,
+                              InputKind::kFiducialDetectionFailed, workflow::detectFiducials)
+                   : runTimed(*confirmation, "confirmation CT measurement", confirmation->source,
+                              InputKind::kConfirmationFailed, workflow::measureConfirmation);
     {
       std::lock_guard<std::mutex> lock(mutex_);
       done_.push_back(std::move(in));

@@ -22,7 +22,6 @@
 
 #include "clock.hpp"
 #include "controller_component.hpp"
-#include "image_analysis.hpp"
 #include "ignav/config/robot_config.hpp"
 #include "ignav/journal/journal.hpp"
 #include "ignav/protocol/security.hpp"
@@ -31,6 +30,7 @@
 #include "ignav/protocol/wire/security.hpp"
 #include "ignav/workflow/session.hpp"
 #include "igtl_bridge.hpp"
+#include "image_analysis.hpp"
 #include "reports.hpp"
 #include "server_options.hpp"
 #include "slices.hpp"

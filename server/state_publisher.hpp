@@ -1,8 +1,8 @@
 // The state topics (docs/PROTOCOL.md): WorkflowState, RobotState, VolumeState, RegistrationState,
-// TargetState, ApprovalState, MotionState, VerificationState and Health, written from a Session and what the server
-// knows beside it (the controller's reading, a load's progress): each as its value (protocol's
-// types.hpp), which protocol converts and writes. The event thread's own: it is the only caller,
-// right after a step's journal record (effect_order.hpp).
+// TargetState, ApprovalState, MotionState, VerificationState and Health, written from a Session and
+// what the server knows beside it (the controller's reading, a load's progress): each as its value
+// (protocol's types.hpp), which protocol converts and writes. The event thread's own: it is the
+// only caller, right after a step's journal record (effect_order.hpp).
 #pragma once
 
 #include <cstddef>

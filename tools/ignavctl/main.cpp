@@ -739,7 +739,8 @@ int main(int argc, char** argv) {
         const auto& v = *client.mirror().verification;
         return v.status == "measured" && v.source == rest[0] ? 0 : kExitRejected;
       }
-      if (verb == "place" && rest.size() == 2) return send("place_seed", {"", {triple(rest[1])}, {id(0)}});
+      if (verb == "place" && rest.size() == 2)
+        return send("place_seed", {"", {triple(rest[1])}, {id(0)}});
       if (verb == "accept" && rest.size() == 1) return send("accept_seed", {"", {}, {id(0)}});
       if (verb == "reject" && rest.size() == 1) return send("reject_seed", {"", {}, {id(0)}});
       if (verb == "fit" && rest.size() == 1) return send("fit_tissue", {rest[0], {}, {}});

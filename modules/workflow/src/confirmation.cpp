@@ -33,8 +33,7 @@ Input measureConfirmation(const ConfirmationJob& job) {
   markers.volume = std::make_shared<const volume::Volume>(std::move(loaded->volume));
   markers.ct_source = job.source;
   markers.search = job.robot->config.registration.fiducials;
-  markers.model_mm.assign(job.robot->feature_points_mm.begin(),
-                          job.robot->feature_points_mm.end());
+  markers.model_mm.assign(job.robot->feature_points_mm.begin(), job.robot->feature_points_mm.end());
   const Input found = detectFiducials(markers);
   if (found.kind != InputKind::kFiducialsDetected) {
     in.error = fmt::format(

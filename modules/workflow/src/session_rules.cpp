@@ -80,8 +80,8 @@ void aim(const Session& s, Target& t) {
   model.tissue = s.aim_tissue->tissue;
   auto c = compensation::compensate(s.robot->kinematics, model, t.robot_mm);
   if (!c) {
-    t.compensation_refusal = fmt::format("aiming for tissue '{}': {}", s.aim_tissue->name,
-                                         c.error().message);
+    t.compensation_refusal =
+        fmt::format("aiming for tissue '{}': {}", s.aim_tissue->name, c.error().message);
     return;
   }
   t.compensated = CompensatedAim{s.aim_tissue->name, c->compensated, c->compensated_landing_mm,

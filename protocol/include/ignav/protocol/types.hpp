@@ -428,37 +428,37 @@ struct Fields<SeedState> {
 template <>
 struct Fields<MeasuredTargetState> {
   using T = MeasuredTargetState;
-  static constexpr auto list = std::make_tuple(
-      IGNAV_FIELD(target_id), IGNAV_FIELD(seed_id), IGNAV_FIELD(matched),
-      IGNAV_FIELD(planned_robot), IGNAV_FIELD(actual_robot), IGNAV_FIELD(planned_lps),
-      IGNAV_FIELD(actual_lps), IGNAV_FIELD(error_robot), IGNAV_FIELD(error_lps),
-      IGNAV_FIELD(error_mm), IGNAV_FIELD(lateral_mm), IGNAV_FIELD(radial_mm),
-      IGNAV_FIELD(tangential_mm), IGNAV_FIELD(depth_mm),
-      field("predicted_robot", &T::predicted_robot,
-            [](auto& msg) { return std::tie(msg.predicted_robot, msg.predicted); }),
-      IGNAV_FIELD(predicted_error_mm));
+  static constexpr auto list =
+      std::make_tuple(IGNAV_FIELD(target_id), IGNAV_FIELD(seed_id), IGNAV_FIELD(matched),
+                      IGNAV_FIELD(planned_robot), IGNAV_FIELD(actual_robot),
+                      IGNAV_FIELD(planned_lps), IGNAV_FIELD(actual_lps), IGNAV_FIELD(error_robot),
+                      IGNAV_FIELD(error_lps), IGNAV_FIELD(error_mm), IGNAV_FIELD(lateral_mm),
+                      IGNAV_FIELD(radial_mm), IGNAV_FIELD(tangential_mm), IGNAV_FIELD(depth_mm),
+                      field("predicted_robot", &T::predicted_robot,
+                            [](auto& msg) { return std::tie(msg.predicted_robot, msg.predicted); }),
+                      IGNAV_FIELD(predicted_error_mm));
 };
 
 template <>
 struct Fields<FittedTissueState> {
   using T = FittedTissueState;
-  static constexpr auto list = std::make_tuple(
-      IGNAV_FIELD(name), IGNAV_FIELD(lambda1), IGNAV_FIELD(lambda2), IGNAV_FIELD(lambda1_se),
-      IGNAV_FIELD(lambda2_se), IGNAV_FIELD(rms_mm), IGNAV_FIELD(rms_bicycle_mm),
-      IGNAV_FIELD(rms_no_deflection_mm), IGNAV_FIELD(targets), IGNAV_FIELD(limit),
-      IGNAV_FIELD(yaml));
+  static constexpr auto list =
+      std::make_tuple(IGNAV_FIELD(name), IGNAV_FIELD(lambda1), IGNAV_FIELD(lambda2),
+                      IGNAV_FIELD(lambda1_se), IGNAV_FIELD(lambda2_se), IGNAV_FIELD(rms_mm),
+                      IGNAV_FIELD(rms_bicycle_mm), IGNAV_FIELD(rms_no_deflection_mm),
+                      IGNAV_FIELD(targets), IGNAV_FIELD(limit), IGNAV_FIELD(yaml));
 };
 
 template <>
 struct Fields<VerificationState> {
   using T = VerificationState;
   static constexpr auto list = std::make_tuple(
-      IGNAV_FIELD(status), IGNAV_FIELD(source), IGNAV_FIELD(measuring_source),
-      IGNAV_FIELD(message), IGNAV_FIELD(registration_reused), IGNAV_FIELD(marker_shift_mm),
-      IGNAV_FIELD(fre_mm), IGNAV_FIELD(image_to_robot), IGNAV_FIELD(detection_summary),
-      IGNAV_FIELD(seeds), IGNAV_FIELD(targets), IGNAV_FIELD(missing_targets),
-      IGNAV_FIELD(extra_seeds), IGNAV_FIELD(error), IGNAV_FIELD(lateral), IGNAV_FIELD(depth),
-      IGNAV_FIELD(summary), IGNAV_FIELD(fitted_tissues), IGNAV_FIELD(aim_tissue));
+      IGNAV_FIELD(status), IGNAV_FIELD(source), IGNAV_FIELD(measuring_source), IGNAV_FIELD(message),
+      IGNAV_FIELD(registration_reused), IGNAV_FIELD(marker_shift_mm), IGNAV_FIELD(fre_mm),
+      IGNAV_FIELD(image_to_robot), IGNAV_FIELD(detection_summary), IGNAV_FIELD(seeds),
+      IGNAV_FIELD(targets), IGNAV_FIELD(missing_targets), IGNAV_FIELD(extra_seeds),
+      IGNAV_FIELD(error), IGNAV_FIELD(lateral), IGNAV_FIELD(depth), IGNAV_FIELD(summary),
+      IGNAV_FIELD(fitted_tissues), IGNAV_FIELD(aim_tissue));
 };
 
 template <>

@@ -147,9 +147,9 @@ struct Target {
   Eigen::Vector3d lps_mm = Eigen::Vector3d::Zero();
   bool registered = false;
   Eigen::Vector3d robot_mm = Eigen::Vector3d::Zero();
-  kinematics::InverseSolution solution;  // exact IK: the nominal joints
+  kinematics::InverseSolution solution;       // exact IK: the nominal joints
   std::optional<CompensatedAim> compensated;  // with a tissue profile chosen
-  actuation::Steps steps;  // of commandedJoints()
+  actuation::Steps steps;                     // of commandedJoints()
   double tre_mm = 0.0;
   bool tre_warning = false;
   // Model prediction (extended bicycle model, the session's tissue): how far the cannula's tip
