@@ -37,7 +37,8 @@ void printVerification(const protocol::StateMirror& state) {
                 "actual (robot mm)", "error", "lateral", "depth", "predicted", "matched");
     for (const auto& t : v.targets) {
       char predicted[16] = "-";
-      if (t.predicted_robot) std::snprintf(predicted, sizeof predicted, "%.2f", t.predicted_error_mm);
+      if (t.predicted_robot)
+        std::snprintf(predicted, sizeof predicted, "%.2f", t.predicted_error_mm);
       std::printf("T%-3u #%-5u %-26s %-26s %7.2f %7.2f %7.2f %9s  %s\n", t.target_id, t.seed_id,
                   point(t.planned_robot).c_str(), point(t.actual_robot).c_str(), t.error_mm,
                   t.lateral_mm, t.depth_mm, predicted, t.matched.c_str());
