@@ -11,10 +11,8 @@
 #include "ignav/config/tissue_profiles.hpp"
 #include "ignav/registration/slicer_export.hpp"
 #include "ignav/verification/confirmation_registration.hpp"
-#include "ignav/verification/seed_detection.hpp"
 #include "ignav/verification/targeting_error.hpp"
 #include "ignav/verification/targeting_report.hpp"
-#include "ignav/volume/load.hpp"
 #include "ignav/volume/render.hpp"
 #include "ignav/workflow/reducer.hpp"
 #include "session_commands.hpp"
@@ -179,36 +177,23 @@ json verifySession(const VerifyArgs& args) {
                    ": no target of this session was reached: there are no seeds to measure"};
   }
 
-  auto loaded = volume::loadVolume(args.confirmation_ct, {});
-  if (!loaded) throw CliError{args.confirmation_ct + ": " + loaded.error().message};
-  const auto ct = std::make_shared<const volume::Volume>(std::move(loaded->volume));
-
-  // The robot's markers on the confirmation CT, found as auto_fiducials finds them.
-  workflow::FiducialDetectionJob job;
-  job.volume = ct;
-  job.ct_source = args.confirmation_ct;
-  job.search = robot.config.registration.fiducials;
-  job.model_mm.assign(robot.feature_points_mm.begin(), robot.feature_points_mm.end());
-  const workflow::Input markers = workflow::detectFiducials(job);
-  if (markers.kind != workflow::InputKind::kFiducialsDetected) {
-    throw CliError{args.confirmation_ct + ": the robot's markers were not found (" + markers.error +
-                   "): the confirmation CT cannot be registered"};
-  }
+  // The scan loaded, the robot's markers and the seeds found, as the server's load_confirmation
+  // does it (workflow::measureConfirmation).
+  const workflow::Input scan =
+      workflow::measureConfirmation({1, args.confirmation_ct, session.robot});
+  if (scan.kind != workflow::InputKind::kConfirmationMeasured) throw CliError{scan.error};
+  const std::vector<Eigen::Vector3d> model(robot.feature_points_mm.begin(),
+                                           robot.feature_points_mm.end());
   auto confirmed = verification::registerConfirmation(
-      *session.registration, markers.points, job.model_mm, robot.config.registration.kind,
+      *session.registration, scan.points, model, robot.config.registration.kind,
       robot.config.registration.limits, {args.reuse_within_mm, args.max_marker_shift_mm});
   if (!confirmed) throw CliError{args.confirmation_ct + ": " + confirmed.error().message};
-
-  verification::SeedSearch search;
-  search.markers_lps_mm = markers.points;
-  auto found = verification::findSeeds(*ct, search);
-  if (!found) throw CliError{args.confirmation_ct + ": " + found.error().message};
-  if (found->seeds.empty()) {
-    throw CliError{args.confirmation_ct + ": no seeds found (" + found->summary + ")"};
+  if (scan.seeds.empty()) {
+    throw CliError{args.confirmation_ct + ": no seeds found (" + scan.summary + ")"};
   }
   std::vector<Eigen::Vector3d> seeds;
-  for (const auto& s : found->seeds)
-    seeds.push_back(s.centroid_lps_mm);
+  for (const auto& seed : scan.seeds)
+    seeds.push_back(seed.lps_mm);
   verification::MatchOptions options;
   options.allow_extra_seeds = args.allow_extra_seeds;
   auto verified = verification::verifyTargeting(planned, seeds,
@@ -249,7 +234,7 @@ json verifySession(const VerifyArgs& args) {
         {"fre_mm", confirmed->registration.fre_mm},
         {"image_to_robot", rowMajorJson(confirmed->registration.imageToRobot())},
         {"message", confirmed->message}}},
-      {"seeds", {{"found", found->seeds.size()}, {"summary", found->summary}}},
+      {"seeds", {{"found", scan.seeds.size()}, {"summary", scan.summary}}},
       {"targets", targets},
       {"missing_targets", missing},
       {"extra_seeds_lps_mm", extra},

@@ -150,6 +150,14 @@ void rematch(Session& s) {
   c.message = c.text;
 }
 
+// A scan refused: the measurement before stays (state unchanged) and the message says why.
+void refuseScan(Confirmation& c, const std::string& source, const std::string& why) {
+  c.measuring = 0;
+  c.measuring_source.clear();
+  c.message = fmt::format("the confirmation CT {} was refused: {}{}", source, why,
+                          c.source.empty() ? "" : "; the measurement of " + c.source + " stays");
+}
+
 // Seeds and fits need a measured scan of reached targets.
 Refusal needsMeasurement(const Session& s) {
   if (!s.confirmation.registration) {
@@ -205,13 +213,7 @@ Refusal startConfirmation(Session& s, const Input& in, ActionOutput& out) {
 Refusal adoptConfirmation(Session& s, const Input& in, ActionOutput& out) {
   Confirmation& c = s.confirmation;
   out.effects.confirmation_changed = true;
-  c.measuring = 0;
-  c.measuring_source.clear();
-  // A refusal keeps the measurement from before (state unchanged) and says why.
-  auto refuse = [&](const std::string& why) {
-    c.message = fmt::format("the confirmation CT {} was refused: {}{}", in.path, why,
-                            c.source.empty() ? "" : "; the measurement of " + c.source + " stays");
-  };
+  auto refuse = [&](const std::string& why) { refuseScan(c, in.path, why); };
   if (!s.registration) {
     refuse("the session's registration is gone (a CT loaded meanwhile)");
     return std::nullopt;
@@ -243,11 +245,7 @@ Refusal adoptConfirmation(Session& s, const Input& in, ActionOutput& out) {
 }
 
 Refusal noteConfirmationFailure(Session& s, const Input& in, ActionOutput& out) {
-  Confirmation& c = s.confirmation;
-  c.measuring = 0;
-  c.measuring_source.clear();
-  c.message = fmt::format("the confirmation CT {} was refused: {}{}", in.path, in.error,
-                          c.source.empty() ? "" : "; the measurement of " + c.source + " stays");
+  refuseScan(s.confirmation, in.path, in.error);
   out.effects.confirmation_changed = true;
   return std::nullopt;
 }
