@@ -2,7 +2,9 @@
 // stylet turned about the cannula tip, no tissue at all) and against an independent integrator.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "fixtures.hpp"
@@ -101,6 +103,94 @@ TEST(Landing, CannulaDriftIsWhatThePlannerLabelsTodayWithItsSign) {
   }
   EXPECT_FALSE(cannulaDrift(agar, std::nan("")).ok());
   EXPECT_FALSE(predictLanding(paperRobot(), agar, {0.0, std::nan(""), 1.0}).ok());
+}
+
+double polylineLength(const std::vector<Eigen::Vector3d>& line, std::size_t from = 0) {
+  double length = 0.0;
+  for (std::size_t i = from + 1; i < line.size(); ++i)
+    length += (line[i] - line[i - 1]).norm();
+  return length;
+}
+
+double distanceToPolyline(const std::vector<Eigen::Vector3d>& line, const Eigen::Vector3d& q) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 1; i < line.size(); ++i) {
+    const Eigen::Vector3d ab = line[i] - line[i - 1];
+    const double t = std::clamp((q - line[i - 1]).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+    best = std::min(best, (line[i - 1] + t * ab - q).norm());
+  }
+  return best;
+}
+
+TEST(Path, WithoutTissueItIsTheInstrumentsOwnShape) {
+  // Closed-form properties of MODEL.md §3, none of which predictPath computes directly: the
+  // cannula is P0 + zfixed + zsmax + z_c long whatever z_s is, the stylet leaves it the clearance
+  // c away and has z_s of arc out, and the ends are the forward kinematics.
+  const auto& kin = paperRobot();
+  const auto& g = kin.instrument();
+  const double clearance = 0.5 * (g.cannula_inner_diameter_mm - g.stylet_outer_diameter_mm);
+  for (const kinematics::Joints& j :
+       {kinematics::Joints{2.1, 25.0, 30.0}, kinematics::Joints{0.3, 0.0, 5.0},
+        kinematics::Joints{4.0, 40.0, 40.0}}) {
+    const auto line = kin.centreline(j, 0.25);
+    EXPECT_NEAR(polylineLength(line.cannula_mm),
+                g.cannula_fixed_offset_mm + g.stylet_travel_mm + j.z_c_mm, 1e-4);
+    EXPECT_NEAR(line.cannula_mm.front().norm(), 0.0, 1e-12);  // P0
+    EXPECT_NEAR(polylineLength(line.stylet_mm), j.z_s_mm, 1e-4);
+    EXPECT_NEAR((line.stylet_mm.front() - line.cannula_mm.back()).norm(), clearance, 1e-9);
+    EXPECT_LT((line.cannula_mm.back() - kin.forward(j).cannula_tip_mm).norm(), 1e-9);
+    EXPECT_LT((line.stylet_mm.back() - kin.forward(j).tip_mm).norm(), 1e-9);
+    // With no tissue (k = 0, λ = 0: a straight push) predictPath is that shape, cut 10 mm above
+    // where the tissue begins.
+    const DeflectionModel straight{{0.0, 20.0, -1}, {}, StyletCarry::kRotated};
+    const auto path = predictPath(kin, straight, j, 0.25, 10.0);
+    ASSERT_TRUE(path.ok()) << path.error().message;
+    EXPECT_NEAR(polylineLength(path->cannula_mm), j.z_c_mm + 10.0, 0.25);
+    for (const auto& q : path->cannula_mm)
+      EXPECT_LT(distanceToPolyline(line.cannula_mm, q), 1e-3);  // the chords' sag
+    for (const auto& q : path->stylet_mm)
+      EXPECT_LT(distanceToPolyline(line.stylet_mm, q), 1e-3);
+  }
+}
+
+TEST(Path, InTissueTheCannulaLiesWhereItsTipWent) {
+  // At the final pose, the cannula point that entered the tissue when s mm were in is displaced
+  // from the instrument's shape as the tip was at s (the independent integrator's cannula drift):
+  // at the surface not at all, at the tip by the whole drift (predictLanding's cannula tip).
+  const auto& kin = paperRobot();
+  for (const char* name : {"agar", "plastisol"}) {
+    const DeflectionModel m = profile(name);
+    const kinematics::Joints j{0.7, 33.0, 21.0};
+    const auto path = predictPath(kin, m, j, 0.25, 10.0);
+    ASSERT_TRUE(path.ok()) << path.error().message;
+    const auto landing = predictLanding(kin, m, j);
+    ASSERT_TRUE(landing.ok());
+    EXPECT_EQ(path->cannula_mm.back(), landing->cannula_tip_mm);
+    EXPECT_EQ(path->stylet_mm.back(), landing->tip_mm);
+    const auto shape = kin.centreline(j, 0.25);
+    const double length = shape.cannula_arc_mm.back();
+    const Eigen::Vector3d u(-std::sin(j.theta_c_rad), std::cos(j.theta_c_rad), 0.0);
+    double worst = 0.0;
+    for (std::size_t i = 0; i < shape.cannula_mm.size(); i += 7) {
+      const double s = j.z_c_mm - (length - shape.cannula_arc_mm[i]);
+      if (s < 0.0 || s > j.z_c_mm) continue;
+      const auto end = reference::bicycle(m.needle, m.tissue, s);
+      const Eigen::Vector3d expected =
+          shape.cannula_mm[i] - end.y_mm * u + Eigen::Vector3d(0, 0, s - end.z_mm);
+      worst = std::max(worst, distanceToPolyline(path->cannula_mm, expected));
+    }
+    EXPECT_LT(worst, 1e-4) << name;
+    // The stylet keeps its length.
+    EXPECT_NEAR(polylineLength(path->stylet_mm), j.z_s_mm, 1e-3) << name;
+  }
+}
+
+TEST(Path, BadStepsAreRefused) {
+  const auto& kin = paperRobot();
+  EXPECT_FALSE(predictPath(kin, profile("agar"), {0, 10, 10}, 0.0).ok());
+  EXPECT_FALSE(predictPath(kin, profile("agar"), {0, 10, 10}, std::nan("")).ok());
+  EXPECT_FALSE(predictPath(kin, profile("agar"), {0, 10, 10}, 0.5, -1.0).ok());
+  EXPECT_FALSE(predictPath(kin, profile("agar"), {0, std::nan(""), 10}).ok());
 }
 
 }  // namespace

@@ -32,7 +32,7 @@ std::vector<TargetingRecord> session(const kinematics::Kinematics& kin,
     const auto joints = kin.inverse(planned)->joints;
     Eigen::Vector3d actual = reference::landing(kin, hidden, joints);
     if (noise_mm > 0) actual += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
-    out.push_back({"t" + std::to_string(i + 1), planned, joints, actual});
+    out.push_back({"t" + std::to_string(i + 1), planned, joints, actual, {}});
   }
   return out;
 }
@@ -247,6 +247,86 @@ TEST(TargetingFit, ResultIsANamedProfileThatTheConfigLoads) {
   EXPECT_EQ(config::tissueProfile(*profiles, "agar")->needle.curvature_per_mm, -0.0025);
   EXPECT_FALSE(tissueProfileYaml("my tissue: x", *fit, "", false).ok());
   std::filesystem::remove_all(dir);
+}
+
+// Points every 2 mm along the whole needle as the hidden tissue bends it (cannula from 10 mm above
+// the tissue, then the stylet): what a CT that still shows the needle gives.
+std::vector<Eigen::Vector3d> visiblePath(const kinematics::Kinematics& kin,
+                                         const DeflectionModel& hidden,
+                                         const kinematics::Joints& joints, double noise_mm,
+                                         std::mt19937& rng) {
+  // Sampled finely (exact points of the curve), then every 2 mm.
+  auto path = predictPath(kin, hidden, joints, 0.05, 10.0);
+  EXPECT_TRUE(path.ok());
+  std::vector<Eigen::Vector3d> all = path->cannula_mm, out;
+  all.insert(all.end(), path->stylet_mm.begin(), path->stylet_mm.end());
+  for (std::size_t i = 0; i < all.size(); i += 40)
+    out.push_back(all[i]);
+  std::normal_distribution<double> noise(0.0, noise_mm);
+  if (noise_mm > 0) {
+    for (auto& q : out)
+      q += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+  }
+  return out;
+}
+
+TEST(TargetingFit, OneVisibleNeedlePathDeterminesTheTissue) {
+  // One target alone cannot separate λ1 from λ2 (two in-plane errors, two parameters, and λ1
+  // acts weakly); the same target with its needle still in the CT can: the path's shape along the
+  // whole insertion is the bicycle model's own observable (seed 000 fits paths, not endpoints).
+  const auto& kin = paperRobot();
+  const DeflectionModel hidden = profile("agar");
+  DeflectionModel known = hidden;
+  known.tissue = {};
+  const kinematics::Joints joints{0.4, 38.0, 25.0};
+  const Eigen::Vector3d planned = kin.forward(joints).tip_mm;
+  const Eigen::Vector3d actual = reference::landing(kin, hidden, joints);
+  TargetingRecord alone{"t1", planned, joints, actual, {}};
+  const auto without = fitTissueFromTargeting(kin, known, {alone});
+  EXPECT_FALSE(without.ok());
+  std::mt19937 rng(3);
+  TargetingRecord seen = alone;
+  seen.path_mm = visiblePath(kin, hidden, joints, 0.0, rng);
+  const auto exact = fitTissueFromTargeting(kin, known, {seen});
+  ASSERT_TRUE(exact.ok()) << exact.error().message;
+  // λ1 acts weakly: the predicted path's chords (35 nm of sag) already move it in the third digit.
+  EXPECT_NEAR(exact->tissue.lambda1, hidden.tissue.lambda1, 2e-3);
+  EXPECT_NEAR(exact->tissue.lambda2, hidden.tissue.lambda2, 1e-4);
+  EXPECT_LT(exact->max_error_mm, 1e-4);
+  // With 0.1 mm of centreline noise per axis, and four targets at several depths.
+  int within = 0, runs = 0;
+  for (unsigned seed = 1; seed <= 6; ++seed, ++runs) {
+    std::mt19937 noisy(seed);
+    std::vector<TargetingRecord> records;
+    for (const kinematics::Joints& j :
+         {kinematics::Joints{0.4, 38.0, 25.0}, kinematics::Joints{2.0, 20.0, 35.0},
+          kinematics::Joints{3.5, 30.0, 12.0}, kinematics::Joints{5.1, 12.0, 30.0}}) {
+      TargetingRecord r{"t", kin.forward(j).tip_mm, j, reference::landing(kin, hidden, j), {}};
+      r.path_mm = visiblePath(kin, hidden, j, 0.1, noisy);
+      records.push_back(r);
+    }
+    const auto fit = fitTissueFromTargeting(kin, known, records);
+    ASSERT_TRUE(fit.ok()) << fit.error().message;
+    const auto& se = fit->standard_errors;
+    if (seed == 1) {
+      std::cout << "paths, σ 0.1 mm: λ1 " << fit->tissue.lambda1 << " ± " << se[0] << ", λ2 "
+                << fit->tissue.lambda2 << " ± " << se[1] << "\n";
+    }
+    within += std::abs(fit->tissue.lambda1 - hidden.tissue.lambda1) < 2 * se[0] &&
+              std::abs(fit->tissue.lambda2 - hidden.tissue.lambda2) < 2 * se[1];
+  }
+  EXPECT_GE(within, runs - 1);
+}
+
+TEST(TargetingFit, ANonFinitePathPointIsRefusedNamingTheTarget) {
+  const auto& kin = paperRobot();
+  const kinematics::Joints j{0.4, 38.0, 25.0};
+  TargetingRecord r{"t7", kin.forward(j).tip_mm, j, kin.forward(j).tip_mm, {}};
+  r.path_mm = {Eigen::Vector3d(0, 0, std::nan(""))};
+  const auto fit = fitTissueFromTargeting(kin, profile("agar"), {r, r, r});
+  ASSERT_FALSE(fit.ok());
+  EXPECT_NE(fit.error().message.find("'t7'"), std::string::npos) << fit.error().message;
+  EXPECT_NE(fit.error().message.find("path"), std::string::npos) << fit.error().message;
 }
 
 }  // namespace

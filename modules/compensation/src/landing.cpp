@@ -1,6 +1,7 @@
 // The deflected landing point and the compensated inverse (docs/COMPENSATION.md).
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 
 #include <fmt/format.h>
@@ -74,6 +75,70 @@ Expected<Landing> predictLanding(const kinematics::Kinematics& kinematics,
   out.cannula_tip_mm = to3d(moved);
   out.nominal_tip_mm = pose.tip_mm;
   out.drift = *drift;
+  return out;
+}
+
+Expected<PredictedPath> predictPath(const kinematics::Kinematics& kinematics,
+                                    const DeflectionModel& model, const kinematics::Joints& j,
+                                    double step_mm, double above_mm) {
+  if (!(step_mm >= 0.01 && step_mm <= 10.0) || !(above_mm >= 0.0 && above_mm <= 1000.0)) {
+    return makeError(ErrorCode::kInvalidArgument,
+                     fmt::format("path: step_mm = {} must lie in [0.01, 10] and above_mm = {} "
+                                 "in [0, 1000]",
+                                 step_mm, above_mm));
+  }
+  auto landing = predictLanding(kinematics, model, j);  // checks the joints and the tissue
+  if (!landing) return landing.error();
+  const auto nominal = kinematics.centreline(j, step_mm);
+  const Eigen::Vector3d u(-std::sin(j.theta_c_rad), std::cos(j.theta_c_rad), 0.0);
+  auto to2d = [&](const Eigen::Vector3d& p) { return Eigen::Vector2d(p.dot(u), p.z()); };
+  auto to3d = [&](const Eigen::Vector2d& p) {
+    return Eigen::Vector3d(p.x() * u.x(), p.x() * u.y(), p.y());
+  };
+  // The drift at every inserted length: where the cannula's tip went, the body behind it lies
+  // (the bicycle model's needle follows its tip), so the body point that entered the tissue when
+  // s mm were in is displaced as the tip was then. Linear between the integrator's samples.
+  std::vector<deflection::PathSample> drift;
+  if (j.z_c_mm > 0.0) {
+    auto path = deflection::simulate(model.needle, model.tissue, j.z_c_mm, step_mm);
+    if (!path) return path.error();
+    drift = std::move(*path);
+  }
+  auto displacement = [&](double s_mm) -> Eigen::Vector2d {
+    if (drift.empty() || s_mm <= 0.0) return Eigen::Vector2d::Zero();
+    auto next =
+        std::lower_bound(drift.begin(), drift.end(), s_mm,
+                         [](const deflection::PathSample& p, double s) { return p.s_mm < s; });
+    if (next == drift.end()) next = std::prev(drift.end());
+    const auto prev = next == drift.begin() ? next : std::prev(next);
+    const double span = next->s_mm - prev->s_mm;
+    const double t = span > 0.0 ? (s_mm - prev->s_mm) / span : 1.0;
+    const double y = prev->y_mm + t * (next->y_mm - prev->y_mm);
+    const double z = prev->z_mm + t * (next->z_mm - prev->z_mm);
+    return {-y, s_mm - z};  // towards +y′, and short of the straight push (as cannulaDrift)
+  };
+  PredictedPath out;
+  const double length_mm = nominal.cannula_arc_mm.back();
+  for (std::size_t i = 0; i < nominal.cannula_mm.size(); ++i) {
+    const double behind_tip_mm = length_mm - nominal.cannula_arc_mm[i];
+    if (behind_tip_mm > std::max(j.z_c_mm, 0.0) + above_mm) continue;  // inside the robot
+    out.cannula_mm.push_back(
+        to3d(to2d(nominal.cannula_mm[i]) + displacement(j.z_c_mm - behind_tip_mm)));
+  }
+  out.cannula_mm.back() = landing->cannula_tip_mm;  // the same point, exactly
+  // The stylet keeps its shape relative to the cannula tip and turns with it (predictLanding).
+  const Eigen::Vector2d moved = to2d(landing->cannula_tip_mm);
+  const Eigen::Vector2d cannula_tip = to2d(nominal.cannula_mm.back());
+  const double c = std::cos(landing->drift.heading_rad), s = std::sin(landing->drift.heading_rad);
+  const bool rotated = model.carry == StyletCarry::kRotated;
+  for (const auto& p : nominal.stylet_mm) {
+    Eigen::Vector2d stylet = to2d(p) - cannula_tip;
+    if (rotated) {
+      stylet = Eigen::Vector2d(c * stylet.x() - s * stylet.y(), s * stylet.x() + c * stylet.y());
+    }
+    out.stylet_mm.push_back(to3d(moved + stylet));
+  }
+  out.stylet_mm.back() = landing->tip_mm;
   return out;
 }
 

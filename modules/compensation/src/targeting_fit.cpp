@@ -26,10 +26,38 @@ int parameterCount(Kind kind) {
   return kind == Kind::kExtended ? 2 : kind == Kind::kExtendedWithCurvature ? 3 : 1;
 }
 
+// The predicted path is sampled this finely: its chords sag 0.1² / (8 · 35.5) = 35 nm off the
+// stylet's arc, far below a CT's localisation. It reaches this far above the tissue (a CT shows
+// the cannula up to the robot).
+constexpr double kPathStep_mm = 0.1;
+constexpr double kPathAbove_mm = 40.0;
+
+int pathPoints(const std::vector<TargetingRecord>& records) {
+  std::size_t n = 0;
+  for (const auto& r : records)
+    n += r.path_mm.size();
+  return static_cast<int>(n);
+}
+
+// From q to the nearest point of the polyline.
+Eigen::Vector3d offsetToPolyline(const std::vector<Eigen::Vector3d>& line,
+                                 const Eigen::Vector3d& q) {
+  Eigen::Vector3d best = line.front() - q;
+  for (std::size_t i = 1; i < line.size(); ++i) {
+    const Eigen::Vector3d a = line[i - 1], ab = line[i] - a;
+    const double len2 = ab.squaredNorm();
+    const double t = len2 > 0.0 ? std::clamp((q - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+    const Eigen::Vector3d d = a + t * ab - q;
+    if (d.squaredNorm() < best.squaredNorm()) best = d;
+  }
+  return best;
+}
+
 struct Residuals : Eigen::DenseFunctor<double> {
   Residuals(const kinematics::Kinematics& k, const DeflectionModel& m,
             const std::vector<TargetingRecord>& r, Kind kind)
-      : Eigen::DenseFunctor<double>(parameterCount(kind), 3 * static_cast<int>(r.size())),
+      : Eigen::DenseFunctor<double>(parameterCount(kind),
+                                    3 * (static_cast<int>(r.size()) + pathPoints(r))),
         kinematics(k),
         model(m),
         records(r),
@@ -58,6 +86,23 @@ struct Residuals : Eigen::DenseFunctor<double> {
       const Eigen::Vector3d e = landing ? Eigen::Vector3d(landing->tip_mm - records[i].actual_mm)
                                         : Eigen::Vector3d::Constant(kPenalty_mm);
       r.segment<3>(3 * static_cast<Eigen::Index>(i)) = e;
+    }
+    // The paths after the landings, so that the landings' errors stay the first 3n values.
+    Eigen::Index at = 3 * static_cast<Eigen::Index>(records.size());
+    for (const auto& record : records) {
+      if (record.path_mm.empty()) continue;
+      auto path = predictPath(kinematics, m, record.joints, kPathStep_mm, kPathAbove_mm);
+      inside = inside && path.ok();
+      std::vector<Eigen::Vector3d> line;
+      if (path) {
+        line = path->cannula_mm;
+        line.insert(line.end(), path->stylet_mm.begin(), path->stylet_mm.end());
+      }
+      for (const auto& q : record.path_mm) {
+        r.segment<3>(at) =
+            path ? offsetToPolyline(line, q) : Eigen::Vector3d::Constant(kPenalty_mm);
+        at += 3;
+      }
     }
     return inside;
   }
@@ -171,10 +216,11 @@ Solved solve(Residuals& f, Eigen::VectorXd x, int max_evaluations) {
   return out;
 }
 
-// Per-target 3-D error norms of a residual vector.
-std::vector<double> norms(const Eigen::VectorXd& r) {
+// Per-target 3-D error norms of a residual vector (its first 3 × targets values: the landings).
+std::vector<double> norms(const Eigen::VectorXd& r, std::size_t targets) {
   std::vector<double> out;
-  for (Eigen::Index i = 0; i + 2 < r.size(); i += 3)
+  const auto end = std::min<Eigen::Index>(r.size(), 3 * static_cast<Eigen::Index>(targets));
+  for (Eigen::Index i = 0; i + 2 < end; i += 3)
     out.push_back(r.segment<3>(i).norm());
   return out;
 }
@@ -194,8 +240,10 @@ Expected<TargetingFit> fitTissueFromTargeting(const kinematics::Kinematics& kine
                                               const TargetingFitOptions& options) {
   const Kind kind = options.fit_curvature ? Kind::kExtendedWithCurvature : Kind::kExtended;
   const int p = parameterCount(kind);
-  // Each target gives two in-plane residuals that the tissue moves (and one across, noise only).
-  if (2 * records.size() <= static_cast<std::size_t>(p)) {
+  // Each target gives two in-plane residuals that the tissue moves (and one across, noise only);
+  // a visible path as many again per point.
+  const auto observations = 2 * (records.size() + static_cast<std::size_t>(pathPoints(records)));
+  if (observations <= static_cast<std::size_t>(p)) {
     return makeError(
         ErrorCode::kInvalidArgument,
         fmt::format("{} targets for {} parameters: need at least {}", records.size(), p, p / 2 + 1),
@@ -204,10 +252,13 @@ Expected<TargetingFit> fitTissueFromTargeting(const kinematics::Kinematics& kine
   double deepest = 0.0, shallowest = std::numeric_limits<double>::infinity();
   for (const auto& r : records) {
     const auto& j = r.joints;
-    if (!r.planned_mm.allFinite() || !r.actual_mm.allFinite() || !std::isfinite(j.theta_c_rad) ||
-        !std::isfinite(j.z_c_mm) || !std::isfinite(j.z_s_mm)) {
-      return makeError(ErrorCode::kInvalidArgument,
-                       fmt::format("target '{}': planned, actual and joints must be finite", r.id));
+    const bool path_finite = std::all_of(r.path_mm.begin(), r.path_mm.end(),
+                                         [](const Eigen::Vector3d& q) { return q.allFinite(); });
+    if (!r.planned_mm.allFinite() || !r.actual_mm.allFinite() || !path_finite ||
+        !std::isfinite(j.theta_c_rad) || !std::isfinite(j.z_c_mm) || !std::isfinite(j.z_s_mm)) {
+      return makeError(
+          ErrorCode::kInvalidArgument,
+          fmt::format("target '{}': planned, actual, path and joints must be finite", r.id));
     }
     if (auto ok = kinematics.checkJoints(j); !ok) {
       return makeError(ErrorCode::kInvalidArgument,
@@ -246,11 +297,12 @@ Expected<TargetingFit> fitTissueFromTargeting(const kinematics::Kinematics& kine
   }
   const Solved fit = solve(extended, x0, options.max_evaluations);
   if (!fit.converged) {
-    return makeError(ErrorCode::kDegenerate,
-                     fmt::format("the fit did not converge in {} iterations (λ1 = {:.4g}, "
-                                 "λ2 = {:.4g}, RMS {:.3g} mm)",
-                                 fit.iterations, fit.x[0], fit.x[1], rms(norms(fit.residuals))),
-                     "not_converged");
+    return makeError(
+        ErrorCode::kDegenerate,
+        fmt::format("the fit did not converge in {} iterations (λ1 = {:.4g}, "
+                    "λ2 = {:.4g}, RMS {:.3g} mm)",
+                    fit.iterations, fit.x[0], fit.x[1], rms(norms(fit.residuals, records.size()))),
+        "not_converged");
   }
   if (const double c = condition(fit.jacobian); !(c < kMaxCondition)) return underdetermined(c);
 
@@ -268,7 +320,7 @@ Expected<TargetingFit> fitTissueFromTargeting(const kinematics::Kinematics& kine
                                  out.tissue.lambda1, out.tissue.lambda2, ok.reason),
                      "inadmissible");
   }
-  const auto errors = norms(fit.residuals);
+  const auto errors = norms(fit.residuals, records.size());
   out.rms_mm = rms(errors);
   out.max_error_mm = *std::max_element(errors.begin(), errors.end());
   const double dof = static_cast<double>(fit.residuals.size() - p);
@@ -285,7 +337,7 @@ Expected<TargetingFit> fitTissueFromTargeting(const kinematics::Kinematics& kine
   Eigen::VectorXd k0(1);
   k0[0] = model.needle.curvature_per_mm;
   const Solved bicycle = solve(plain, k0, options.max_evaluations);
-  const auto bicycle_errors = norms(bicycle.residuals);
+  const auto bicycle_errors = norms(bicycle.residuals, records.size());
   out.bicycle_curvature_per_mm = bicycle.x[0];
   out.rms_bicycle_mm = rms(bicycle_errors);
   out.max_error_bicycle_mm = *std::max_element(bicycle_errors.begin(), bicycle_errors.end());

@@ -1,4 +1,5 @@
 // Forward kinematics and geometry validation (MODEL.md §3-4).
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -231,6 +232,47 @@ TipPose Kinematics::forward(const Joints& j) const {
   pose.cannula_tip_mm = {-p.cannula_y_mm * s, p.cannula_y_mm * c, p.cannula_z_mm - j.z_c_mm};
   pose.approach_rad = p.gamma_rad;
   return pose;
+}
+
+Centreline Kinematics::centreline(const Joints& j, double step_mm) const {
+  const Instrument& g = instrument_;
+  const double R = g.stylet_radius_mm;
+  const CannulaBend b = cannulaBend(j.z_s_mm);
+  const Planar tip = planar(j.z_s_mm, g.exit_offset);
+  const double arc_mm = rigid_ ? 0.0 : g.stylet_curved_length_mm - j.z_s_mm;
+  const double length_mm = g.cannula_fixed_offset_mm + g.stylet_travel_mm + j.z_c_mm;
+  const double straight_mm = length_mm - arc_mm;
+  const double s = std::sin(j.theta_c_rad), c = std::cos(j.theta_c_rad);
+  auto at = [&](double y, double z) { return Eigen::Vector3d(-y * s, y * c, z); };
+  auto count = [&](double mm) { return std::max(1, static_cast<int>(std::ceil(mm / step_mm))); };
+  Centreline out;
+  // P0 is fixed to the casing: pushing the cannula in lengthens its straight part (MODEL.md §3).
+  const int n_straight = count(straight_mm);
+  for (int i = 0; i < n_straight; ++i) {
+    const double a = straight_mm * i / n_straight;
+    out.cannula_mm.push_back(at(0.0, -a));
+    out.cannula_arc_mm.push_back(a);
+  }
+  const int n_arc = arc_mm > 0.0 ? count(arc_mm) : 0;
+  for (int i = 0; i <= n_arc; ++i) {
+    const double t = n_arc > 0 ? b.theta_d_rad * i / n_arc : 0.0;
+    const double rd = g.cannula_deflected_radius_mm;
+    out.cannula_mm.push_back(at(rd * (1.0 - std::cos(t)), -straight_mm - rd * std::sin(t)));
+    out.cannula_arc_mm.push_back(straight_mm + (n_arc > 0 ? arc_mm * i / n_arc : 0.0));
+  }
+  out.cannula_mm.back() = at(tip.cannula_y_mm, tip.cannula_z_mm - j.z_c_mm);
+  // The stylet leaves at P2 + Δ with heading ψ0 and turns to γ over z_s of arc (eqs 7, 8).
+  const double psi0 = b.theta_d_rad + phi_rad_;
+  const Eigen::Vector2d exit(tip.y_mm - R * (std::cos(psi0) - std::cos(tip.gamma_rad)),
+                             tip.z_mm + R * (std::sin(tip.gamma_rad) - std::sin(psi0)));
+  const int n_stylet = count(std::max(j.z_s_mm, step_mm));
+  for (int i = 0; i <= n_stylet; ++i) {
+    const double psi = psi0 + j.z_s_mm / R * i / n_stylet;
+    out.stylet_mm.push_back(at(exit.x() + R * (std::cos(psi0) - std::cos(psi)),
+                               exit.y() - R * (std::sin(psi) - std::sin(psi0)) - j.z_c_mm));
+  }
+  out.stylet_mm.back() = forward(j).tip_mm;
+  return out;
 }
 
 Status Kinematics::checkJoints(const Joints& j) const {

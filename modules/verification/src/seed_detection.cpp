@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <Eigen/Eigenvalues>
 
+#include "bright_groups.hpp"
 #include "ignav/volume/threshold.hpp"
 
 namespace ignav::verification {
@@ -69,62 +70,6 @@ Expected<std::vector<std::uint32_t>> brightVoxels(const volume::Volume& volume,
                                  search.max_bright_voxels, search.min_hu));
   }
   return bright;
-}
-
-// 26-connected groups of the bright voxels: union-find over the 13 neighbours that come earlier
-// in scan order, each found by a cursor that only moves forward (the neighbour at a fixed offset
-// of an increasing index increases). The root of a group is its first voxel; groups are numbered
-// in the order of their first voxels. Returns the group of each bright voxel.
-std::vector<std::uint32_t> connectedGroups(const std::vector<std::uint32_t>& bright,
-                                           const std::array<int, 3>& dims,
-                                           std::size_t& group_count) {
-  const std::size_t n = bright.size();
-  std::vector<std::uint32_t> parent(n);
-  for (std::size_t p = 0; p < n; ++p)
-    parent[p] = static_cast<std::uint32_t>(p);
-  auto find = [&](std::uint32_t x) {
-    while (parent[x] != x) {
-      parent[x] = parent[parent[x]];
-      x = parent[x];
-    }
-    return x;
-  };
-  const std::int64_t nx = dims[0], ny = dims[1], nxy = nx * ny;
-  struct Offset {
-    int di, dj, dk;
-    std::int64_t delta;
-    std::size_t cursor;
-  };
-  std::vector<Offset> offsets;
-  for (int dk = -1; dk <= 0; ++dk)
-    for (int dj = -1; dj <= 1; ++dj)
-      for (int di = -1; di <= 1; ++di) {
-        const std::int64_t delta = di + dj * nx + dk * nxy;
-        if (delta < 0) offsets.push_back({di, dj, dk, delta, 0});
-      }
-  for (std::size_t p = 0; p < n; ++p) {
-    const std::int64_t idx = bright[p];
-    const std::int64_t i = idx % nx, j = (idx / nx) % ny, k = idx / nxy;
-    for (auto& o : offsets) {
-      if (i + o.di < 0 || i + o.di >= nx || j + o.dj < 0 || j + o.dj >= ny || k + o.dk < 0)
-        continue;
-      const std::int64_t want = idx + o.delta;
-      while (o.cursor < p && static_cast<std::int64_t>(bright[o.cursor]) < want)
-        ++o.cursor;
-      if (o.cursor < p && static_cast<std::int64_t>(bright[o.cursor]) == want) {
-        const std::uint32_t a = find(static_cast<std::uint32_t>(p)),
-                            b = find(static_cast<std::uint32_t>(o.cursor));
-        if (a != b) parent[std::max(a, b)] = std::min(a, b);
-      }
-    }
-  }
-  std::vector<std::uint32_t> group(n);
-  group_count = 0;
-  for (std::size_t p = 0; p < n; ++p) {
-    const std::uint32_t root = find(static_cast<std::uint32_t>(p));
-    group[p] = root == p ? static_cast<std::uint32_t>(group_count++) : group[root];
-  }
-  return group;
 }
 
 struct GroupView {
@@ -311,21 +256,12 @@ Expected<SeedDetection> findSeeds(const volume::Volume& volume, const SeedSearch
   if (!bright) return bright.error();
   SeedDetection result;
   result.bright_voxels = bright->size();
-  std::size_t group_count = 0;
-  const auto group_of = connectedGroups(*bright, g.dims, group_count);
+  const BrightGroups groups = groupBrightVoxels(*bright, g.dims);
+  const auto& group_of = groups.group_of;
+  const auto& start = groups.start;
+  const auto& members = groups.members;
+  const std::size_t group_count = groups.count();
   result.groups = group_count;
-  // Members per group (a counting sort keeps scan order within a group).
-  std::vector<std::size_t> start(group_count + 1, 0);
-  for (auto grp : group_of)
-    ++start[grp + 1];
-  for (std::size_t q = 0; q < group_count; ++q)
-    start[q + 1] += start[q];
-  std::vector<std::uint32_t> members(bright->size());
-  {
-    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
-    for (std::size_t p = 0; p < bright->size(); ++p)
-      members[fill[group_of[p]]++] = static_cast<std::uint32_t>(p);
-  }
   const std::size_t nx = static_cast<std::size_t>(g.dims[0]);
   const std::size_t nxy = nx * static_cast<std::size_t>(g.dims[1]);
   std::size_t markers = 0;

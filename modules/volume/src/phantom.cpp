@@ -182,9 +182,13 @@ Status checkSeeds(const PhantomSpec& spec) {
   if (!std::isfinite(spec.seed_hu)) return bad("seed_hu must be finite");
   if (!(spec.seed_psf_sigma_mm >= 0.0) || !std::isfinite(spec.seed_psf_sigma_mm))
     return bad("seed_psf_sigma_mm must be finite and not negative");
-  for (std::size_t s = 0; s < spec.seeds.size(); ++s) {
-    const auto& seed = spec.seeds[s];
-    const std::string name = "seed " + std::to_string(s + 1);
+  const std::size_t all = spec.seeds.size() + spec.needle_segments.size();
+  for (std::size_t s = 0; s < all; ++s) {
+    const bool is_seed = s < spec.seeds.size();
+    const auto& seed = is_seed ? spec.seeds[s] : spec.needle_segments[s - spec.seeds.size()];
+    const std::string name = is_seed
+                                 ? "seed " + std::to_string(s + 1)
+                                 : "needle segment " + std::to_string(s - spec.seeds.size() + 1);
     if (!seed.centre_lps_mm.allFinite() || !seed.axis_lps.allFinite())
       return bad(name + ": centre or axis not finite");
     if (!(seed.axis_lps.norm() > 1e-12)) return bad(name + ": axis has zero length");
@@ -219,6 +223,16 @@ Expected<PhantomSpec> withSliceSpacing(PhantomSpec spec, double slice_mm) {
   spec.dims[2] = static_cast<int>(slices);
   spec.spacing_mm.z() = slice_mm;
   return spec;
+}
+
+void appendWire(PhantomSpec& spec, const std::vector<Eigen::Vector3d>& polyline_lps_mm,
+                double diameter_mm) {
+  for (std::size_t i = 1; i < polyline_lps_mm.size(); ++i) {
+    const Eigen::Vector3d a = polyline_lps_mm[i - 1], b = polyline_lps_mm[i];
+    const double length = (b - a).norm();
+    if (!(length > 1e-9)) continue;
+    spec.needle_segments.push_back({0.5 * (a + b), (b - a) / length, length, diameter_mm});
+  }
 }
 
 Geometry phantomGeometry(const PhantomSpec& spec) {
@@ -262,6 +276,22 @@ Expected<Volume> makePhantom(const PhantomSpec& spec) {
   for (const auto& seed : spec.seeds) {
     const auto one = renderSeed(g, seed, spec.seed_psf_sigma_mm);
     seed_voxels.insert(seed_voxels.end(), one.begin(), one.end());
+  }
+  // The needle's segments share the voxels at their joints: one body, so their shares add (the
+  // blend below would count the overlap once too little).
+  std::vector<SeedVoxel> needle_voxels;
+  for (const auto& segment : spec.needle_segments) {
+    const auto one = renderSeed(g, segment, spec.seed_psf_sigma_mm);
+    needle_voxels.insert(needle_voxels.end(), one.begin(), one.end());
+  }
+  std::sort(needle_voxels.begin(), needle_voxels.end(),
+            [](const SeedVoxel& a, const SeedVoxel& b) { return a.index < b.index; });
+  for (std::size_t i = 0; i < needle_voxels.size();) {
+    SeedVoxel merged{needle_voxels[i].index, 0.0};
+    for (; i < needle_voxels.size() && needle_voxels[i].index == merged.index; ++i)
+      merged.fraction += needle_voxels[i].fraction;
+    merged.fraction = std::min(1.0, merged.fraction);
+    seed_voxels.push_back(merged);
   }
   std::stable_sort(seed_voxels.begin(), seed_voxels.end(),
                    [](const SeedVoxel& a, const SeedVoxel& b) { return a.index < b.index; });

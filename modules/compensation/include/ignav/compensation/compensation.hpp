@@ -50,6 +50,23 @@ struct Landing {
 Expected<Landing> predictLanding(const kinematics::Kinematics& kinematics,
                                  const DeflectionModel& model, const kinematics::Joints& joints);
 
+// The whole needle for joints, robot frame, about every step_mm of arc: the cannula from
+// `above_mm` above the tissue to its tip, then the stylet. Out of tissue it is the instrument's
+// own shape (Kinematics::centreline); in tissue each point of the cannula is displaced as its tip
+// was when that point went in (the bicycle model's needle follows its tip), and the stylet turns
+// with the cannula tip as predictLanding turns it. The last cannula point is
+// Landing::cannula_tip_mm and the last stylet point Landing::tip_mm. What a confirmation CT that
+// still shows the needle is compared with (docs/COMPENSATION.md, "The path").
+struct PredictedPath {
+  std::vector<Eigen::Vector3d> cannula_mm;
+  std::vector<Eigen::Vector3d> stylet_mm;
+};
+// Errors: non-finite joints or step, a step not in [0.01, 10] mm, the model's own (as
+// predictLanding).
+Expected<PredictedPath> predictPath(const kinematics::Kinematics& kinematics,
+                                    const DeflectionModel& model, const kinematics::Joints& joints,
+                                    double step_mm = 0.5, double above_mm = 0.0);
+
 struct CompensationOptions {
   double tolerance_mm = 1e-6;  // accepted |landing − target| (the issue asks ≤ 1 µm = 1e-3 mm)
   int max_iterations = 30;     // Newton steps on the joints
@@ -77,6 +94,9 @@ struct TargetingRecord {
   Eigen::Vector3d planned_mm = Eigen::Vector3d::Zero();  // robot frame
   kinematics::Joints joints;                             // as commanded (nominal or compensated)
   Eigen::Vector3d actual_mm = Eigen::Vector3d::Zero();   // measured, robot frame
+  // Where the CT still shows the needle (a stylet tip found rather than a seed): points on its
+  // centreline, robot frame, each compared with the nearest point of predictPath. Empty: none.
+  std::vector<Eigen::Vector3d> path_mm;
 };
 
 struct TargetingFitOptions {
@@ -102,9 +122,11 @@ struct TargetingFit {
   std::string limit;
 };
 // Levenberg–Marquardt on the 3-D residuals actual − predictLanding(joints), each target at its own
-// insertion depth and in its own plane. Refused: non-finite records, fewer residuals than
-// parameters, records that do not determine the parameters (no insertion, all at one depth:
-// reason "underdetermined"), a fit that does not converge ("not_converged") or ends inadmissible.
+// insertion depth and in its own plane, and for a record with a path, each path point's offset
+// from the nearest point of the predicted path (rms_mm and the maxima are over the landings).
+// Refused: non-finite records, fewer residuals than parameters, records that do not determine the
+// parameters (no insertion, all at one depth: reason "underdetermined"), a fit that does not
+// converge ("not_converged") or ends inadmissible.
 Expected<TargetingFit> fitTissueFromTargeting(const kinematics::Kinematics& kinematics,
                                               const DeflectionModel& model,
                                               const std::vector<TargetingRecord>& records,

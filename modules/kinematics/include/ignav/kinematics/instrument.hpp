@@ -2,6 +2,8 @@
 // stylet itself deflects (docs/KINEMATICS.md, MODEL.md §1-3). Values only.
 #pragma once
 
+#include <vector>
+
 #include <Eigen/Core>
 
 #include "ignav/core/expected.hpp"
@@ -42,6 +44,15 @@ struct TipPose {
   Eigen::Vector3d tip_mm = Eigen::Vector3d::Zero();
   double approach_rad = 0.0;  // γ: angle of the stylet tip from -Z towards the bend
   Eigen::Vector3d cannula_tip_mm = Eigen::Vector3d::Zero();
+};
+
+// The instrument's centreline for some joints, robot frame: the cannula from P0 (its proximal
+// attachment) down its straight part and its deflected arc to its tip, then the stylet from where
+// it leaves the cannula (the clearance offset, eq 9) along its arc to its tip.
+struct Centreline {
+  std::vector<Eigen::Vector3d> cannula_mm;
+  std::vector<double> cannula_arc_mm;  // each cannula point's arc length from P0
+  std::vector<Eigen::Vector3d> stylet_mm;
 };
 
 }  // namespace ignav::kinematics

@@ -55,6 +55,9 @@ class Kinematics {
 
   // Joints must be finite; values outside the ranges are computed, not clamped (see checkJoints).
   TipPose forward(const Joints& joints) const;
+  // The same pose's whole centreline, sampled about every step_mm of arc (step_mm > 0; the ends
+  // are forward()'s cannula tip and tip exactly).
+  Centreline centreline(const Joints& joints, double step_mm) const;
 
   // Exact inverse: the paper's closed form refined by safeguarded Newton iterations on the
   // monotone tip radius r(z_s). Errors only for a non-finite target.

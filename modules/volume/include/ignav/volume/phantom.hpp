@@ -41,6 +41,9 @@ struct PhantomSpec {
   // of a seed thinner than a voxel is aliased as no scanner's is. Titanium-like on an
   // extended-HU scale by default.
   std::vector<PhantomSeed> seeds;
+  // A needle left in (cannula and stylet): cylinders end to end along its centreline
+  // (appendWire), drawn as the seeds are, of the same metal.
+  std::vector<PhantomSeed> needle_segments;
   double seed_hu = 7000.0;
   double seed_psf_sigma_mm = 0.4;
   // The CT's own noise: white, Gaussian, this SD (HU) in every voxel, added before the values
@@ -54,6 +57,11 @@ struct PhantomSpec {
 // on LPS 0, 0, 0); everything else is kept. Errors for a slice_mm that is not finite and
 // positive, or that would need more than 4096 slices.
 Expected<PhantomSpec> withSliceSpacing(PhantomSpec spec, double slice_mm);
+
+// Appends a wire of diameter_mm along the polyline (LPS) to spec.needle_segments: one cylinder
+// per pair of consecutive distinct points.
+void appendWire(PhantomSpec& spec, const std::vector<Eigen::Vector3d>& polyline_lps_mm,
+                double diameter_mm);
 
 // The phantom's grid: its voxel geometry alone, centred on LPS (0, 0, 0), without rendering it.
 Geometry phantomGeometry(const PhantomSpec& spec);
