@@ -260,7 +260,10 @@ void StatePublisher::publishVerification(const Session& s) {
   for (const auto& seed : c.seeds) {
     protocol::SeedState m;
     m.id = seed.id;
+    m.kind = seed.kind;
     m.lps = toPoint3(seed.lps_mm);
+    for (const auto& p : seed.path_lps_mm)
+      m.path_lps.push_back(toPoint3(p));
     m.robot = toPoint3((image_to_robot * seed.lps_mm.homogeneous()).head<3>());
     m.length_mm = seed.length_mm;
     m.width_mm = seed.width_mm;

@@ -47,7 +47,7 @@ void BM_FitTissueFrom20Landings(benchmark::State& state) {
     const Eigen::Vector3d target{10.0 * std::cos(a), 10.0 * std::sin(a), -160.0 - 1.0 * i};
     const auto joints = robot().kinematics.inverse(target).value().joints;
     const auto landed = compensation::predictLanding(robot().kinematics, model, joints).value();
-    records.push_back({"T" + std::to_string(i), target, joints, landed.tip_mm});
+    records.push_back({"T" + std::to_string(i), target, joints, landed.tip_mm, {}});
   }
   compensation::DeflectionModel start = model;
   start.tissue = {0.2, 0.1};  // the fit starts elsewhere (TargetingFitOptions::initial)

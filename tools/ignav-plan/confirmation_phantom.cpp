@@ -1,5 +1,6 @@
 #include "confirmation_phantom.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -143,6 +144,11 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
   const Eigen::Matrix3d rotation_true = robot_to_image_true.topLeftCorner<3, 3>();
   const volume::Geometry grid = volume::phantomGeometry(spec);
 
+  if (args.needle_at != 0 &&
+      std::none_of(reached.begin(), reached.end(),
+                   [&](const workflow::Target* t) { return t->id == args.needle_at; })) {
+    throw CliError{fmt::format("--needle-at {}: no reached target has that id", args.needle_at)};
+  }
   json targets = json::array();
   double sum_mm = 0.0, max_mm = 0.0;
   for (const workflow::Target* t : reached) {
@@ -162,7 +168,27 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
             grid.dims[0], grid.dims[1], grid.dims[2])};
       }
     }
-    spec.seeds.push_back(seed);
+    const bool needle = t->id == args.needle_at;
+    if (needle) {
+      // The needle as the same model bends it (the straight push without a hidden tissue), from
+      // where it enters the tissue (above it the robot holds it, and its markers lie on its axis).
+      const compensation::DeflectionModel straight{{0.0, 20.0, -1}, {}, {}};
+      auto path = compensation::predictPath(robot.kinematics, hidden ? *hidden : straight, joints,
+                                            0.25, 0.0);
+      if (!path) throw CliError{fmt::format("target {}: {}", t->id, path.error().message)};
+      auto toImage = [&](std::vector<Eigen::Vector3d> line) {
+        for (auto& p : line)
+          p = (robot_to_image_true * p.homogeneous()).head<3>();
+        return line;
+      };
+      const auto& instrument = robot.kinematics.instrument();
+      auto stylet = path->stylet_mm;
+      stylet.insert(stylet.begin(), path->cannula_mm.back());
+      volume::appendWire(spec, toImage(path->cannula_mm), instrument.cannula_outer_diameter_mm);
+      volume::appendWire(spec, toImage(stylet), instrument.stylet_outer_diameter_mm);
+    } else {
+      spec.seeds.push_back(seed);
+    }
     const double off_mm = (landed.tip_mm - t->robot_mm).norm();
     sum_mm += off_mm;
     max_mm = std::max(max_mm, off_mm);
@@ -172,6 +198,7 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
                        {"planned_robot_mm", pointJson(t->robot_mm)},
                        {"landing_robot_mm", pointJson(landed.tip_mm)},
                        {"landing_lps_mm", pointJson(seed.centre_lps_mm)},
+                       {"landing_kind", needle ? "tip" : "seed"},
                        {"seed_axis_lps", pointJson(seed.axis_lps)},
                        {"landing_off_plan_mm", off_mm}});
   }

@@ -22,16 +22,19 @@ struct ConfirmationPhantomArgs {
   std::string out_dir;        // the DICOM series; must be new or empty
   std::string hidden_tissue;  // a profile of `tissues_path`; empty: no deflection
   std::string tissues_path = "configs/tissues.yaml";
-  double noise_hu = 0.0;   // Gaussian SD of the CT's noise
-  double slice_mm = 0.0;   // slice spacing and thickness; 0: the phantom's own (1.25 mm)
-  std::uint64_t seed = 1;  // the noise's (and the series' UIDs')
-  std::string truth_path;  // default: OUT_DIR_truth.json, beside the series
+  double noise_hu = 0.0;        // Gaussian SD of the CT's noise
+  double slice_mm = 0.0;        // slice spacing and thickness; 0: the phantom's own (1.25 mm)
+  std::uint64_t seed = 1;       // the noise's (and the series' UIDs')
+  std::uint32_t needle_at = 0;  // a target whose needle is still in (no seed); 0: none
+  std::string truth_path;       // default: OUT_DIR_truth.json, beside the series
 };
 
 // Writes the series and the truth file; returns the truth (per target `id`, `planned_robot_mm`,
-// `landing_robot_mm`, `landing_lps_mm`, ...; `hidden_tissue` with `name`, `lambda1`,
+// `landing_robot_mm`, `landing_lps_mm`, `landing_kind` (seed | tip), ...; `hidden_tissue` with
+// `name`, `lambda1`,
 // `lambda2`, or null) with where it was written. CliError for bad input: the session never
-// registered, no target reached, an unknown tissue (naming those there are), an output folder
+// registered, no target reached, an unknown tissue (naming those there are), a --needle-at that
+// names no reached target, an output folder
 // that cannot be written or is not empty, a seed that would lie outside the scan.
 nlohmann::json confirmationPhantom(const ConfirmationPhantomArgs& args);
 

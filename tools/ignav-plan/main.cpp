@@ -317,6 +317,9 @@ int main(int argc, char** argv) {
   confirm->add_option("--slice-mm", confirm_args.slice_mm,
                       "slice spacing and thickness (mm; default the phantom's 1.25)");
   confirm->add_option("--seed", confirm_args.seed, "the noise's seed (deterministic)");
+  confirm->add_option("--needle-at", confirm_args.needle_at,
+                      "the target whose needle is still in: the scan shows its cannula and "
+                      "stylet (as the hidden tissue bends them) instead of its seed");
   confirm->add_option(
       "--truth", confirm_args.truth_path,
       "where the ground truth goes (JSON; default OUT_truth.json, beside the series)");

@@ -3,7 +3,9 @@
 // scan of the whole volume): the server runs it on its analysis thread; the reducer gets the
 // outcome as confirmation_measured (markers and seeds) or confirmation_failed (why).
 #include <fmt/format.h>
+#include <Eigen/Geometry>
 
+#include "ignav/verification/needle_detection.hpp"
 #include "ignav/verification/seed_detection.hpp"
 #include "ignav/volume/load.hpp"
 #include "ignav/workflow/reducer.hpp"
@@ -49,9 +51,31 @@ Input measureConfirmation(const ConfirmationJob& job) {
     in.error = "the seed search on " + job.source + " failed: " + seeds.error().message;
     return in;
   }
+  // A needle still in: the way it goes in is the robot's −Z, through the markers' own fit (the
+  // reducer registers the scan properly; a direction needs no more).
+  Expected<verification::NeedleDetection> needles{verification::NeedleDetection{}};
+  if (found.points.size() >= 3 && found.points.size() == markers.model_mm.size()) {
+    Eigen::Matrix3Xd image(3, static_cast<Eigen::Index>(found.points.size()));
+    Eigen::Matrix3Xd robot(3, image.cols());
+    for (Eigen::Index i = 0; i < image.cols(); ++i) {
+      image.col(i) = found.points[static_cast<std::size_t>(i)];
+      robot.col(i) = markers.model_mm[static_cast<std::size_t>(i)];
+    }
+    const Eigen::Matrix4d image_to_robot = Eigen::umeyama(image, robot, true);
+    verification::NeedleSearch needle_search;
+    needle_search.markers_lps_mm = found.points;
+    needle_search.insertion_lps =
+        image_to_robot.topLeftCorner<3, 3>().inverse() * Eigen::Vector3d(0.0, 0.0, -1.0);
+    needles = verification::findNeedles(*markers.volume, needle_search);
+  }
+  if (!needles) {
+    in.error = "the needle search on " + job.source + " failed: " + needles.error().message;
+    return in;
+  }
   in.kind = InputKind::kConfirmationMeasured;
   in.points = found.points;
   in.summary = seeds->summary;
+  if (!needles->needles.empty()) in.summary += "; " + needles->summary;
   std::uint32_t id = 0;
   for (const auto& c : seeds->seeds) {
     FoundSeed s;
@@ -59,6 +83,15 @@ Input measureConfirmation(const ConfirmationJob& job) {
     s.lps_mm = c.centroid_lps_mm;
     s.length_mm = c.length_mm;
     s.width_mm = c.width_mm;
+    in.seeds.push_back(s);
+  }
+  for (const auto& n : needles->needles) {
+    FoundSeed s;
+    s.id = ++id;
+    s.kind = "tip";
+    s.lps_mm = n.tip_lps_mm;
+    s.width_mm = n.tip_diameter_mm;
+    s.path_lps_mm = n.centreline_lps_mm;
     in.seeds.push_back(s);
   }
   return in;

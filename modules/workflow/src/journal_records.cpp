@@ -42,10 +42,18 @@ json journalRecord(const Input& in, const Session& after) {
   if (!in.seeds.empty()) {
     json seeds = json::array();
     for (const auto& s : in.seeds) {
-      seeds.push_back({{"id", s.id},
-                       {"lps", {s.lps_mm.x(), s.lps_mm.y(), s.lps_mm.z()}},
-                       {"length_mm", s.length_mm},
-                       {"width_mm", s.width_mm}});
+      json seed = {{"id", s.id},
+                   {"lps", {s.lps_mm.x(), s.lps_mm.y(), s.lps_mm.z()}},
+                   {"length_mm", s.length_mm},
+                   {"width_mm", s.width_mm}};
+      if (s.kind != "seed") seed["kind"] = s.kind;
+      if (!s.path_lps_mm.empty()) {
+        json path = json::array();
+        for (const auto& p : s.path_lps_mm)
+          path.push_back({p.x(), p.y(), p.z()});
+        seed["path_lps"] = path;
+      }
+      seeds.push_back(seed);
     }
     record["seeds"] = seeds;
   }
@@ -198,6 +206,16 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
       if (!seed.lps_mm.allFinite()) throw std::invalid_argument("seeds.lps: not finite");
       seed.length_mm = s.value("length_mm", 0.0);
       seed.width_mm = s.value("width_mm", 0.0);
+      seed.kind = s.value("kind", "seed");
+      if (seed.kind != "seed" && seed.kind != "tip") {
+        throw std::invalid_argument("seeds.kind: '" + seed.kind + "' is neither seed nor tip");
+      }
+      for (const auto& q : s.value("path_lps", json::array())) {
+        const Eigen::Vector3d point(q.at(0).get<double>(), q.at(1).get<double>(),
+                                    q.at(2).get<double>());
+        if (!point.allFinite()) throw std::invalid_argument("seeds.path_lps: not finite");
+        seed.path_lps_mm.push_back(point);
+      }
       e.input.seeds.push_back(seed);
     }
     e.input.error = r.value("error", "");

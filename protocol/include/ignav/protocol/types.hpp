@@ -203,6 +203,7 @@ struct ErrorStats {
 
 struct SeedState {
   std::uint32_t id = 0;
+  std::string kind = "seed";  // seed | tip
   Point3 lps;
   Point3 robot;
   double length_mm = 0.0;
@@ -210,12 +211,13 @@ struct SeedState {
   bool placed = false;
   bool rejected = false;
   std::uint32_t target_id = 0;
+  std::vector<Point3> path_lps;
 };
 
 struct MeasuredTargetState {
   std::uint32_t target_id = 0;
   std::uint32_t seed_id = 0;
-  std::string matched;  // detected | accepted | placed
+  std::string matched;  // detected | tip | accepted | placed
   Point3 planned_robot, actual_robot, planned_lps, actual_lps, error_robot, error_lps;
   double error_mm = 0.0;
   double lateral_mm = 0.0;
@@ -420,9 +422,10 @@ struct Fields<ErrorStats> {
 template <>
 struct Fields<SeedState> {
   using T = SeedState;
-  static constexpr auto list = std::make_tuple(
-      IGNAV_FIELD(id), IGNAV_FIELD(lps), IGNAV_FIELD(robot), IGNAV_FIELD(length_mm),
-      IGNAV_FIELD(width_mm), IGNAV_FIELD(placed), IGNAV_FIELD(rejected), IGNAV_FIELD(target_id));
+  static constexpr auto list =
+      std::make_tuple(IGNAV_FIELD(id), IGNAV_FIELD(kind), IGNAV_FIELD(lps), IGNAV_FIELD(robot),
+                      IGNAV_FIELD(length_mm), IGNAV_FIELD(width_mm), IGNAV_FIELD(placed),
+                      IGNAV_FIELD(rejected), IGNAV_FIELD(target_id), IGNAV_FIELD(path_lps));
 };
 
 template <>

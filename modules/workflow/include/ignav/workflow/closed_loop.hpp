@@ -22,11 +22,15 @@
 
 namespace ignav::workflow {
 
-// A seed on the confirmation CT (LPS), as the detection found it or a person placed it.
+// A seed on the confirmation CT (LPS), as the detection found it or a person placed it; or the
+// stylet's tip, when the scan still shows the needle (it marks where the needle landed as a seed
+// would, and its centreline is what the tissue fit can use besides).
 struct FoundSeed {
-  std::uint32_t id = 0;  // 1, 2, ... in detection order; placed seeds follow
+  std::uint32_t id = 0;       // 1, 2, ... in detection order (seeds, then tips); placed ones follow
+  std::string kind = "seed";  // "seed" | "tip"
   Eigen::Vector3d lps_mm = Eigen::Vector3d::Zero();
-  double length_mm = 0.0;  // 0 for a placed one
+  std::vector<Eigen::Vector3d> path_lps_mm;  // a tip's needle centreline, ending at the tip
+  double length_mm = 0.0;                    // 0 for a placed one
   double width_mm = 0.0;
   bool placed = false;    // by place_seed (a person's click)
   bool rejected = false;  // by reject_seed: no seed of this plan
@@ -49,7 +53,7 @@ struct SeedReview {
 struct MeasuredTarget {
   verification::TargetError error;
   std::uint32_t seed_id = 0;
-  std::string matched;  // "detected" | "accepted" | "placed"
+  std::string matched;  // "detected" | "tip" (the stylet's tip detected) | "accepted" | "placed"
   // The joints it was reached with (Target::reached_joints): what a tissue fit explains, kept
   // here so that a fit still works once the plan's targets are cleared for the next pass.
   kinematics::Joints joints;
