@@ -126,6 +126,9 @@ TEST(NeedleDetection, SeedsMarkersAndBoneAreNotNeedles) {
   // A thick bright rod (bone-like, 8 mm across): long, but no wire.
   std::vector<Eigen::Vector3d> rod{{-15, -15, -20}, {-15, -15, 10}};
   volume::appendWire(spec, rod, 8.0);
+  // A thin wire lying across the insertion (a guide wire, a calcified vessel's wall).
+  std::vector<Eigen::Vector3d> across{{-25, 12, -12}, {20, 14, -10}};
+  volume::appendWire(spec, across, 1.0);
   auto v = volume::makePhantom(spec);
   ASSERT_TRUE(v.ok());
   NeedleSearch search;
@@ -134,7 +137,8 @@ TEST(NeedleDetection, SeedsMarkersAndBoneAreNotNeedles) {
   const auto found = findNeedles(*v, search);
   ASSERT_TRUE(found.ok());
   EXPECT_TRUE(found->needles.empty()) << found->summary;
-  EXPECT_NE(found->summary.find("too wide"), std::string::npos) << found->summary;
+  EXPECT_NE(found->summary.find("1 long group too wide"), std::string::npos) << found->summary;
+  EXPECT_NE(found->summary.find("1 not along the insertion"), std::string::npos) << found->summary;
   // The seed search still finds the seed beside the rod.
   SeedSearch seeds;
   seeds.markers_lps_mm = spec.fiducials_lps_mm;

@@ -31,7 +31,8 @@ Status checkSearch(const NeedleSearch& s) {
   for (auto [name, v] : {std::pair{"min_length_mm", s.min_length_mm},
                          std::pair{"max_diameter_mm", s.max_diameter_mm},
                          std::pair{"tube_radius_mm", s.tube_radius_mm},
-                         std::pair{"step_mm", s.step_mm}, std::pair{"plateau_mm", s.plateau_mm}}) {
+                         std::pair{"step_mm", s.step_mm}, std::pair{"plateau_mm", s.plateau_mm},
+                         std::pair{"max_entry_angle_deg", s.max_entry_angle_deg}}) {
     if (!(v > 0.0) || !std::isfinite(v))
       return bad(fmt::format("{} = {:g} must be finite and positive", name, v));
   }
@@ -310,7 +311,7 @@ Expected<NeedleDetection> findNeedles(const volume::Volume& volume, const Needle
   const std::size_t nxy = nx * static_cast<std::size_t>(g.dims[1]);
   NeedleDetection out;
   out.groups = groups.count();
-  std::size_t too_wide = 0, no_tip = 0;
+  std::size_t too_wide = 0, no_tip = 0, across = 0;
   for (std::size_t q = 0; q < groups.count(); ++q) {
     std::vector<BrightVoxel> voxels;
     Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
@@ -337,6 +338,16 @@ Expected<NeedleDetection> findNeedles(const volume::Volume& volume, const Needle
     if (line.size() < 4) {
       ++no_tip;
       continue;
+    }
+    {
+      std::size_t k = 1;
+      while (k + 1 < line.size() && (line[k] - line.front()).norm() < 10.0)
+        ++k;
+      const Eigen::Vector3d entry = (line[k] - line.front()).normalized();
+      if (!(entry.dot(insertion) >= std::cos(search.max_entry_angle_deg * M_PI / 180.0))) {
+        ++across;
+        continue;
+      }
     }
     // The axis at the end from the centreline a few steps back; the end as thresholded.
     Eigen::Vector3d axis = (line.back() - line[line.size() - 4]).normalized();
@@ -385,9 +396,11 @@ Expected<NeedleDetection> findNeedles(const volume::Volume& volume, const Needle
   });
   out.summary = fmt::format("{} needle{} found in {} bright groups", out.needles.size(),
                             out.needles.size() == 1 ? "" : "s", out.groups);
-  if (too_wide + no_tip > 0) {
-    out.summary += fmt::format(" ({} long group{} too wide for a needle, {} without a clear tip)",
-                               too_wide, too_wide == 1 ? "" : "s", no_tip);
+  if (too_wide + no_tip + across > 0) {
+    out.summary += fmt::format(
+        " ({} long group{} too wide for a needle, {} without a clear tip, {} not along the "
+        "insertion)",
+        too_wide, too_wide == 1 ? "" : "s", no_tip, across);
   }
   return out;
 }

@@ -31,6 +31,9 @@ struct NeedleSearch {
   double tube_radius_mm = 2.5;   // voxels this close to the axis are weighed at the tip
   double step_mm = 1.0;          // centreline spacing
   double plateau_mm = 2.5;       // of stylet behind the reference point, for the metal per mm
+  // The needle comes in along the insertion: its first 10 mm within this angle of it. A wire, a
+  // vessel's calcified wall or a rib's edge lying across is no needle of this robot.
+  double max_entry_angle_deg = 30.0;
   std::vector<Eigen::Vector3d> markers_lps_mm;  // groups within marker_exclusion_mm: markers
   double marker_exclusion_mm = 4.0;
   std::size_t max_bright_voxels = 4'000'000;
