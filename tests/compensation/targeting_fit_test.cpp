@@ -315,7 +315,9 @@ TEST(TargetingFit, OneVisibleNeedlePathDeterminesTheTissue) {
     within += std::abs(fit->tissue.lambda1 - hidden.tissue.lambda1) < 2 * se[0] &&
               std::abs(fit->tissue.lambda2 - hidden.tissue.lambda2) < 2 * se[1];
   }
-  EXPECT_GE(within, runs - 1);
+  // Both within 2 SE: ~90 % of runs for an unbiased fit; 4 of 6 or more unless biased (a run of
+  // bad luck below that has probability ~2 %; the seeds are fixed).
+  EXPECT_GE(within, runs - 2);
 }
 
 TEST(TargetingFit, ANonFinitePathPointIsRefusedNamingTheTarget) {
