@@ -8,10 +8,14 @@
 #include <random>
 
 #include "fixtures.hpp"
+#include "polyline.hpp"
 #include "reference.hpp"
 
 namespace ignav::compensation {
 namespace {
+
+using ::ignav::test::distanceToPolyline;
+using ::ignav::test::polylineLength;
 
 using test::paperRobot;
 using test::profile;
@@ -103,23 +107,6 @@ TEST(Landing, CannulaDriftIsWhatThePlannerLabelsTodayWithItsSign) {
   }
   EXPECT_FALSE(cannulaDrift(agar, std::nan("")).ok());
   EXPECT_FALSE(predictLanding(paperRobot(), agar, {0.0, std::nan(""), 1.0}).ok());
-}
-
-double polylineLength(const std::vector<Eigen::Vector3d>& line, std::size_t from = 0) {
-  double length = 0.0;
-  for (std::size_t i = from + 1; i < line.size(); ++i)
-    length += (line[i] - line[i - 1]).norm();
-  return length;
-}
-
-double distanceToPolyline(const std::vector<Eigen::Vector3d>& line, const Eigen::Vector3d& q) {
-  double best = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 1; i < line.size(); ++i) {
-    const Eigen::Vector3d ab = line[i] - line[i - 1];
-    const double t = std::clamp((q - line[i - 1]).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-    best = std::min(best, (line[i - 1] + t * ab - q).norm());
-  }
-  return best;
 }
 
 TEST(Path, WithoutTissueItIsTheInstrumentsOwnShape) {

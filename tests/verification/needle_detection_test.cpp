@@ -9,9 +9,12 @@
 #include "ignav/verification/needle_detection.hpp"
 #include "ignav/verification/seed_detection.hpp"
 #include "ignav/volume/phantom.hpp"
+#include "polyline.hpp"
 
 namespace ignav::verification {
 namespace {
+
+using ::ignav::test::distanceToPolyline;
 
 using volume::PhantomSpec;
 
@@ -51,16 +54,6 @@ volume::Volume render(const Needle& needle, double noise_hu, double slice_mm) {
   auto v = volume::makePhantom(spec);
   EXPECT_TRUE(v.ok()) << v.error().message;
   return std::move(v).value();
-}
-
-double distanceToPolyline(const std::vector<Eigen::Vector3d>& line, const Eigen::Vector3d& q) {
-  double best = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 1; i < line.size(); ++i) {
-    const Eigen::Vector3d ab = line[i] - line[i - 1];
-    const double t = std::clamp((q - line[i - 1]).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-    best = std::min(best, (line[i - 1] + t * ab - q).norm());
-  }
-  return best;
 }
 
 struct Case {

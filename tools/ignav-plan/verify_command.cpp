@@ -50,8 +50,11 @@ json fitTissue(const VerifyArgs& args, const workflow::Session& session,
   }
   std::vector<compensation::TargetingRecord> records;
   for (const auto& e : errors) {
-    records.push_back({"T" + std::to_string(e.target_id), e.planned_robot_mm,
-                       by_id.at(e.target_id)->reached_joints, e.actual_robot_mm, {}});
+    records.push_back({"T" + std::to_string(e.target_id),
+                       e.planned_robot_mm,
+                       by_id.at(e.target_id)->reached_joints,
+                       e.actual_robot_mm,
+                       {}});
   }
   auto fit = compensation::fitTissueFromTargeting(session.robot->kinematics, model, records);
   if (!fit) throw CliError{"the tissue fit: " + fit.error().message};

@@ -31,6 +31,24 @@ std::string point(const Eigen::Vector3d& p) {
   return fmt::format("({:.2f}, {:.2f}, {:.2f}) mm", p.x(), p.y(), p.z());
 }
 
+// The plane of θc: y′ along u, z′ along Z (MODEL.md §2, p = Rz(θc)·(0, y′, z′)).
+struct Plane {
+  explicit Plane(double theta_c_rad) : u(-std::sin(theta_c_rad), std::cos(theta_c_rad), 0.0) {}
+  Eigen::Vector2d in(const Eigen::Vector3d& p) const { return {p.dot(u), p.z()}; }
+  Eigen::Vector3d out(const Eigen::Vector2d& p) const {
+    return {p.x() * u.x(), p.x() * u.y(), p.y()};
+  }
+  Eigen::Vector3d u;
+};
+
+// The stylet as it leaves a cannula whose tip turned by heading_rad (−Z, i.e. (0, −1), goes to
+// (sin h, −cos h)); unturned when it is carried by translation only.
+Eigen::Vector2d carried(const Eigen::Vector2d& stylet, double heading_rad, StyletCarry carry) {
+  if (carry != StyletCarry::kRotated) return stylet;
+  const double c = std::cos(heading_rad), s = std::sin(heading_rad);
+  return {c * stylet.x() - s * stylet.y(), s * stylet.x() + c * stylet.y()};
+}
+
 }  // namespace
 
 Expected<CannulaDrift> cannulaDrift(const DeflectionModel& model, double z_c_mm) {
@@ -54,25 +72,16 @@ Expected<Landing> predictLanding(const kinematics::Kinematics& kinematics,
   auto drift = cannulaDrift(model, j.z_c_mm);
   if (!drift) return drift.error();
   const auto pose = kinematics.forward(j);
-  // The plane of θc: y′ along u, z′ along Z (MODEL.md §2, p = Rz(θc)·(0, y′, z′)).
-  const Eigen::Vector3d u(-std::sin(j.theta_c_rad), std::cos(j.theta_c_rad), 0.0);
-  const Eigen::Vector2d cannula(pose.cannula_tip_mm.dot(u), pose.cannula_tip_mm.z());
-  const Eigen::Vector2d tip(pose.tip_mm.dot(u), pose.tip_mm.z());
+  const Plane plane(j.theta_c_rad);
+  const Eigen::Vector2d cannula = plane.in(pose.cannula_tip_mm);
   // The cannula tip: pushed aside towards +y′ and short of its nominal depth.
   const Eigen::Vector2d moved = cannula + Eigen::Vector2d(drift->lateral_mm, drift->shortfall_mm);
-  Eigen::Vector2d stylet = tip - cannula;  // from the cannula tip, offset and arc included
-  if (model.carry == StyletCarry::kRotated) {
-    // Turn by the heading about the cannula tip: −Z, i.e. (0, −1), goes to (sin h, −cos h).
-    const double c = std::cos(drift->heading_rad), s = std::sin(drift->heading_rad);
-    stylet = Eigen::Vector2d(c * stylet.x() - s * stylet.y(), s * stylet.x() + c * stylet.y());
-  }
-  const Eigen::Vector2d landed = moved + stylet;
-  auto to3d = [&](const Eigen::Vector2d& p) {
-    return Eigen::Vector3d(p.x() * u.x(), p.x() * u.y(), p.y());
-  };
+  // The stylet from the cannula tip (offset and arc included), turned about it.
+  const Eigen::Vector2d landed =
+      moved + carried(plane.in(pose.tip_mm) - cannula, drift->heading_rad, model.carry);
   Landing out;
-  out.tip_mm = to3d(landed);
-  out.cannula_tip_mm = to3d(moved);
+  out.tip_mm = plane.out(landed);
+  out.cannula_tip_mm = plane.out(moved);
   out.nominal_tip_mm = pose.tip_mm;
   out.drift = *drift;
   return out;
@@ -90,11 +99,7 @@ Expected<PredictedPath> predictPath(const kinematics::Kinematics& kinematics,
   auto landing = predictLanding(kinematics, model, j);  // checks the joints and the tissue
   if (!landing) return landing.error();
   const auto nominal = kinematics.centreline(j, step_mm);
-  const Eigen::Vector3d u(-std::sin(j.theta_c_rad), std::cos(j.theta_c_rad), 0.0);
-  auto to2d = [&](const Eigen::Vector3d& p) { return Eigen::Vector2d(p.dot(u), p.z()); };
-  auto to3d = [&](const Eigen::Vector2d& p) {
-    return Eigen::Vector3d(p.x() * u.x(), p.x() * u.y(), p.y());
-  };
+  const Plane plane(j.theta_c_rad);
   // The drift at every inserted length: where the cannula's tip went, the body behind it lies
   // (the bicycle model's needle follows its tip), so the body point that entered the tissue when
   // s mm were in is displaced as the tip was then. Linear between the integrator's samples.
@@ -123,20 +128,15 @@ Expected<PredictedPath> predictPath(const kinematics::Kinematics& kinematics,
     const double behind_tip_mm = length_mm - nominal.cannula_arc_mm[i];
     if (behind_tip_mm > std::max(j.z_c_mm, 0.0) + above_mm) continue;  // inside the robot
     out.cannula_mm.push_back(
-        to3d(to2d(nominal.cannula_mm[i]) + displacement(j.z_c_mm - behind_tip_mm)));
+        plane.out(plane.in(nominal.cannula_mm[i]) + displacement(j.z_c_mm - behind_tip_mm)));
   }
   out.cannula_mm.back() = landing->cannula_tip_mm;  // the same point, exactly
   // The stylet keeps its shape relative to the cannula tip and turns with it (predictLanding).
-  const Eigen::Vector2d moved = to2d(landing->cannula_tip_mm);
-  const Eigen::Vector2d cannula_tip = to2d(nominal.cannula_mm.back());
-  const double c = std::cos(landing->drift.heading_rad), s = std::sin(landing->drift.heading_rad);
-  const bool rotated = model.carry == StyletCarry::kRotated;
+  const Eigen::Vector2d moved = plane.in(landing->cannula_tip_mm);
+  const Eigen::Vector2d cannula_tip = plane.in(nominal.cannula_mm.back());
   for (const auto& p : nominal.stylet_mm) {
-    Eigen::Vector2d stylet = to2d(p) - cannula_tip;
-    if (rotated) {
-      stylet = Eigen::Vector2d(c * stylet.x() - s * stylet.y(), s * stylet.x() + c * stylet.y());
-    }
-    out.stylet_mm.push_back(to3d(moved + stylet));
+    out.stylet_mm.push_back(plane.out(
+        moved + carried(plane.in(p)-cannula_tip, landing->drift.heading_rad, model.carry)));
   }
   out.stylet_mm.back() = landing->tip_mm;
   return out;

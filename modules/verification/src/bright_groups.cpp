@@ -2,6 +2,10 @@
 
 #include <algorithm>
 
+#include <fmt/format.h>
+
+#include "ignav/volume/threshold.hpp"
+
 namespace ignav::verification {
 namespace {
 
@@ -63,9 +67,9 @@ std::vector<std::uint32_t> connectedGroups(const std::vector<std::uint32_t>& bri
 
 }  // namespace
 
-BrightGroups groupBrightVoxels(const std::vector<std::uint32_t>& bright,
-                               const std::array<int, 3>& dims) {
+BrightGroups groupBrightVoxels(std::vector<std::uint32_t> bright, const std::array<int, 3>& dims) {
   BrightGroups out;
+  out.dims = dims;
   std::size_t group_count = 0;
   out.group_of = connectedGroups(bright, dims, group_count);
   // Members per group (a counting sort keeps scan order within a group).
@@ -78,7 +82,41 @@ BrightGroups groupBrightVoxels(const std::vector<std::uint32_t>& bright,
   std::vector<std::size_t> fill(out.start.begin(), out.start.end() - 1);
   for (std::size_t p = 0; p < bright.size(); ++p)
     out.members[fill[out.group_of[p]]++] = static_cast<std::uint32_t>(p);
+  out.bright = std::move(bright);
   return out;
+}
+
+Eigen::Vector3i BrightGroups::voxel(std::size_t e) const {
+  const std::size_t idx = bright[members[e]];
+  const auto nx = static_cast<std::size_t>(dims[0]);
+  const std::size_t nxy = nx * static_cast<std::size_t>(dims[1]);
+  return {static_cast<int>(idx % nx), static_cast<int>((idx % nxy) / nx),
+          static_cast<int>(idx / nxy)};
+}
+
+Expected<BrightGroups> findBrightGroups(const volume::Volume& volume, double min_hu,
+                                        std::size_t max_bright_voxels, const std::string& search,
+                                        const std::string& what) {
+  const auto& g = volume.geometry;
+  if (auto ok = g.validate("volume"); !ok) return ok.error();
+  if (volume.voxels.size() != g.voxelCount()) {
+    return makeError(ErrorCode::kInvalidArgument, "volume: voxel buffer does not match its dims");
+  }
+  auto bright = volume::voxelsAtOrAbove(volume, min_hu, max_bright_voxels);
+  if (!bright && bright.error().reason == "too_many_bright_voxels") {
+    return makeError(ErrorCode::kInvalidArgument,
+                     fmt::format("{}: more than {} voxels at or above min_hu {:g} HU; raise "
+                                 "min_hu towards {}",
+                                 search, max_bright_voxels, min_hu, what));
+  }
+  if (!bright) return bright.error();
+  return groupBrightVoxels(std::move(*bright), g.dims);
+}
+
+double medianOf(std::vector<double>& values) {
+  const auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), mid, values.end());
+  return *mid;
 }
 
 }  // namespace ignav::verification

@@ -8,7 +8,6 @@
 #include <Eigen/Dense>
 
 #include "bright_groups.hpp"
-#include "ignav/volume/threshold.hpp"
 
 namespace ignav::verification {
 namespace {
@@ -160,12 +159,11 @@ std::vector<Eigen::Vector3d> refineCentreline(const volume::Volume& volume,
       out.push_back(line[i]);
       continue;
     }
-    const auto mid = ring.begin() + static_cast<std::ptrdiff_t>(ring.size() / 2);
-    std::nth_element(ring.begin(), mid, ring.end());
+    const double background = medianOf(ring);
     double w_sum = 0.0;
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     for (const auto& s : tube) {
-      const double w = s.share * (s.hu - *mid);
+      const double w = s.share * (s.hu - background);
       w_sum += w;
       sum += w * (s.lps - at);
     }
@@ -237,9 +235,7 @@ TipFit fitTip(const volume::Volume& volume, const NeedleSearch& search,
       }
   TipFit fit;
   if (tube.empty() || ring.empty()) return fit;
-  const auto mid = ring.begin() + static_cast<std::ptrdiff_t>(ring.size() / 2);
-  std::nth_element(ring.begin(), mid, ring.end());
-  fit.background_hu = *mid;
+  fit.background_hu = medianOf(ring);
   const double voxel_mm3 = g.spacing_mm.prod();
   double plateau = 0.0, tail = 0.0, spread = 0.0, spread_w = 0.0;
   for (const auto& s : tube) {
@@ -293,22 +289,11 @@ TipFit fitTip(const volume::Volume& volume, const NeedleSearch& search,
 Expected<NeedleDetection> findNeedles(const volume::Volume& volume, const NeedleSearch& search) {
   if (auto ok = checkSearch(search); !ok) return ok.error();
   const auto& g = volume.geometry;
-  if (auto ok = g.validate("volume"); !ok) return ok.error();
-  if (volume.voxels.size() != g.voxelCount()) {
-    return makeError(ErrorCode::kInvalidArgument, "volume: voxel buffer does not match its dims");
-  }
-  auto bright = volume::voxelsAtOrAbove(volume, search.min_hu, search.max_bright_voxels);
-  if (!bright && bright.error().reason == "too_many_bright_voxels") {
-    return makeError(ErrorCode::kInvalidArgument,
-                     fmt::format("needle search: more than {} voxels at or above min_hu {:g} HU; "
-                                 "raise min_hu towards the needle's intensity",
-                                 search.max_bright_voxels, search.min_hu));
-  }
-  if (!bright) return bright.error();
-  const BrightGroups groups = groupBrightVoxels(*bright, g.dims);
+  auto found = findBrightGroups(volume, search.min_hu, search.max_bright_voxels, "needle search",
+                                "the needle's intensity");
+  if (!found) return found.error();
+  const BrightGroups& groups = *found;
   const Eigen::Vector3d insertion = search.insertion_lps.normalized();
-  const std::size_t nx = static_cast<std::size_t>(g.dims[0]);
-  const std::size_t nxy = nx * static_cast<std::size_t>(g.dims[1]);
   NeedleDetection out;
   out.groups = groups.count();
   std::size_t too_wide = 0, no_tip = 0, across = 0;
@@ -317,11 +302,9 @@ Expected<NeedleDetection> findNeedles(const volume::Volume& volume, const Needle
     Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
     Eigen::Vector3d hi = -lo, sum = Eigen::Vector3d::Zero();
     for (std::size_t e = groups.start[q]; e < groups.start[q + 1]; ++e) {
-      const std::size_t idx = (*bright)[groups.members[e]];
-      const int i = static_cast<int>(idx % nx), j = static_cast<int>((idx % nxy) / nx),
-                k = static_cast<int>(idx / nxy);
-      const Eigen::Vector3d lps = g.toLps(Eigen::Vector3d(i, j, k));
-      voxels.push_back({lps, volume.valueAt(i, j, k)});
+      const Eigen::Vector3i v = groups.voxel(e);
+      const Eigen::Vector3d lps = g.toLps(v.cast<double>());
+      voxels.push_back({lps, volume.valueAt(v.x(), v.y(), v.z())});
       lo = lo.cwiseMin(lps);
       hi = hi.cwiseMax(lps);
       sum += lps;

@@ -10,7 +10,6 @@
 #include <Eigen/Eigenvalues>
 
 #include "bright_groups.hpp"
-#include "ignav/volume/threshold.hpp"
 
 namespace ignav::verification {
 namespace {
@@ -57,19 +56,6 @@ Status checkSearch(const SeedSearch& s) {
   if (s.max_bright_voxels == 0 || s.max_bright_voxels > (std::size_t{1} << 31))
     return bad("max_bright_voxels must be in [1, 2^31]");
   return Ok{};
-}
-
-// The voxels at or above min_hu, as linear indices in increasing order.
-Expected<std::vector<std::uint32_t>> brightVoxels(const volume::Volume& volume,
-                                                  const SeedSearch& search) {
-  auto bright = volume::voxelsAtOrAbove(volume, search.min_hu, search.max_bright_voxels);
-  if (!bright && bright.error().reason == "too_many_bright_voxels") {
-    return makeError(ErrorCode::kInvalidArgument,
-                     fmt::format("seed search: more than {} voxels at or above min_hu {:g} "
-                                 "HU; raise min_hu towards the seeds' intensity",
-                                 search.max_bright_voxels, search.min_hu));
-  }
-  return bright;
 }
 
 struct GroupView {
@@ -144,14 +130,11 @@ void refine(const volume::Volume& volume, const SeedSearch& search,
   double background = floor_value;  // no ring left (a crowded corner): the darkest voxel
   double noise = 0.0;
   if (!ring_values.empty()) {
-    const auto mid = ring_values.begin() + static_cast<std::ptrdiff_t>(ring_values.size() / 2);
-    std::nth_element(ring_values.begin(), mid, ring_values.end());
-    background = *mid;
+    background = medianOf(ring_values);
     // The noise: 1.4826 × the median absolute deviation (a normal distribution's SD).
     for (double& v : ring_values)
       v = std::abs(v - background);
-    std::nth_element(ring_values.begin(), mid, ring_values.end());
-    noise = 1.4826 * *mid;
+    noise = 1.4826 * medianOf(ring_values);
   }
   // Centroid: signed weights (noise averages out instead of biasing). Shape: only weights
   // clear of the noise (3 SD), since noise far from the centre swamps second moments; a shape
@@ -248,22 +231,15 @@ void judge(const SeedSearch& s, SeedCandidate& c) {
 Expected<SeedDetection> findSeeds(const volume::Volume& volume, const SeedSearch& search) {
   if (auto ok = checkSearch(search); !ok) return ok.error();
   const auto& g = volume.geometry;
-  if (auto ok = g.validate("volume"); !ok) return ok.error();
-  if (volume.voxels.size() != g.voxelCount()) {
-    return makeError(ErrorCode::kInvalidArgument, "volume: voxel buffer does not match its dims");
-  }
-  auto bright = brightVoxels(volume, search);
-  if (!bright) return bright.error();
-  SeedDetection result;
-  result.bright_voxels = bright->size();
-  const BrightGroups groups = groupBrightVoxels(*bright, g.dims);
-  const auto& group_of = groups.group_of;
+  auto found = findBrightGroups(volume, search.min_hu, search.max_bright_voxels, "seed search",
+                                "the seeds' intensity");
+  if (!found) return found.error();
+  const BrightGroups& groups = *found;
   const auto& start = groups.start;
-  const auto& members = groups.members;
   const std::size_t group_count = groups.count();
+  SeedDetection result;
+  result.bright_voxels = groups.bright.size();
   result.groups = group_count;
-  const std::size_t nx = static_cast<std::size_t>(g.dims[0]);
-  const std::size_t nxy = nx * static_cast<std::size_t>(g.dims[1]);
   std::size_t markers = 0;
   for (std::size_t q = 0; q < group_count; ++q) {
     GroupView group;
@@ -273,9 +249,7 @@ Expected<SeedDetection> findSeeds(const volume::Volume& volume, const SeedSearch
     c.peak_hu = -std::numeric_limits<double>::infinity();
     Eigen::Vector3d mean_ijk = Eigen::Vector3d::Zero();
     for (std::size_t e = start[q]; e < start[q + 1]; ++e) {
-      const std::size_t idx = (*bright)[members[e]];
-      const Index3 v(static_cast<int>(idx % nx), static_cast<int>((idx % nxy) / nx),
-                     static_cast<int>(idx / nxy));
+      const Index3 v = groups.voxel(e);
       group.voxels.push_back(v);
       mean_ijk += v.cast<double>();
       c.peak_hu = std::max(c.peak_hu, volume.valueAt(v.x(), v.y(), v.z()));
@@ -304,7 +278,7 @@ Expected<SeedDetection> findSeeds(const volume::Volume& volume, const SeedSearch
         ++markers;
       }
     }
-    if (c.reason.empty()) refine(volume, search, *bright, group_of, group, c);
+    if (c.reason.empty()) refine(volume, search, groups.bright, groups.group_of, group, c);
     judge(search, c);
     if (c.reason.empty()) {
       result.seeds.push_back(std::move(c));

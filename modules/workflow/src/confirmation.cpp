@@ -1,14 +1,16 @@
 // load_confirmation's measuring job (issue 23): the scan loaded, the robot's markers found (as
 // auto_fiducials finds them) and the seeds found clear of them. Pure but slow (I/O, a threshold
 // scan of the whole volume): the server runs it on its analysis thread; the reducer gets the
-// outcome as confirmation_measured (markers and seeds) or confirmation_failed (why).
+// outcome as confirmation_measured (markers, seeds and any needle's tip) or confirmation_failed
+// (why).
 #include <fmt/format.h>
-#include <Eigen/Geometry>
+#include <Eigen/LU>
 
 #include "ignav/verification/needle_detection.hpp"
 #include "ignav/verification/seed_detection.hpp"
 #include "ignav/volume/load.hpp"
 #include "ignav/workflow/reducer.hpp"
+#include "session_rules.hpp"
 
 namespace ignav::workflow {
 
@@ -52,20 +54,14 @@ Input measureConfirmation(const ConfirmationJob& job) {
     return in;
   }
   // A needle still in: the way it goes in is the robot's −Z, through the markers' own fit (the
-  // reducer registers the scan properly; a direction needs no more).
+  // reducer registers the scan properly, reused or anew; a direction needs no more). Markers that
+  // do not register leave the needle search out; the reducer refuses the scan for them.
   Expected<verification::NeedleDetection> needles{verification::NeedleDetection{}};
-  if (found.points.size() >= 3 && found.points.size() == markers.model_mm.size()) {
-    Eigen::Matrix3Xd image(3, static_cast<Eigen::Index>(found.points.size()));
-    Eigen::Matrix3Xd robot(3, image.cols());
-    for (Eigen::Index i = 0; i < image.cols(); ++i) {
-      image.col(i) = found.points[static_cast<std::size_t>(i)];
-      robot.col(i) = markers.model_mm[static_cast<std::size_t>(i)];
-    }
-    const Eigen::Matrix4d image_to_robot = Eigen::umeyama(image, robot, true);
+  if (auto reg = detail::registerOnRobot(*job.robot, found.points)) {
     verification::NeedleSearch needle_search;
     needle_search.markers_lps_mm = found.points;
     needle_search.insertion_lps =
-        image_to_robot.topLeftCorner<3, 3>().inverse() * Eigen::Vector3d(0.0, 0.0, -1.0);
+        reg->imageToRobot().topLeftCorner<3, 3>().inverse() * Eigen::Vector3d(0.0, 0.0, -1.0);
     needles = verification::findNeedles(*markers.volume, needle_search);
   }
   if (!needles) {
