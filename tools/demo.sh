@@ -67,6 +67,15 @@ mean = [float(re.search(r"error ([0-9.]+) ±", open(f"{sys.argv[1]}/verification
 print(f"mean targeting error: {mean[0]:.2f} mm as planned, {mean[1]:.2f} mm aimed for the fitted "
       f"tissue ({mean[0] / max(mean[1], 1e-9):.0f}x smaller)")
 PY
+# The needle left in at the second pass's first target: it runs through the robot's markers on
+# its axis, so the scan goes with the session's registration (same-frame); its stylet's tip is
+# measured in place of a seed, with the needle's path.
+needle_at=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["targets"][0]["id"])' \
+  "$out/confirmation_2_truth.json")
+# shellcheck disable=SC2086
+"$plan" confirmation-phantom "$session" --robot "$robot" --out "$out/confirmation_3" $hidden \
+  --needle-at "$needle_at"
+$ctl verify load "$PWD/$out/confirmation_3" same-frame | tee "$session/verification_3.txt"
 echo
 echo "== what 3D Slicer sees over OpenIGTLink (docs/OPENIGTLINK.md): workphase, registration, tip"
 igtl_port=$(sed -n 's/.*igtl_port=\([0-9]*\).*/\1/p' "$out/server.ready")
@@ -149,7 +158,8 @@ echo "Session folder: $out/"
 ls -1 "$out"
 echo "The server's session: $session/ (journal.jsonl, phantom_ct/, image_to_robot.tfm, fiducials and"
 echo "targets .mrk.json, slices with overlays, summary.txt, report.md with the targeting errors of"
-echo "both passes' confirmation CTs (verification/targeting.png, seeds.mrk.json; tissues_fitted.yaml))."
+echo "the confirmation CTs: both passes, then a needle left in (verification/targeting.png,"
+echo "seeds.mrk.json; tissues_fitted.yaml))."
 echo "In 3D Slicer: load phantom_ct/ (DICOM), fiducials.mrk.json and image_to_robot.tfm, then put"
 echo "feasible_volume.ply (robot frame) under the transform to see it in the CT. The slice PNGs (with"
 echo "their pixel -> LPS mapping in the matching .json) and IK_STUDY.md open in any viewer."

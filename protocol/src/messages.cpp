@@ -27,8 +27,12 @@ std::optional<workflow::Input> toInput(const Command& c) {
   for (const auto& p : c.points)
     in.points.push_back(toEigen(p));
   in.ids = c.ids;
-  // The matrix is a fixed array, always on the wire: it means something only where it is asked.
-  if (spec->args.matrix_is) in.matrix = fromRowMajor(c.matrix);
+  // The matrix is a fixed array, always on the wire: it means something only where it is asked,
+  // and where it may be left out, all zeros (never a transform) leaves it out.
+  if (spec->args.matrix_is) {
+    const Eigen::Matrix4d m = fromRowMajor(c.matrix);
+    if (!spec->args.matrix_optional || !m.isZero(0.0)) in.matrix = m;
+  }
   return in;
 }
 

@@ -5,9 +5,11 @@
 // use_tissue aims with it, and a second insertion to the same points lands closer.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <numeric>
+#include <optional>
 
 #include "ignav/config/tissue_profiles.hpp"
 #include "server_process.hpp"
@@ -32,20 +34,22 @@ std::filesystem::path hiddenTissues(const std::filesystem::path& dir) {
 
 // The world's confirmation CT of what the session reached so far; its truth file.
 json confirmationScan(const std::filesystem::path& session, const std::filesystem::path& out,
-                      const std::filesystem::path& tissues) {
+                      const std::filesystem::path& tissues, const std::string& more = "") {
   const auto [status, text] =
       runPlan("confirmation-phantom " + session.string() +
                   " --robot " IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml --out " +
                   out.string() + " --hidden-tissue hidden_gel --tissues " + tissues.string() +
-                  " --noise-hu 8 --seed 3 --json",
+                  " --noise-hu 8 --seed 3 --json" + more,
               true);
   EXPECT_EQ(status, 0) << text;
   return json::parse(text.substr(text.find('{')));
 }
 
-// load_confirmation, then VerificationState once the measurement ended.
-json measured(protocol::Client& op, const std::filesystem::path& scan) {
-  const auto r = op.send("load_confirmation", {scan.string(), {}, {}});
+// load_confirmation (with the scan's registration, if given), then VerificationState once the
+// measurement ended.
+json measured(protocol::Client& op, const std::filesystem::path& scan,
+              const std::optional<Eigen::Matrix4d>& image_to_robot = std::nullopt) {
+  const auto r = op.send("load_confirmation", {scan.string(), {}, {}, image_to_robot});
   EXPECT_TRUE(r.accepted) << r.message;
   op.waitFor(
       [&](const json& s) {
@@ -160,6 +164,35 @@ TEST(ClosedLoopE2E, MeasuredFittedAndCompensatedThroughTheServer) {
   std::cout << "mean targeting error: " << uncompensated << " mm as planned, " << compensated
             << " mm aimed for the fitted tissue\n";
   EXPECT_LT(compensated * 5.0, uncompensated);
+
+  // The needle left in at one target: it runs through the robot's markers on its axis (the
+  // paper's feature points are the needle's own), so the scan cannot register on them: refused,
+  // the measurement before stays. Given the session's registration, its tip is measured.
+  const auto needle_id = truth2["targets"][1]["id"].get<std::uint32_t>();
+  const json truth3 = confirmationScan(server.sessionDir(), dir / "scan3", tissues,
+                                       " --needle-at " + std::to_string(needle_id));
+  const json refused = measured(*op, dir / "scan3");
+  EXPECT_EQ(refused["source"], (dir / "scan2").string()) << refused.dump();
+  EXPECT_NE(refused["message"].get<std::string>().find("markers_missing"), std::string::npos)
+      << refused["message"];
+  const json v3 = measured(*op, dir / "scan3", image_to_robot);
+  ASSERT_EQ(v3["status"], "measured") << v3.dump();
+  EXPECT_TRUE(std::isnan(v3["marker_shift_mm"].is_number() ? v3["marker_shift_mm"].get<double>()
+                                                           : std::nan("")))
+      << v3["marker_shift_mm"];
+  expectRowsMatchTruth(v3, truth3, image_to_robot);
+  std::uint32_t tip_seed = 0;
+  for (const auto& row : v3["targets"]) {
+    const bool at_needle = row["target_id"].get<std::uint32_t>() == needle_id;
+    EXPECT_EQ(row["matched"], at_needle ? "tip" : "detected") << row.dump();
+    if (at_needle) tip_seed = row["seed_id"].get<std::uint32_t>();
+  }
+  for (const auto& seed : v3["seeds"]) {
+    if (seed["id"].get<std::uint32_t>() != tip_seed) continue;
+    EXPECT_EQ(seed["kind"], "tip") << seed.dump();
+    EXPECT_GT(seed["path_lps"].size(), 20u) << seed.dump();
+  }
+  EXPECT_NE(tip_seed, 0u) << v3.dump();
 
   // The report has the table, and the fitted tissue is a tissues.yaml the next session can use.
   op.reset();

@@ -254,6 +254,50 @@ TEST(VerificationE2E, ATissueHiddenFromTheServerIsFittedFromTheErrorsAndCompensa
   EXPECT_GT(uncompensated_sum, 5.0 * compensated_sum)
       << "mean error uncompensated " << uncompensated_sum / static_cast<double>(ids.size())
       << " mm, compensated " << compensated_sum / static_cast<double>(ids.size()) << " mm";
+
+  // The needle left in at the first target: it runs through the markers on its axis, so the scan
+  // does not register on them (markers_missing); --same-frame registers it by the session's
+  // registration. Its tip is measured where agar put it, and its path joins the fit.
+  const std::filesystem::path needle_dir = ct_dir.string() + "_needle";
+  std::filesystem::remove_all(needle_dir);
+  const auto [needle_status, needle_out] = runPlan(
+      "confirmation-phantom " + session.string() + " --robot " + robot_yaml + " --out " +
+      needle_dir.string() +
+      " --hidden-tissue agar --tissues " IGNAV_SOURCE_DIR "/configs/tissues.yaml --needle-at " +
+      std::to_string(ids[0]));
+  ASSERT_EQ(needle_status, 0) << needle_out;
+  const std::string verify_needle =
+      "verify " + session.string() + " " + needle_dir.string() + " --robot " + robot_yaml;
+  const auto [merged_status, merged_out] = runPlan(verify_needle, true);
+  EXPECT_NE(merged_status, 0) << merged_out;
+  EXPECT_NE(merged_out.find("markers_missing"), std::string::npos) << merged_out;
+  const auto [same_status, same_out] =
+      runPlan(verify_needle + " --same-frame --fit-tissue hidden_agar --json");
+  ASSERT_EQ(same_status, 0) << same_out;
+  const json vn = json::parse(same_out);
+  EXPECT_TRUE(vn["registration"]["by_matrix"].get<bool>());
+  ASSERT_EQ(vn["targets"].size(), targets.size());
+  for (const auto& row : vn["targets"]) {
+    const auto id = row["id"].get<std::uint32_t>();
+    EXPECT_EQ(row["matched"], id == ids[0] ? "tip" : "seed") << row.dump();
+    const Eigen::Vector3d truth_lps = (robot_to_image_true * landed[id].homogeneous()).head<3>();
+    const Eigen::Vector3d expected =
+        (session_image_to_robot * truth_lps.homogeneous()).head<3>() - planned[id];
+    EXPECT_LT((vec(row["error_robot_mm"]) - expected).norm(), 0.1) << row.dump();
+  }
+  // The path is more data than the landing: both parameters better determined, still agar.
+  const json& with_path = vn["tissue_fit"];
+  const double pse1 = with_path["standard_errors"][0], pse2 = with_path["standard_errors"][1];
+  EXPECT_LT(pse1, se1) << with_path.dump();
+  EXPECT_LT(pse2, se2) << with_path.dump();
+  EXPECT_LT(std::abs(with_path["lambda1"].get<double>() - 0.49), 2.0 * pse1 + 1e-3)
+      << with_path.dump();
+  EXPECT_LT(std::abs(with_path["lambda2"].get<double>() - 0.22), 2.0 * pse2 + 1e-3)
+      << with_path.dump();
+  std::cout << "with one needle's path: lambda1 " << with_path["lambda1"] << " ± " << pse1
+            << ", lambda2 " << with_path["lambda2"] << " ± " << pse2 << "\n";
+  std::filesystem::remove_all(needle_dir);
+  std::filesystem::remove(needle_dir.string() + "_truth.json");
   std::filesystem::remove_all(ct_dir);
   std::filesystem::remove(markups);
   std::filesystem::remove(truth_file);

@@ -218,6 +218,22 @@ TEST(Wire, CommandsConvertToTheWorkflowsInputByTheirDeclaredArguments) {
   ASSERT_TRUE(in);
   EXPECT_FALSE(in->matrix);
   EXPECT_EQ(in->points.at(0).z(), 3.0);
+  // Where the matrix may be left out, all zeros (never a transform) leaves it out; a zero matrix
+  // where one is required still arrives, for the reducer to refuse.
+  c.points.clear();
+  c.kind = commandKindFromName("load_confirmation").value();
+  c.path = "/scans/confirmation";
+  in = toInput(c);
+  ASSERT_TRUE(in);
+  ASSERT_TRUE(in->matrix);
+  c.matrix = {};
+  in = toInput(c);
+  ASSERT_TRUE(in);
+  EXPECT_FALSE(in->matrix);
+  c.kind = commandKindFromName("set_registration").value();
+  in = toInput(c);
+  ASSERT_TRUE(in);
+  EXPECT_TRUE(in->matrix);
   c.kind = 4096;  // no command has it
   EXPECT_FALSE(toInput(c));
 }

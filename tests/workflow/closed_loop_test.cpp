@@ -179,6 +179,47 @@ TEST(ClosedLoop, BadScansAreRefusedWithTheReasonAndTheMeasurementBeforeStays) {
   EXPECT_EQ(stale.effects.replies.at(0).error_code, "stale_detection");
 }
 
+TEST(ClosedLoop, AScanGivenWithItsMatrixIsRegisteredByItNotByItsMarkers) {
+  Bench b = insertedBench(4);
+  // The scan 6 mm and 2° away from the planning CT; its markers unusable (here 50 mm off: merged
+  // with a needle left in, or out of the field of view).
+  Eigen::Isometry3d moved = Eigen::Isometry3d::Identity();
+  moved.rotate(Eigen::AngleAxisd(2 * kDeg, Eigen::Vector3d::UnitZ()));
+  moved.pretranslate(Eigen::Vector3d(4.0, -3.0, 3.0));
+  const Eigen::Matrix4d given = b.s.registration->imageToRobot() * moved.matrix();
+  auto load = [&](const Eigen::Matrix4d& m) {
+    auto in = b.command(InputKind::kLoadConfirmation);
+    in.path = "/scans/confirmation";
+    in.matrix = m;
+    return b.send(in);
+  };
+  // A transform that is no proper similarity, or not finite: refused before any work.
+  const auto mirrored = load(given * Eigen::Vector4d(-1.0, 1.0, 1.0, 1.0).asDiagonal());
+  EXPECT_EQ(mirrored.error_code, "mirror") << mirrored.message;
+  EXPECT_NE(mirrored.message.find("matrix"), std::string::npos) << mirrored.message;
+  Eigen::Matrix4d nan = given;
+  nan(0, 3) = std::nan("");
+  EXPECT_FALSE(load(nan).accepted);
+  EXPECT_EQ(b.s.confirmation.measuring, 0u);
+  EXPECT_EQ(b.s.confirmation.status, "none");
+
+  const auto r = load(given);
+  ASSERT_TRUE(r.accepted) << r.message;
+  Input scan = scanned(b.s, b.s.confirmation.measuring, plannedPlus(b.s, kOffsets), moved);
+  for (auto& m : scan.points)
+    m += Eigen::Vector3d(50.0, 0.0, 0.0);
+  b.feed(scan);
+  const Confirmation& c = b.s.confirmation;
+  ASSERT_EQ(c.status, "measured") << c.message;
+  EXPECT_TRUE(c.registration->by_matrix);
+  EXPECT_TRUE(std::isnan(c.registration->marker_shift_mm));
+  for (std::size_t i = 0; i < 4; ++i)
+    EXPECT_LT((c.targets[i].error.error_robot_mm - kOffsets[i]).norm(), 1e-6) << i;
+  // The next scan without a matrix is judged by its markers again.
+  startMeasuring(b);
+  EXPECT_FALSE(b.s.confirmation.measuring_matrix.has_value());
+}
+
 TEST(ClosedLoop, MoreSeedsThanTargetsNeedAPersonWhoRejectsTheExtra) {
   Bench b = insertedBench(3);
   auto seeds = plannedPlus(b.s, {kOffsets[0], kOffsets[1], kOffsets[2]});

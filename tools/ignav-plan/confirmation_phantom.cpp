@@ -169,6 +169,7 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
       }
     }
     const bool needle = t->id == args.needle_at;
+    json needle_lps = json::array();  // the needle as drawn: cannula, then stylet
     if (needle) {
       // The needle as the same model bends it (the straight push without a hidden tissue), from
       // where it enters the tissue (above it the robot holds it, and its markers lie on its axis).
@@ -186,6 +187,9 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
       stylet.insert(stylet.begin(), path->cannula_mm.back());
       volume::appendWire(spec, toImage(path->cannula_mm), instrument.cannula_outer_diameter_mm);
       volume::appendWire(spec, toImage(stylet), instrument.stylet_outer_diameter_mm);
+      for (const auto& line : {toImage(path->cannula_mm), toImage(path->stylet_mm)})
+        for (const auto& p : line)
+          needle_lps.push_back(pointJson(p));
     } else {
       spec.seeds.push_back(seed);
     }
@@ -199,6 +203,7 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
                        {"landing_robot_mm", pointJson(landed.tip_mm)},
                        {"landing_lps_mm", pointJson(seed.centre_lps_mm)},
                        {"landing_kind", needle ? "tip" : "seed"},
+                       {"needle_lps_mm", needle_lps},
                        {"seed_axis_lps", pointJson(seed.axis_lps)},
                        {"landing_off_plan_mm", off_mm}});
   }
@@ -247,13 +252,17 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
 
 std::string confirmationPhantomText(const json& truth) {
   const json& ct = truth["ct"];
+  const auto needles = static_cast<std::size_t>(
+      std::count_if(truth["targets"].begin(), truth["targets"].end(),
+                    [](const json& t) { return t.value("landing_kind", "seed") == "tip"; }));
   std::string out = fmt::format(
-      "confirmation phantom: {} seeds in {} x {} x {} voxels of {:.2f} x {:.2f} x {:.2f} mm, "
+      "confirmation phantom: {} seeds{} in {} x {} x {} voxels of {:.2f} x {:.2f} x {:.2f} mm, "
       "noise {:g} HU -> {}\n",
-      truth["targets"].size(), ct["dims"][0].get<int>(), ct["dims"][1].get<int>(),
-      ct["dims"][2].get<int>(), ct["spacing_mm"][0].get<double>(),
-      ct["spacing_mm"][1].get<double>(), ct["spacing_mm"][2].get<double>(),
-      ct["noise_hu"].get<double>(), truth["out_dir"].get<std::string>());
+      truth["targets"].size() - needles, needles != 0 ? " and a needle left in" : "",
+      ct["dims"][0].get<int>(), ct["dims"][1].get<int>(), ct["dims"][2].get<int>(),
+      ct["spacing_mm"][0].get<double>(), ct["spacing_mm"][1].get<double>(),
+      ct["spacing_mm"][2].get<double>(), ct["noise_hu"].get<double>(),
+      truth["out_dir"].get<std::string>());
   const json& tissue = truth["hidden_tissue"];
   out += tissue.is_null()
              ? std::string("no hidden tissue: each seed lies at its joints' nominal tip\n")

@@ -285,6 +285,9 @@ int main(int argc, char** argv) {
                          "reuse the session's registration when no marker moved farther (mm)");
   verify_cmd->add_option("--max-marker-shift", verify_args.max_marker_shift_mm,
                          "refuse a scan whose markers moved farther (mm)");
+  verify_cmd->add_flag("--same-frame", verify_args.same_frame,
+                       "the scan is in the session's frame: register it by the session's "
+                       "registration, not its markers (a needle left in touches them)");
   verify_cmd->add_flag("--allow-extra-seeds", verify_args.allow_extra_seeds,
                        "report seeds no target claims instead of refusing them");
   verify_cmd->add_flag("--json", verify_json, "print JSON");

@@ -1,10 +1,13 @@
 #include "verify_command.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 
 #include <fmt/format.h>
+#include <Eigen/Geometry>
 
 #include "ignav/compensation/compensation.hpp"
 #include "ignav/config/robot_config.hpp"
@@ -35,11 +38,13 @@ json stats(const verification::Stats& s) {
           {"min_mm", s.min},  {"max_mm", s.max},   {"rms_mm", s.rms}};
 }
 
-// λ1, λ2 fitted to the measured landings of the targets (each at its own joints), and the
+// λ1, λ2 fitted to the measured landings of the targets (each at its own joints) and, where the
+// scan still shows a needle, to its path (robot frame, by target id), as fit_tissue does; the
 // profile as a configs/tissues.yaml entry.
 json fitTissue(const VerifyArgs& args, const workflow::Session& session,
                const std::vector<verification::TargetError>& errors,
-               const std::map<std::uint32_t, const workflow::Target*>& by_id) {
+               const std::map<std::uint32_t, const workflow::Target*>& by_id,
+               const std::map<std::uint32_t, std::vector<Eigen::Vector3d>>& paths_robot_mm) {
   compensation::DeflectionModel model;
   if (session.tissue) {
     model.needle = session.tissue->needle;
@@ -55,6 +60,9 @@ json fitTissue(const VerifyArgs& args, const workflow::Session& session,
                        by_id.at(e.target_id)->reached_joints,
                        e.actual_robot_mm,
                        {}});
+    if (auto path = paths_robot_mm.find(e.target_id); path != paths_robot_mm.end()) {
+      records.back().path_mm = path->second;
+    }
   }
   auto fit = compensation::fitTissueFromTargeting(session.robot->kinematics, model, records);
   if (!fit) throw CliError{"the tissue fit: " + fit.error().message};
@@ -182,14 +190,20 @@ json verifySession(const VerifyArgs& args) {
 
   // The scan loaded, the robot's markers and the seeds found, as the server's load_confirmation
   // does it (workflow::measureConfirmation).
+  std::optional<Eigen::Matrix4d> same_frame;
+  if (args.same_frame) same_frame = session.registration->imageToRobot();
   const workflow::Input scan =
-      workflow::measureConfirmation({1, args.confirmation_ct, session.robot});
+      workflow::measureConfirmation({1, args.confirmation_ct, session.robot, same_frame});
   if (scan.kind != workflow::InputKind::kConfirmationMeasured) throw CliError{scan.error};
   const std::vector<Eigen::Vector3d> model(robot.feature_points_mm.begin(),
                                            robot.feature_points_mm.end());
-  auto confirmed = verification::registerConfirmation(
-      *session.registration, scan.points, model, robot.config.registration.kind,
-      robot.config.registration.limits, {args.reuse_within_mm, args.max_marker_shift_mm});
+  auto confirmed =
+      same_frame
+          ? verification::registerConfirmationByMatrix(*same_frame,
+                                                       robot.config.registration.limits)
+          : verification::registerConfirmation(
+                *session.registration, scan.points, model, robot.config.registration.kind,
+                robot.config.registration.limits, {args.reuse_within_mm, args.max_marker_shift_mm});
   if (!confirmed) throw CliError{args.confirmation_ct + ": " + confirmed.error().message};
   if (scan.seeds.empty()) {
     throw CliError{args.confirmation_ct + ": no seeds found (" + scan.summary + ")"};
@@ -204,8 +218,20 @@ json verifySession(const VerifyArgs& args) {
   if (!verified) throw CliError{args.confirmation_ct + ": " + verified.error().message};
 
   json targets = json::array();
+  std::map<std::uint32_t, std::vector<Eigen::Vector3d>> paths_robot_mm;
+  const Eigen::Matrix4d image_to_robot = confirmed->registration.imageToRobot();
   for (const auto& e : verified->errors) {
     const auto* t = by_id.at(e.target_id);
+    // The scan's own find at this target: a seed, or a needle's tip with its path.
+    const auto found = std::find_if(scan.seeds.begin(), scan.seeds.end(), [&](const auto& seed) {
+      return seed.lps_mm == e.actual_lps_mm;
+    });
+    const bool tip = found != scan.seeds.end() && found->kind == "tip";
+    if (tip) {
+      auto& path = paths_robot_mm[e.target_id];
+      for (const auto& p : found->path_lps_mm)
+        path.push_back((image_to_robot * p.homogeneous()).head<3>());
+    }
     json row = {{"id", e.target_id},
                 {"planned_robot_mm", pointJson(e.planned_robot_mm)},
                 {"actual_robot_mm", pointJson(e.actual_robot_mm)},
@@ -215,7 +241,13 @@ json verifySession(const VerifyArgs& args) {
                 {"error_lps_mm", pointJson(e.error_lps_mm)},
                 {"error_mm", e.error_mm},
                 {"lateral_mm", e.lateral_mm},
-                {"depth_mm", e.depth_mm}};
+                {"depth_mm", e.depth_mm},
+                {"matched", tip ? "tip" : "seed"}};
+    if (tip) {
+      row["path_lps_mm"] = json::array();
+      for (const auto& p : found->path_lps_mm)
+        row["path_lps_mm"].push_back(pointJson(p));
+    }
     row["predicted_deviation_mm"] =
         std::isfinite(t->predicted_deviation_mm) ? json(t->predicted_deviation_mm) : json();
     targets.push_back(row);
@@ -233,6 +265,7 @@ json verifySession(const VerifyArgs& args) {
       {"confirmation_ct", args.confirmation_ct},
       {"registration",
        {{"reused", confirmed->reused},
+        {"by_matrix", confirmed->by_matrix},
         {"marker_shift_mm", confirmed->marker_shift_mm},
         {"fre_mm", confirmed->registration.fre_mm},
         {"image_to_robot", rowMajorJson(confirmed->registration.imageToRobot())},
@@ -245,7 +278,7 @@ json verifySession(const VerifyArgs& args) {
        {{"error", stats(sum.error)}, {"lateral", stats(sum.lateral)}, {"depth", stats(sum.depth)}}},
       {"text", verified->text}};
   if (!args.fit_tissue_name.empty())
-    out["tissue_fit"] = fitTissue(args, session, verified->errors, by_id);
+    out["tissue_fit"] = fitTissue(args, session, verified->errors, by_id, paths_robot_mm);
   if (!args.figure_out.empty()) {
     writeFigure(args, session, *verified);
     out["figure"] = args.figure_out;

@@ -19,6 +19,9 @@ struct VerifyArgs {
   double reuse_within_mm = 1.0;
   double max_marker_shift_mm = 20.0;
   bool allow_extra_seeds = false;
+  // The scan is in the session's frame (the robot and the patient did not move): register it by
+  // the session's registration without the markers, as where a needle left in touches them.
+  bool same_frame = false;
   std::string markups_out;  // a Slicer .mrk.json of the seeds found (LPS), one per target
   // Fit the tissue (λ1, λ2 of the extended bicycle model) to the measured errors and name it: a
   // `tissues:` entry for configs/tissues.yaml comes out with the fit. The needle is the session's

@@ -116,8 +116,9 @@ CommandArgs commandArgs(const ignav::workflow::InputSpec& spec,
     return n == ignav::workflow::kAnyCount ? words.size() - std::min(words.size(), next + others)
                                            : n;
   };
+  const std::size_t matrix_words = a.matrix_is && !a.matrix_optional ? 1 : 0;
   const std::size_t after_ids =
-      (a.points == ignav::workflow::kAnyCount ? 0 : a.points) + (a.matrix_is ? 1 : 0);
+      (a.points == ignav::workflow::kAnyCount ? 0 : a.points) + matrix_words;
   for (std::size_t i = 0, n = count(a.ids, after_ids); i < n; ++i) {
     const std::string& word = take();
     try {
@@ -129,9 +130,9 @@ CommandArgs commandArgs(const ignav::workflow::InputSpec& spec,
       throw UsageError("'" + word + "' is not a target id; usage: " + usage);
     }
   }
-  for (std::size_t i = 0, n = count(a.points, a.matrix_is ? 1 : 0); i < n; ++i)
+  for (std::size_t i = 0, n = count(a.points, matrix_words); i < n; ++i)
     out.points.push_back(triple(take()));
-  if (a.matrix_is) out.matrix = matrix16(take());
+  if (a.matrix_is && (!a.matrix_optional || next < words.size())) out.matrix = matrix16(take());
   if (next != words.size()) throw UsageError("too many arguments; usage: " + usage);
   return out;
 }
@@ -722,9 +723,22 @@ int main(int argc, char** argv) {
         if (rest.size() <= i) throw UsageError("verify " + verb + ": an id is missing");
         return static_cast<std::uint32_t>(std::stoul(rest[i]));
       };
-      if (verb == "load" && rest.size() == 1) {
+      const bool same_frame = rest.size() == 2 && rest[1] == "same-frame";
+      if (verb == "load" && (rest.size() == 1 || same_frame)) {
+        // same-frame: the robot and the patient did not move since planning (a needle left in
+        // touches the markers on its axis): the session's registration goes with the scan.
+        std::optional<Eigen::Matrix4d> given;
+        if (same_frame) {
+          client.waitUntil([](const StateMirror& s) { return s.registration.has_value(); }, 2s);
+          const auto& reg = *client.mirror().registration;
+          if (reg.status != "registered") {
+            throw UsageError("verify load " + rest[0] +
+                             " same-frame: the session has no registration to give the scan");
+          }
+          given = ignav::protocol::fromRowMajor(reg.image_to_robot);
+        }
         // Accepted when the measurement starts; its outcome shows in VerificationState.
-        const auto r = client.send("load_confirmation", {rest[0], {}, {}});
+        const auto r = client.send("load_confirmation", {rest[0], {}, {}, given});
         if (!r.accepted) {
           printReply(r, as_json);
           return kExitRejected;
@@ -746,7 +760,8 @@ int main(int argc, char** argv) {
       if (verb == "fit" && rest.size() == 1) return send("fit_tissue", {rest[0], {}, {}});
       if (verb == "aim" && rest.size() == 1) return send("use_tissue", {rest[0], {}, {}});
       throw UsageError(
-          "verify: load PATH | place TARGET X,Y,Z | accept TARGET | reject SEED | fit NAME | aim "
+          "verify: load PATH [same-frame] | place TARGET X,Y,Z | accept TARGET | reject SEED | fit "
+          "NAME | aim "
           "NAME|none");
     }
     if (*approval || *motion) {

@@ -32,6 +32,35 @@ int parameterCount(Kind kind) {
 constexpr double kPathStep_mm = 0.1;
 constexpr double kPathAbove_mm = 40.0;
 
+// A measured centreline's errors are correlated along it (the detection refines each point over a
+// 3 mm window, and its bias varies slowly): points closer than this are not independent
+// observations, and counted as such a dense path would outweigh every landing with its bias.
+constexpr double kPathSpacing_mm = 5.0;
+// ... and a centreline point is known less well than a landing: the detection's centreline lies
+// within 0.15 mm of the needle where a tip or a seed is localised to 0.05 mm
+// (docs/VERIFICATION.md), so its offsets are weighed by the ratio (least squares weighs each
+// residual by 1/σ).
+constexpr double kPathWeight = 0.05 / 0.15;
+
+// The records with each path thinned to points kPathSpacing_mm apart along it, from its deep end
+// (the tip, where the tissue shows most).
+std::vector<TargetingRecord> withIndependentPathPoints(std::vector<TargetingRecord> records) {
+  for (auto& r : records) {
+    if (r.path_mm.empty()) continue;
+    std::vector<Eigen::Vector3d> kept{r.path_mm.back()};
+    double along = 0.0;
+    for (std::size_t i = r.path_mm.size() - 1; i-- > 0;) {
+      along += (r.path_mm[i + 1] - r.path_mm[i]).norm();
+      if (along >= kPathSpacing_mm) {
+        kept.push_back(r.path_mm[i]);
+        along = 0.0;
+      }
+    }
+    r.path_mm.assign(kept.rbegin(), kept.rend());
+  }
+  return records;
+}
+
 int pathPoints(const std::vector<TargetingRecord>& records) {
   std::size_t n = 0;
   for (const auto& r : records)
@@ -99,8 +128,8 @@ struct Residuals : Eigen::DenseFunctor<double> {
         line.insert(line.end(), path->stylet_mm.begin(), path->stylet_mm.end());
       }
       for (const auto& q : record.path_mm) {
-        r.segment<3>(at) =
-            path ? offsetToPolyline(line, q) : Eigen::Vector3d::Constant(kPenalty_mm);
+        r.segment<3>(at) = path ? Eigen::Vector3d(kPathWeight * offsetToPolyline(line, q))
+                                : Eigen::Vector3d::Constant(kPenalty_mm);
         at += 3;
       }
     }
@@ -236,18 +265,27 @@ double rms(const std::vector<double>& e) {
 
 Expected<TargetingFit> fitTissueFromTargeting(const kinematics::Kinematics& kinematics,
                                               const DeflectionModel& model,
-                                              const std::vector<TargetingRecord>& records,
+                                              const std::vector<TargetingRecord>& observed,
                                               const TargetingFitOptions& options) {
   const Kind kind = options.fit_curvature ? Kind::kExtendedWithCurvature : Kind::kExtended;
   const int p = parameterCount(kind);
+  const std::vector<TargetingRecord> records = withIndependentPathPoints(observed);
   // Each target gives two in-plane residuals that the tissue moves (and one across, noise only);
-  // a visible path as many again per point.
+  // a visible path as many again per independent point.
   const auto observations = 2 * (records.size() + static_cast<std::size_t>(pathPoints(records)));
   if (observations <= static_cast<std::size_t>(p)) {
     return makeError(
         ErrorCode::kInvalidArgument,
         fmt::format("{} targets for {} parameters: need at least {}", records.size(), p, p / 2 + 1),
         "underdetermined");
+  }
+  for (const auto& r : observed) {
+    if (!std::all_of(r.path_mm.begin(), r.path_mm.end(),
+                     [](const Eigen::Vector3d& q) { return q.allFinite(); })) {
+      return makeError(
+          ErrorCode::kInvalidArgument,
+          fmt::format("target '{}': planned, actual, path and joints must be finite", r.id));
+    }
   }
   double deepest = 0.0, shallowest = std::numeric_limits<double>::infinity();
   for (const auto& r : records) {

@@ -1,6 +1,7 @@
 #include "ignav/verification/confirmation_registration.hpp"
 
 #include <cmath>
+#include <limits>
 
 #include <fmt/format.h>
 
@@ -66,6 +67,21 @@ Expected<ConfirmationRegistration> registerConfirmation(
                           "registered on the confirmation CT's markers (the session's "
                           "registration was given as a matrix): FRE {:.3f} mm",
                           out.registration.fre_mm);
+  return out;
+}
+
+Expected<ConfirmationRegistration> registerConfirmationByMatrix(
+    const Eigen::Matrix4d& image_to_robot, const registration::RegistrationLimits& limits) {
+  auto given = registration::registrationFromMatrix(image_to_robot, limits);
+  if (!given) return given.error();
+  ConfirmationRegistration out;
+  out.by_matrix = true;
+  out.marker_shift_mm = std::numeric_limits<double>::quiet_NaN();
+  out.registration = std::move(given).value();
+  out.message = fmt::format(
+      "registered by the matrix given with the scan (scale {:.4f}): the markers were not "
+      "compared",
+      out.registration.scale);
   return out;
 }
 

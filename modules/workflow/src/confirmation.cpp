@@ -4,6 +4,7 @@
 // outcome as confirmation_measured (markers, seeds and any needle's tip) or confirmation_failed
 // (why).
 #include <fmt/format.h>
+#include <Eigen/Geometry>
 #include <Eigen/LU>
 
 #include "ignav/verification/needle_detection.hpp"
@@ -16,7 +17,8 @@ namespace ignav::workflow {
 
 std::optional<ConfirmationJob> pendingConfirmation(const Session& s) {
   if (s.confirmation.measuring == 0 || !s.robot) return std::nullopt;
-  return ConfirmationJob{s.confirmation.measuring, s.confirmation.measuring_source, s.robot};
+  return ConfirmationJob{s.confirmation.measuring, s.confirmation.measuring_source, s.robot,
+                         s.confirmation.measuring_matrix};
 }
 
 Input measureConfirmation(const ConfirmationJob& job) {
@@ -38,13 +40,23 @@ Input measureConfirmation(const ConfirmationJob& job) {
   markers.ct_source = job.source;
   markers.search = job.robot->config.registration.fiducials;
   markers.model_mm.assign(job.robot->feature_points_mm.begin(), job.robot->feature_points_mm.end());
-  const Input found = detectFiducials(markers);
-  if (found.kind != InputKind::kFiducialsDetected) {
-    in.error = fmt::format(
-        "markers_missing: the robot's markers were not found on {} ({}): the scan cannot be "
-        "registered to the robot (another patient or frame, or not a scan of the robot?)",
-        job.source, found.error);
-    return in;
+  Input found;
+  if (job.image_to_robot) {
+    // Registered by the given transform: the markers lie where it puts the feature points (the
+    // seed search keeps clear of them there), found or merged with a needle left in.
+    const Eigen::Matrix4d robot_to_image = job.image_to_robot->inverse();
+    for (const auto& p : markers.model_mm)
+      found.points.push_back((robot_to_image * p.homogeneous()).head<3>());
+  } else {
+    found = detectFiducials(markers);
+    if (found.kind != InputKind::kFiducialsDetected) {
+      in.error = fmt::format(
+          "markers_missing: the robot's markers were not found on {} ({}): the scan cannot be "
+          "registered to the robot (another patient or frame, or not a scan of the robot? A "
+          "needle left in touches the markers on its axis: give the registration with the scan)",
+          job.source, found.error);
+      return in;
+    }
   }
   verification::SeedSearch search;
   search.markers_lps_mm = found.points;
@@ -57,11 +69,17 @@ Input measureConfirmation(const ConfirmationJob& job) {
   // reducer registers the scan properly, reused or anew; a direction needs no more). Markers that
   // do not register leave the needle search out; the reducer refuses the scan for them.
   Expected<verification::NeedleDetection> needles{verification::NeedleDetection{}};
-  if (auto reg = detail::registerOnRobot(*job.robot, found.points)) {
+  std::optional<Eigen::Matrix4d> image_to_robot = job.image_to_robot;
+  if (!image_to_robot) {
+    if (auto reg = detail::registerOnRobot(*job.robot, found.points)) {
+      image_to_robot = reg->imageToRobot();
+    }
+  }
+  if (image_to_robot) {
     verification::NeedleSearch needle_search;
     needle_search.markers_lps_mm = found.points;
     needle_search.insertion_lps =
-        reg->imageToRobot().topLeftCorner<3, 3>().inverse() * Eigen::Vector3d(0.0, 0.0, -1.0);
+        image_to_robot->topLeftCorner<3, 3>().inverse() * Eigen::Vector3d(0.0, 0.0, -1.0);
     needles = verification::findNeedles(*markers.volume, needle_search);
   }
   if (!needles) {

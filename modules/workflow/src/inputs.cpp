@@ -75,7 +75,12 @@ const std::vector<InputSpec> kInputs = {
      "the server's clock (Unix s) and the session revision, answered at once: for clients "
      "measuring their clock offset and round trip"},
     {I::kLoadConfirmation, "load_confirmation", 21, R::kPlanner, kCommand,
-     kNone.path("a server-side confirmation CT: DICOM folder or file, .nrrd/.nhdr, .mha/.mhd"),
+     kNone.path("a server-side confirmation CT: DICOM folder or file, .nrrd/.nhdr, .mha/.mhd")
+         .optionalMatrix("the scan's image -> robot transform (row-major 4x4, p_robot = M * "
+                         "p_lps) where its markers cannot serve: a needle left in touches those on "
+                         "its axis, or the scan leaves the robot out (the session's own "
+                         "registration, or one computed elsewhere); without it the markers are "
+                         "found and compared"),
      "load a confirmation CT after motion and measure the targeting error of every reached "
      "target, in the background: VerificationState shows measuring, then the seeds, the match "
      "and the errors (or why the scan was refused; the measurement before stays)"},
@@ -194,7 +199,7 @@ std::string usageOf(const InputSpec& spec) {
   };
   repeated(a.ids, "ID");
   repeated(a.points, "X,Y,Z");
-  if (a.matrix_is) add("M11,M12,...,M44");
+  if (a.matrix_is) add(a.matrix_optional ? "[M11,M12,...,M44]" : "M11,M12,...,M44");
   return out;
 }
 

@@ -126,7 +126,7 @@ std::optional<Rejection> checkShape(const Input& in) {
                      fmt::format("{} takes {} point(s) and {} id(s); got {} and {}", spec.name,
                                  count(a.points), count(a.ids), in.points.size(), in.ids.size())};
   }
-  if (a.matrix_is && !in.matrix) {
+  if (a.matrix_is && !a.matrix_optional && !in.matrix) {
     return Rejection{ReplyCode::kBadArguments, fmt::format("{} needs a 4x4 matrix", spec.name)};
   }
   if (!a.matrix_is && in.matrix) {

@@ -14,7 +14,8 @@ const std::vector<ReplyCodeSpec> kCodes = {
     {C::kBadArguments, "bad_arguments",
      "the command does not carry what its row in the table of commands names (points, ids, "
      "path, matrix)"},
-    {C::kNonFinite, "non_finite", "NaN or ±inf in `points[i]`, or in a `set_registration` matrix"},
+    {C::kNonFinite, "non_finite",
+     "NaN or ±inf in `points[i]`, or in a matrix (`set_registration`, `load_confirmation`)"},
     {C::kOversized, "oversized", "more than 100 points or ids"},
     {C::kTooLong, "too_long", "path over 4096 characters, or a digest over 128"},
     {C::kBadClientId, "bad_client_id", "client_id empty or over 128 characters"},
@@ -62,11 +63,14 @@ const std::vector<ReplyCodeSpec> kCodes = {
      "registration: the fiducial registration error is too large"},
     {C::kOutOfRange, "out_of_range",
      "a coordinate beyond ±10⁶ mm, or a registration value beyond its limit"},
-    {C::kNotAffine, "not_affine", "`set_registration`: the matrix's last row is not 0 0 0 1"},
+    {C::kNotAffine, "not_affine",
+     "`set_registration`, `load_confirmation`: the matrix's last row is not 0 0 0 1"},
     {C::kNotSimilarity, "not_similarity",
-     "`set_registration`: the matrix shears or scales unevenly (singular values differ by more "
+     "`set_registration`, `load_confirmation`: the matrix shears or scales unevenly (singular "
+     "values differ by more "
      "than 1e-4)"},
-    {C::kMirror, "mirror", "`set_registration`: the matrix mirrors (RAS and LPS mixed up?)"},
+    {C::kMirror, "mirror",
+     "`set_registration`, `load_confirmation`: the matrix mirrors (RAS and LPS mixed up?)"},
     {C::kNotRegistered, "not_registered", "`check_ready targeting` before any registration"},
     {C::kStaleDetection, "stale_detection",
      "a marker detection's result for a CT or a request no longer current (another CT loaded, or "

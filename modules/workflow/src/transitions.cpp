@@ -373,7 +373,10 @@ std::string argumentsText(const InputSpec& spec) {
   };
   if (a.ids) add(counted(a.ids, "ids") + ": " + a.ids_are);
   if (a.points) add(counted(a.points, "points") + ": " + a.points_are);
-  if (a.matrix_is) add(std::string("`matrix`: ") + a.matrix_is);
+  if (a.matrix_is) {
+    add(std::string("`matrix`") + (a.matrix_optional ? " (optional: all zeros for none)" : "") +
+        ": " + a.matrix_is);
+  }
   return text.empty() ? "—" : text;
 }
 

@@ -157,6 +157,7 @@ void rematch(Session& s) {
 void refuseScan(Confirmation& c, const std::string& source, const std::string& why) {
   c.measuring = 0;
   c.measuring_source.clear();
+  c.measuring_matrix.reset();
   c.message = fmt::format("the confirmation CT {} was refused: {}{}", source, why,
                           c.source.empty() ? "" : "; the measurement of " + c.source + " stays");
 }
@@ -202,8 +203,19 @@ Refusal startConfirmation(Session& s, const Input& in, ActionOutput& out) {
     return Rejection{ReplyCode::kNotRegistered,
                      "the session has no registration to compare the confirmation CT with"};
   }
+  if (in.matrix) {
+    // Checked now, as set_registration checks it: a bad transform is refused before any work.
+    auto given =
+        registration::registrationFromMatrix(*in.matrix, s.robot->config.registration.limits);
+    if (!given) {
+      Rejection why = registrationRefusal(given.error());
+      why.message = "the confirmation CT's matrix: " + why.message;
+      return why;
+    }
+  }
   c.measuring = s.revision + 1;  // this step's
   c.measuring_source = in.path;
+  c.measuring_matrix = in.matrix;
   out.effects.measure_confirmation = pendingConfirmation(s);
   out.effects.confirmation_changed = true;
   out.note = fmt::format(
@@ -224,9 +236,15 @@ Refusal adoptConfirmation(Session& s, const Input& in, ActionOutput& out) {
   const auto& robot = *s.robot;
   const std::vector<Eigen::Vector3d> model(robot.feature_points_mm.begin(),
                                            robot.feature_points_mm.end());
-  auto reg = verification::registerConfirmation(*s.registration, in.points, model,
-                                                robot.config.registration.kind,
-                                                robot.config.registration.limits);
+  Expected<verification::ConfirmationRegistration> reg = Error{};
+  if (c.measuring_matrix) {
+    reg = verification::registerConfirmationByMatrix(*c.measuring_matrix,
+                                                     robot.config.registration.limits);
+  } else {
+    reg = verification::registerConfirmation(*s.registration, in.points, model,
+                                             robot.config.registration.kind,
+                                             robot.config.registration.limits);
+  }
   if (!reg) {
     refuse(reg.error().reason + ": " + reg.error().message);
     return std::nullopt;

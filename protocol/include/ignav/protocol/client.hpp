@@ -31,7 +31,7 @@ struct CommandArgs {
   std::string path;
   std::vector<Eigen::Vector3d> points;
   std::vector<std::uint32_t> ids;
-  std::optional<Eigen::Matrix4d> matrix = std::nullopt;  // set_registration
+  std::optional<Eigen::Matrix4d> matrix = std::nullopt;  // set_registration, load_confirmation
 };
 
 struct SliceArgs {

@@ -69,7 +69,7 @@ struct Command {
   std::string path;
   std::vector<Point3> points;
   std::vector<std::uint32_t> ids;
-  RowMajor4 matrix{};  // set_registration: p_robot = M * p_lps
+  RowMajor4 matrix{};  // set_registration, load_confirmation (zeros: none): p_robot = M * p_lps
 };
 // The most points or ids the server copies out of a Command: one more than any command may carry
 // (planning.max_targets is at most 100), so that the workflow can name the oversize without the

@@ -23,6 +23,7 @@ struct ConfirmationLimits {
 struct ConfirmationRegistration {
   bool reused = false;           // the session's registration, else one from the new markers
   double marker_shift_mm = 0.0;  // the largest move of a marker (LPS) since the planning CT
+  bool by_matrix = false;        // given with the scan: no markers compared (shift NaN)
   registration::Registration registration;
   std::string message;  // for a person: reused or re-registered, the shift, the FRE
 };
@@ -35,5 +36,12 @@ Expected<ConfirmationRegistration> registerConfirmation(
     const registration::Registration& planning, const std::vector<Eigen::Vector3d>& markers_lps_mm,
     const std::vector<Eigen::Vector3d>& model_robot_mm, registration::TransformKind kind,
     const registration::RegistrationLimits& limits, const ConfirmationLimits& confirmation = {});
+
+// The scan registered by a transform given with it (the session's own, or one computed elsewhere,
+// e.g. the confirmation CT registered to the planning CT in 3D Slicer), where its markers cannot
+// serve: a needle left in touches those on its axis (the paper's feature points are the
+// needle's own), or the scan leaves the robot out. Checked as set_registration checks a matrix.
+Expected<ConfirmationRegistration> registerConfirmationByMatrix(
+    const Eigen::Matrix4d& image_to_robot, const registration::RegistrationLimits& limits);
 
 }  // namespace ignav::verification

@@ -41,6 +41,9 @@ struct ConfirmationJob {
   std::uint64_t job = 0;  // the revision of the load_confirmation that asked for it
   std::string source;     // DICOM folder or file, .nrrd/.nhdr, .mha/.mhd
   std::shared_ptr<const config::Robot> robot;
+  // Given with load_confirmation: the scan's image -> robot transform; the markers are not
+  // searched for (they are expected where it puts the robot's feature points).
+  std::optional<Eigen::Matrix4d> image_to_robot;
 };
 
 // A person's word on one target's seed (the click fallback).
@@ -73,7 +76,8 @@ struct Confirmation {
   std::string message;          // for a person: the outcome, or why the last scan was refused
   std::uint64_t measuring = 0;  // the job under way (0: none)
   std::string measuring_source;
-  std::vector<Eigen::Vector3d> markers_lps_mm;  // on the confirmation CT, in the model's order
+  std::optional<Eigen::Matrix4d> measuring_matrix;  // the job's given registration, if any
+  std::vector<Eigen::Vector3d> markers_lps_mm;      // on the confirmation CT, in the model's order
   std::optional<verification::ConfirmationRegistration> registration;
   std::string detection_summary;
   std::vector<FoundSeed> seeds;

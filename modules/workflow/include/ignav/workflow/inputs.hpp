@@ -76,6 +76,7 @@ struct Arguments {
   std::size_t ids = 0;
   const char* ids_are = nullptr;
   const char* matrix_is = nullptr;  // nullptr: carries no matrix
+  bool matrix_optional = false;     // may come without one (on the wire: all zeros)
 
   constexpr Arguments path(const char* is, const char* choices = nullptr) const {
     Arguments a = *this;
@@ -98,6 +99,11 @@ struct Arguments {
   constexpr Arguments matrix(const char* is) const {
     Arguments a = *this;
     a.matrix_is = is;
+    return a;
+  }
+  constexpr Arguments optionalMatrix(const char* is) const {
+    Arguments a = matrix(is);
+    a.matrix_optional = true;
     return a;
   }
 };
