@@ -279,16 +279,8 @@ Expected<TargetingFit> fitTissueFromTargeting(const kinematics::Kinematics& kine
         fmt::format("{} targets for {} parameters: need at least {}", records.size(), p, p / 2 + 1),
         "underdetermined");
   }
-  for (const auto& r : observed) {
-    if (!std::all_of(r.path_mm.begin(), r.path_mm.end(),
-                     [](const Eigen::Vector3d& q) { return q.allFinite(); })) {
-      return makeError(
-          ErrorCode::kInvalidArgument,
-          fmt::format("target '{}': planned, actual, path and joints must be finite", r.id));
-    }
-  }
   double deepest = 0.0, shallowest = std::numeric_limits<double>::infinity();
-  for (const auto& r : records) {
+  for (const auto& r : observed) {  // every path point checked, not only those the fit keeps
     const auto& j = r.joints;
     const bool path_finite = std::all_of(r.path_mm.begin(), r.path_mm.end(),
                                          [](const Eigen::Vector3d& q) { return q.allFinite(); });
