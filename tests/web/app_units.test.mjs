@@ -351,6 +351,15 @@ test("the summary's numbers: mean ± sample SD, max, min, RMS; one value has no 
   assert.equal(ver.fixed(-0.004, 2), "0.00");
 });
 
+test("registrationText: reused, anew, or given with the scan (the shift null in JSON)", () => {
+  const v = { registration_reused: true, marker_shift_mm: 0.123, fre_mm: 0.2 };
+  assert.equal(ver.registrationText(v), "the session's (markers moved 0.12 mm)");
+  assert.equal(ver.registrationText({ ...v, registration_reused: false, marker_shift_mm: 4.5 }),
+    "its own markers (FRE 0.20 mm, markers moved 4.50 mm)");
+  assert.equal(ver.registrationText({ ...v, registration_reused: false, marker_shift_mm: null }),
+    "the one given with the scan (markers not compared)");
+});
+
 test("measuredByTarget: each measured target's row by id", () => {
   const rows = ver.measuredByTarget({ targets: [{ target_id: 3, error_mm: 1 }, { target_id: 7, error_mm: 2 }] });
   assert.equal(rows.get(7).error_mm, 2);

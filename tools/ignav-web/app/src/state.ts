@@ -192,7 +192,7 @@ export interface VerificationState {
   measuring_source: string; // the one being measured ("" none)
   message: string;
   registration_reused: boolean; // the session's registration (the markers where they were)
-  marker_shift_mm: number;
+  marker_shift_mm: number | null; // null: the scan came with its registration (no markers compared)
   fre_mm: number;
   image_to_robot: number[]; // the confirmation CT's
   detection_summary: string;

@@ -85,6 +85,10 @@ export function fixed(x: number, digits: number, signed = false): string {
 
 // What the registration of the confirmation CT was.
 export function registrationText(v: VerificationState): string {
+  // A scan given with its registration compared no markers: the shift is NaN (null in JSON).
+  if (v.marker_shift_mm === null || Number.isNaN(v.marker_shift_mm)) {
+    return "the one given with the scan (markers not compared)";
+  }
   return v.registration_reused
     ? `the session's (markers moved ${fixed(v.marker_shift_mm, 2)} mm)`
     : `its own markers (FRE ${fixed(v.fre_mm, 2)} mm, markers moved ${fixed(v.marker_shift_mm, 2)} mm)`;
