@@ -28,6 +28,13 @@ int main(int argc, char** argv) {
   app.add_option("--session-dir", session_dir, "the session folder (default: a new one)");
   app.add_option("--robot", robot, "robot YAML (overrides the config)");
   app.add_option("--dds-config", dds_config, "Cyclone XML (overrides the config)");
+  std::string robot_id;
+  app.add_option("--robot-id", robot_id,
+                 "this robot's id on the DDS domain (overrides the config; a replay's default "
+                 "is the config's with -replay)");
+  std::optional<int> robot_id_check_ms;
+  app.add_option("--robot-id-check-ms", robot_id_check_ms,
+                 "how long to listen for another server with this robot id before serving");
   std::string controller;
   std::optional<double> speed;
   std::optional<int> controller_timeout;
@@ -87,6 +94,12 @@ int main(int argc, char** argv) {
     if (!session_dir.empty()) options.session_dir = session_dir;
     if (!robot.empty()) options.robot_config = robot;
     if (!dds_config.empty()) options.dds_config = dds_config;
+    if (!robot_id.empty()) {
+      options.robot_id = robot_id;
+    } else if (!replay.empty()) {
+      options.robot_id += "-replay";  // beside the live robot, not in its place
+    }
+    if (robot_id_check_ms) options.robot_id_check_ms = *robot_id_check_ms;
     if (!identity.empty()) options.security.identity = identity;
     if (insecure) options.security.identity.clear();
     if (igtl_port) {
@@ -126,7 +139,7 @@ int main(int argc, char** argv) {
       }
       options.replay_speed = replay_speed;
     }
-    if (auto bad = ignav::server::checkControllerOptions(options)) {
+    if (auto bad = ignav::server::checkServerOptions(options)) {
       spdlog::error("{}", *bad);
       return 2;
     }

@@ -6,6 +6,9 @@
 #include <cmath>
 #include <iostream>
 #include <thread>
+#include <tuple>
+
+#include <unistd.h>
 
 #include "ignav/igtl/brp.hpp"
 #include "ignav/workflow/reducer.hpp"
@@ -54,6 +57,15 @@ std::optional<SecurityIdentity> serverIdentity(const SecurityOptions& o) {
   return id;
 }
 
+std::string hostName() {
+  char name[256] = {};
+  return ::gethostname(name, sizeof name - 1) == 0 ? std::string(name) : std::string("?");
+}
+
+double unixNowS() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
 }  // namespace
 
 Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robot,
@@ -63,7 +75,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
       controller_name_(controllerName(o.controller)),
       identity_(serverIdentity(o.security)),
       participant_(o.domain_id, o.dds_config.empty() ? "" : readConfigFile(o.dds_config),
-                   identity_ ? &*identity_ : nullptr),
+                   identity_ ? &*identity_ : nullptr, o.robot_id),
       commands_{{participant_, &ignav_msg_Command_desc, topic::kCommandViewer, Qos::kRequest},
                 {participant_, &ignav_msg_Command_desc, topic::kCommandPlanner, Qos::kRequest},
                 {participant_, &ignav_msg_Command_desc, topic::kCommandApprover, Qos::kRequest}},
@@ -72,6 +84,10 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
       approvals_(participant_, &ignav_msg_Approval_desc, topic::kApproval, Qos::kRequest),
       emergency_stops_(participant_, &ignav_msg_EmergencyStop_desc, topic::kEmergencyStop,
                        Qos::kRequest),
+      robot_peers_(participant_, Qos::kStateOfMany),
+      participant_started_(Clock::now()),
+      host_(hostName()),
+      started_unix_s_(unixNowS()),
       state_(participant_, controller_name_, session_dir_),
       slices_(participant_),
       waitset_(participant_),
@@ -95,9 +111,12 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
 }
 
 int Server::replay(const std::atomic<bool>& stop, const std::vector<std::string>& lines) {
-  publishHealth();
+  if (auto conflict = checkRobotIdAtStart()) {
+    spdlog::error("{}", *conflict);
+    return 4;
+  }
   std::cout << "ignav-server replaying " << session_dir_.string()
-            << " domain=" << options_.domain_id
+            << " domain=" << options_.domain_id << " robot=" << options_.robot_id
             << (igtl_ ? " igtl_port=" + std::to_string(igtl_->port()) : std::string()) << std::endl;
   const fs::path journal_path = session_dir_ / "journal.jsonl";
   auto load_ct = [this](const std::string& source) { return reloadCt(source); };
@@ -135,6 +154,11 @@ int Server::replay(const std::atomic<bool>& stop, const std::vector<std::string>
 }
 
 int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& journal_lines) {
+  // Before the controller is touched: a robot another server drives is left alone.
+  if (auto conflict = checkRobotIdAtStart()) {
+    spdlog::error("{}; this one did not touch the controller", *conflict);
+    return 4;
+  }
   if (journal_lines.empty()) {
     // A new session starts with the robot at its home: that position is zero.
     startController(true, std::nullopt);
@@ -159,7 +183,7 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
   }
   publishMotion();
   publishHealth();  // then once a second
-  std::cout << "ignav-server ready domain=" << options_.domain_id
+  std::cout << "ignav-server ready domain=" << options_.domain_id << " robot=" << options_.robot_id
             << " session=" << session_dir_.string() << " security=" << (identity_ ? "on" : "OFF")
             << (igtl_ ? " igtl_port=" + std::to_string(igtl_->port()) : std::string()) << std::endl;
   auto last_health = Clock::now();
@@ -219,6 +243,17 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
     if (Clock::now() - last_health > std::chrono::seconds(1)) {
       publishHealth();
       last_health = Clock::now();
+      // Two servers with one robot id met (started together, or a network that was split
+      // joined): the later one halts its robot and stops, so that one server acts on commands.
+      if (auto conflict = robotIdConflict()) {
+        spdlog::error("{}; halting the robot and stopping", *conflict);
+        Input halt;
+        halt.kind = InputKind::kEmergencyStop;
+        halt.client_id = "ignav-server";
+        halt.role = "any";
+        step(std::move(halt));
+        return 4;
+      }
     }
   }
   spdlog::info("shutting down: {} commands accepted, {} rejected", session_.accepted,
@@ -405,6 +440,46 @@ void Server::serveReadOnly(Clock::time_point until, const std::atomic<bool>& sto
       publishHealth();
       last_health = Clock::now();
     }
+  }
+}
+
+// Another server's Health in this robot's partition: the later one to start gives way (ties by
+// session id, so exactly one of two gives way). A later one is said once; it will stop.
+std::optional<std::string> Server::robotIdConflict() {
+  std::optional<std::string> conflict;
+  robot_peers_.take([&](const protocol::Health& h) {
+    if (h.session_id == session_.session_id || h.robot_id != options_.robot_id) return;
+    const bool it_is_older =
+        std::tie(h.started_unix_s, h.session_id) < std::tie(started_unix_s_, session_.session_id);
+    const std::string who = fmt::format("session {} on host {}, serving since {:.0f}", h.session_id,
+                                        h.host, h.started_unix_s);
+    if (it_is_older) {
+      conflict = fmt::format(
+          "robot_id '{}': another ignav-server already serves this robot on DDS domain {} ({}); "
+          "two servers must never act on one robot's commands: give each robot its own "
+          "server.robot_id",
+          options_.robot_id, options_.domain_id, who);
+    } else if (peers_warned_.insert(h.session_id).second) {
+      spdlog::warn(
+          "robot_id '{}': a later ignav-server with this robot id appeared ({}); it "
+          "gives way to this one",
+          options_.robot_id, who);
+    }
+  });
+  return conflict;
+}
+
+// Announces this server, then listens for robot_id_check_ms (from the start of the process's
+// participant) for another with its robot id; commands wait in DDS meanwhile. 0: not at start,
+// only once serving (robotIdConflict in the loop).
+std::optional<std::string> Server::checkRobotIdAtStart() {
+  publishHealth();
+  if (options_.robot_id_check_ms == 0) return std::nullopt;
+  const auto end = participant_started_ + std::chrono::milliseconds(options_.robot_id_check_ms);
+  for (;;) {
+    if (auto conflict = robotIdConflict()) return conflict;
+    if (Clock::now() >= end) return std::nullopt;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
 }
 

@@ -72,6 +72,10 @@ class Server {
   Input withSender(Input in, const char* role, dds_entity_t reader, dds_instance_handle_t from);
   void publishEverything();
   Expected<workflow::LoadedCt> reloadCt(const std::string& source);
+  // Another server with this robot id (robot_peers_): an error when this one is the later to
+  // start (it must stop), nothing when none is there or this one is older (the other stops).
+  std::optional<std::string> robotIdConflict();
+  std::optional<std::string> checkRobotIdAtStart();
 
   // step.cpp
   bool stepNow(Input in);
@@ -102,6 +106,13 @@ class Server {
   protocol::TopicReader<protocol::SliceRequest> slice_requests_;
   protocol::Reader<ignav_msg_Approval> approvals_;
   protocol::Reader<ignav_msg_EmergencyStop> emergency_stops_;
+  // Every Health in this robot's partition, this server's own included: another server with the
+  // same robot id shows here (robotIdConflict).
+  protocol::TopicReader<protocol::Health> robot_peers_;
+  const Clock::time_point participant_started_;
+  const std::string host_;
+  const double started_unix_s_;
+  std::set<std::string> peers_warned_;  // sessions of later servers with this id, said once
   StatePublisher state_;
   // The slices clients ask for, drawn on a thread of their own (it writes the replies).
   Slices slices_;

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include "ignav/protocol/topics.hpp"
 #include "ignav/workflow/session.hpp"
 
 namespace ignav::server {
@@ -25,7 +26,20 @@ std::string resolve(const fs::path& base, const std::string& p) {
 
 }  // namespace
 
-std::optional<std::string> checkControllerOptions(const ServerOptions& o) {
+std::optional<std::string> checkServerOptions(const ServerOptions& o) {
+  if (const std::string problem = protocol::robotIdProblem(o.robot_id); !problem.empty()) {
+    return "robot_id: '" + o.robot_id + "' " + problem;
+  }
+  // RTPS maps a domain to UDP ports 7400 + 250 * id + ...: above 232 they pass 65535.
+  if (o.domain_id > kMaxDomainId) {
+    return fmt::format(
+        "dds.domain_id: {} is not within 0..{} (RTPS maps the domain to UDP port "
+        "7400 + 250 x id)",
+        o.domain_id, kMaxDomainId);
+  }
+  if (o.robot_id_check_ms < 0 || o.robot_id_check_ms > 60000) {
+    return fmt::format("dds.robot_id_check_ms: {} is not within 0..60000", o.robot_id_check_ms);
+  }
   const auto& c = o.controller;
   if (c.kind != "simulated" && c.kind != "galil") {
     return "controller.kind: '" + c.kind + "' is not simulated or galil";
@@ -81,20 +95,32 @@ ServerOptions loadServerOptions(const std::string& path) {
   if (!s || !s.IsMap()) throw ConfigError(path + ": server: is missing");
   for (const auto& kv : s) {
     const std::string key = kv.first.Scalar();
-    if (key != "robot_config" && key != "dds" && key != "session_root" && key != "controller" &&
-        key != "approval" && key != "planning" && key != "tissue" && key != "security" &&
-        key != "openigtlink") {
+    if (key != "robot_id" && key != "robot_config" && key != "dds" && key != "session_root" &&
+        key != "controller" && key != "approval" && key != "planning" && key != "tissue" &&
+        key != "security" && key != "openigtlink") {
       throw ConfigError(path + ": server." + key +
-                        ": unknown key; expected robot_config, dds, session_root, controller, "
-                        "approval, planning, tissue, security, openigtlink");
+                        ": unknown key; expected robot_id, robot_config, dds, session_root, "
+                        "controller, approval, planning, tissue, security, openigtlink");
     }
   }
   try {
+    if (s["robot_id"]) o.robot_id = s["robot_id"].as<std::string>();
     o.robot_config = resolve(base, s["robot_config"].as<std::string>());
     if (s["session_root"]) o.session_root = resolve(base, s["session_root"].as<std::string>());
     if (const YAML::Node d = s["dds"]) {
-      if (d["domain_id"]) o.domain_id = d["domain_id"].as<std::uint32_t>();
-      if (d["config"]) o.dds_config = resolve(base, d["config"].as<std::string>());
+      for (const auto& kv : d) {
+        const std::string key = kv.first.Scalar();
+        if (key == "domain_id") {
+          o.domain_id = kv.second.as<std::uint32_t>();
+        } else if (key == "config") {
+          o.dds_config = resolve(base, kv.second.as<std::string>());
+        } else if (key == "robot_id_check_ms") {
+          o.robot_id_check_ms = kv.second.as<int>();
+        } else {
+          throw ConfigError(path + ": server.dds." + key +
+                            ": unknown key; expected domain_id, config, robot_id_check_ms");
+        }
+      }
     }
     if (const YAML::Node c = s["controller"]) {
       auto& co = o.controller;
@@ -198,7 +224,7 @@ ServerOptions loadServerOptions(const std::string& path) {
   } catch (const YAML::Exception& e) {
     throw ConfigError(path + ": server: " + e.what());
   }
-  if (auto bad = checkControllerOptions(o)) throw ConfigError(path + ": server." + *bad);
+  if (auto bad = checkServerOptions(o)) throw ConfigError(path + ": server." + *bad);
   return o;
 }
 

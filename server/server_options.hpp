@@ -41,6 +41,9 @@ struct OpenIgtlinkOptions {
   bool allow_motion_approval = false;
 };
 
+// The largest DDS domain id: RTPS's default port mapping (7400 + 250 x id + 11) stays a UDP port.
+constexpr std::uint32_t kMaxDomainId = 232;
+
 struct ServerOptions {
   ControllerOptions controller;
   OpenIgtlinkOptions openigtlink;
@@ -53,6 +56,12 @@ struct ServerOptions {
   std::size_t max_targets = 100;                // per insertion, at most 100 (paper §V)
   double max_total_rotation_deg = 360.0;        // the cannula's rotation over one insertion
   std::string robot_config;
+  // This robot's name on the DDS domain: the server's topics are in its partition (topics.hpp),
+  // so several robots share a domain; two servers with one id never both serve (DEPLOYMENT.md).
+  std::string robot_id = "robot-1";
+  // Before it serves, how long a starting server listens for another one with its robot id (0:
+  // not at start; only once serving, within a second).
+  int robot_id_check_ms = 1000;
   std::uint32_t domain_id = 0;
   std::string dds_config;    // path of a Cyclone XML file ("" = Cyclone's defaults)
   std::string session_root;  // a session folder is created inside
@@ -65,7 +74,7 @@ struct ServerOptions {
 
 // Loads `path` (server.yaml); errors name the file and key. CLI options override after.
 ServerOptions loadServerOptions(const std::string& path);
-// What is wrong with the controller or approval options ("controller.port: ..."), if anything.
-std::optional<std::string> checkControllerOptions(const ServerOptions& options);
+// What is wrong with the options ("controller.port: ...", "robot_id: ..."), if anything.
+std::optional<std::string> checkServerOptions(const ServerOptions& options);
 
 }  // namespace ignav::server

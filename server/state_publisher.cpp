@@ -340,6 +340,9 @@ void StatePublisher::publishHealth(const Session& s, const HealthFacts& facts) {
   h.journal = facts.journal_failure.empty() ? "ok" : facts.journal_failure;
   h.igtl_clients = static_cast<std::uint32_t>(facts.igtl_clients);
   h.server_time_unix_s = wallS();
+  h.robot_id = facts.robot_id;
+  h.host = facts.host;
+  h.started_unix_s = facts.started_unix_s;
   health_.write(h);
 }
 

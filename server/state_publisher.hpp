@@ -31,6 +31,9 @@ struct Readings {
 struct HealthFacts {
   std::string journal_failure;  // "" = the journal can be written
   std::size_t igtl_clients = 0;
+  std::string robot_id;
+  std::string host;
+  double started_unix_s = 0.0;
 };
 
 class StatePublisher {

@@ -181,7 +181,8 @@ void Server::crashPoint(const char* where, std::uint64_t revision) const {
 }
 
 void Server::publishHealth() {
-  state_.publishHealth(session_, {journal_failure_, igtl_ ? igtl_->clientCount() : 0});
+  state_.publishHealth(session_, {journal_failure_, igtl_ ? igtl_->clientCount() : 0,
+                                  options_.robot_id, host_, started_unix_s_});
 }
 
 }  // namespace ignav::server

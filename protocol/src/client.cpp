@@ -1,6 +1,9 @@
 #include "ignav/protocol/client.hpp"
 
+#include <algorithm>
+#include <set>
 #include <thread>
+#include <tuple>
 
 #include "ignav/protocol/json_view.hpp"
 #include "ignav/protocol/wire/messages.hpp"
@@ -83,9 +86,9 @@ struct Client::Impl {
   }
 
   Impl(std::uint32_t domain, const std::string& xml, const SecurityIdentity* identity,
-       std::string id)
+       std::string id, const std::string& robot_id)
       : client_id(std::move(id)),
-        participant(domain, xml, identity),
+        participant(domain, xml, identity, robot_id),
         commands{{participant, &ignav_msg_Command_desc, topic::kCommandViewer},
                  {participant, &ignav_msg_Command_desc, topic::kCommandPlanner},
                  {participant, &ignav_msg_Command_desc, topic::kCommandApprover}},
@@ -110,9 +113,26 @@ struct Client::Impl {
   }
 };
 
+namespace {
+
+// The robot is named in a refusal: an identity scoped to other robots is refused every topic.
+template <typename Impl>
+std::unique_ptr<Impl> makeImpl(std::uint32_t domain_id, const std::string& config_xml,
+                               const SecurityIdentity* identity, const std::string& client_id,
+                               const std::string& robot_id) {
+  try {
+    return std::make_unique<Impl>(domain_id, config_xml, identity, client_id, robot_id);
+  } catch (const PermissionDenied& e) {
+    throw PermissionDenied(std::string(e.what()) + " for robot '" + robot_id +
+                           "' (is this identity scoped to another robot?)");
+  }
+}
+
+}  // namespace
+
 Client::Client(std::uint32_t domain_id, const std::string& config_xml, std::string client_id,
-               const SecurityIdentity* identity)
-    : impl_(std::make_unique<Impl>(domain_id, config_xml, identity, client_id)),
+               const SecurityIdentity* identity, const std::string& robot_id)
+    : impl_(makeImpl<Impl>(domain_id, config_xml, identity, client_id, robot_id)),
       client_id_(std::move(client_id)) {
   state_["targets"] = json::object();
   // The server answers a repeated (client_id, request_id) from memory. A client id is often
@@ -125,6 +145,10 @@ Client::Client(std::uint32_t domain_id, const std::string& config_xml, std::stri
 }
 
 Client::~Client() = default;
+
+const std::string& Client::robotId() const {
+  return impl_->participant.robotId();
+}
 
 bool Client::waitForServer(std::chrono::milliseconds timeout) {
   const auto end = Clock::now() + timeout;
@@ -295,6 +319,74 @@ bool Client::mayPublish(const std::string& command) const {
   if (command == "approve") return impl_->approvals.writer != nullptr;
   const auto kind = commandKindFromName(command);
   return kind && impl_->commands[static_cast<int>(requiredRole(*kind))].writer != nullptr;
+}
+
+std::vector<Health> discoverRobots(std::uint32_t domain_id, const std::string& config_xml,
+                                   const SecurityIdentity* identity,
+                                   std::chrono::milliseconds wait) {
+  const Participant participant(domain_id, config_xml, identity, kAnyRobot);
+  const TopicReader<Health> health(participant, Qos::kStateOfMany);
+  // By (robot id, session): two servers with one robot id are both listed.
+  std::map<std::pair<std::string, std::string>, Health> seen;
+  const auto end = Clock::now() + wait;
+  auto last_news = Clock::now();
+  std::size_t last_matched = 0;
+  while (Clock::now() < end) {
+    health.take([&](const Health& h) {
+      if (seen.emplace(std::make_pair(h.robot_id, h.session_id), h).second) {
+        last_news = Clock::now();
+      } else {
+        seen[{h.robot_id, h.session_id}] = h;
+      }
+    });
+    const std::size_t matched = health.matched();
+    if (matched != last_matched) {
+      last_matched = matched;
+      last_news = Clock::now();
+    }
+    // Every matched server heard from, and quiet for a while: a further one is unlikely.
+    if (matched > 0 && seen.size() >= matched &&
+        Clock::now() - last_news > std::chrono::milliseconds(300)) {
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  std::vector<Health> robots;
+  for (auto& [key, h] : seen)
+    robots.push_back(std::move(h));
+  std::sort(robots.begin(), robots.end(), [](const Health& a, const Health& b) {
+    return std::tie(a.robot_id, a.started_unix_s) < std::tie(b.robot_id, b.started_unix_s);
+  });
+  return robots;
+}
+
+std::string chooseRobot(std::uint32_t domain_id, const std::string& config_xml,
+                        const SecurityIdentity* identity, const std::string& named,
+                        std::chrono::milliseconds wait) {
+  if (!named.empty()) {
+    if (const std::string problem = robotIdProblem(named); !problem.empty()) {
+      throw RobotNotChosen("robot id '" + named + "' " + problem);
+    }
+    return named;
+  }
+  const auto robots = discoverRobots(domain_id, config_xml, identity, wait);
+  const std::string domain = "DDS domain " + std::to_string(domain_id);
+  if (robots.empty()) {
+    throw RobotNotChosen("no ignav-server found on " + domain +
+                         " (is it running, on this domain, with a DDS configuration that reaches "
+                         "it?)");
+  }
+  std::set<std::string> ids;
+  std::string listed;
+  for (const auto& h : robots) {
+    ids.insert(h.robot_id);
+    listed += (listed.empty() ? "" : ", ") + h.robot_id + " (on " + h.host + ")";
+  }
+  if (ids.size() > 1) {
+    throw RobotNotChosen(std::to_string(ids.size()) + " robots on " + domain + ": " + listed +
+                         "; name the one to talk to (--robot ID)");
+  }
+  return robots.front().robot_id;
 }
 
 Eigen::Matrix4d matrixFromState(const nlohmann::json& row_major) {

@@ -15,9 +15,9 @@ namespace {
 dds_qos_t* makeQos(Qos kind) {
   dds_qos_t* q = dds_create_qos();
   dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
-  if (kind == Qos::kState) {
+  if (kind == Qos::kState || kind == Qos::kStateOfMany) {
     dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
-    dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
+    dds_qset_history(q, DDS_HISTORY_KEEP_LAST, kind == Qos::kState ? 1 : 64);
   } else {
     dds_qset_durability(q, DDS_DURABILITY_VOLATILE);
     dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 64);
@@ -33,8 +33,11 @@ struct QosHolder {
   dds_qos_t* qos;
 };
 
+// A topic's QoS is one per participant: a reader of many writers keeps more history, its topic
+// is the state topic every other entity of the participant uses.
 dds_entity_t makeTopic(const Participant& p, const dds_topic_descriptor_t* desc, const char* name,
-                       const QosHolder& qos) {
+                       Qos kind) {
+  const QosHolder qos(kind == Qos::kStateOfMany ? Qos::kState : kind);
   return check(dds_create_topic(p.handle(), desc, name, qos.qos, nullptr), name);
 }
 
@@ -99,8 +102,13 @@ std::string readConfigFile(const std::string& path) {
 }
 
 Participant::Participant(std::uint32_t domain_id, const std::string& config_xml,
-                         const SecurityIdentity* identity)
-    : domain_id_(domain_id) {
+                         const SecurityIdentity* identity, const std::string& robot_id)
+    : domain_id_(domain_id), robot_id_(robot_id) {
+  if (robot_id != kAnyRobot) {
+    if (const std::string problem = robotIdProblem(robot_id); !problem.empty()) {
+      throw DdsError("robot id '" + robot_id + "' " + problem);
+    }
+  }
   claimIdentity(domain_id, identity ? identity->certificate : "");
   try {
     create(domain_id, config_xml, identity);
@@ -141,6 +149,17 @@ void Participant::create(std::uint32_t domain_id, const std::string& config_xml,
   }
   check(participant_, "participant");
   secure_ = identity != nullptr;
+  dds_qos_t* scope = dds_create_qos();
+  const std::string partition = robotPartition(robot_id_);
+  const char* partitions[] = {partition.c_str()};
+  dds_qset_partition(scope, 1, partitions);
+  publisher_ = dds_create_publisher(participant_, scope, nullptr);
+  subscriber_ = dds_create_subscriber(participant_, scope, nullptr);
+  dds_delete_qos(scope);
+  if (publisher_ < 0 || subscriber_ < 0) {
+    dds_delete(participant_);
+    check(publisher_ < 0 ? publisher_ : subscriber_, "publisher/subscriber of the robot partition");
+  }
 }
 
 Participant::~Participant() {
@@ -153,8 +172,8 @@ template <typename T>
 Writer<T>::Writer(const Participant& p, const dds_topic_descriptor_t* desc, const char* name,
                   Qos qos) {
   const QosHolder q(qos);
-  const dds_entity_t t = makeTopic(p, desc, name, q);
-  writer_ = check(dds_create_writer(p.handle(), t, q.qos, nullptr), name);
+  const dds_entity_t t = makeTopic(p, desc, name, qos);
+  writer_ = check(dds_create_writer(p.publisher(), t, q.qos, nullptr), name);
 }
 
 template <typename T>
@@ -166,8 +185,8 @@ template <typename T>
 Reader<T>::Reader(const Participant& p, const dds_topic_descriptor_t* desc, const char* name,
                   Qos qos) {
   const QosHolder q(qos);
-  const dds_entity_t t = makeTopic(p, desc, name, q);
-  reader_ = check(dds_create_reader(p.handle(), t, q.qos, nullptr), name);
+  const dds_entity_t t = makeTopic(p, desc, name, qos);
+  reader_ = check(dds_create_reader(p.subscriber(), t, q.qos, nullptr), name);
 }
 
 template <typename T>
@@ -176,9 +195,9 @@ Reader<T>::Reader(const Participant& p, const dds_topic_descriptor_t* desc, cons
   const QosHolder q(qos);
   // A topic entity of this reader's own: Cyclone applies a filter to every reader of the entity,
   // and it must be set before any data can flow.
-  const dds_entity_t t = makeTopic(p, desc, name, q);
+  const dds_entity_t t = makeTopic(p, desc, name, qos);
   dds_set_topic_filter_and_arg(t, keep, arg);
-  reader_ = check(dds_create_reader(p.handle(), t, q.qos, nullptr), name);
+  reader_ = check(dds_create_reader(p.subscriber(), t, q.qos, nullptr), name);
 }
 
 template <typename T>

@@ -212,7 +212,7 @@ TEST(FaultE2E, AnEmergencyStopFromASenderThatExitsAtOnceIsStillTaken) {
   for (int round = 0; round < 20; ++round) {
     SCOPED_TRACE("round " + std::to_string(round));
     {
-      protocol::Participant gone(server.domain(), xml);
+      protocol::Participant gone(server.domain(), xml, nullptr, server.robotId());
       protocol::Writer<ignav_msg_EmergencyStop> stop(gone, &ignav_msg_EmergencyStop_desc,
                                                      protocol::topic::kEmergencyStop,
                                                      protocol::Qos::kRequest);

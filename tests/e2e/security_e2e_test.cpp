@@ -72,7 +72,8 @@ std::vector<std::string> secureServerArgs(std::vector<std::string> more = {}) {
 std::unique_ptr<Client> secureClient(const ServerProcess& server, const std::string& role,
                                      const std::string& client_id) {
   const auto id = identity(role);
-  auto c = std::make_unique<Client>(server.domain(), loopbackXml(), client_id, &id);
+  auto c =
+      std::make_unique<Client>(server.domain(), loopbackXml(), client_id, &id, server.robotId());
   EXPECT_TRUE(c->waitForServer(15s)) << role;
   c->waitFor([](const json& s) { return s.contains("workflow"); }, 10s);
   return c;
@@ -198,13 +199,13 @@ TEST(SecurityE2E, PermissionsRefuseTheWritersOfTheWrongRoleAndTheServerTheWrongT
 
   // Another identity in this process is an error, not a participant that silently never matches.
   const auto planner_id = identity("planner");
-  EXPECT_THROW(protocol::Participant(server.domain(), loopbackXml(), &planner_id),
+  EXPECT_THROW(protocol::Participant(server.domain(), loopbackXml(), &planner_id, server.robotId()),
                protocol::DdsError);
 
   // A viewer that puts a planner's command on the topic it may use is refused by the server.
   {
     const auto id = identity("viewer");
-    protocol::Participant p(server.domain(), loopbackXml(), &id);
+    protocol::Participant p(server.domain(), loopbackXml(), &id, server.robotId());
     EXPECT_THROW(
         protocol::Writer<ignav_msg_Approval>(p, &ignav_msg_Approval_desc,
                                              protocol::topic::kApproval, protocol::Qos::kRequest),
@@ -247,13 +248,13 @@ TEST(SecurityE2E, AnIdentityFromAnotherCaAndAnUnauthenticatedParticipantSeeNothi
     // Same role names, another CA: its participant is created (its own CA vouches for it) but
     // never authenticates with the server.
     const auto rogue = protocol::identityFromFolder((pki() / "rogue" / "planner").string());
-    Client c(server.domain(), loopbackXml(), "rogue", &rogue);
+    Client c(server.domain(), loopbackXml(), "rogue", &rogue, server.robotId());
     EXPECT_FALSE(c.waitForServer(3s));
     c.poll();
     EXPECT_FALSE(c.state().contains("workflow")) << c.state().dump();
   }
   {
-    Client c(server.domain(), loopbackXml(), "anonymous");
+    Client c(server.domain(), loopbackXml(), "anonymous", nullptr, server.robotId());
     EXPECT_FALSE(c.waitForServer(3s));
     c.poll();
     EXPECT_FALSE(c.state().contains("workflow")) << c.state().dump();

@@ -259,14 +259,21 @@ inline std::vector<std::uint32_t> insertAll(protocol::Client& op,
 }
 
 class ServerProcess {
+  // Per test process and instance: two servers may share a domain (several robots).
+  static std::filesystem::path uniqueSessionDir(std::uint32_t domain) {
+    static int instances = 0;
+    return std::filesystem::temp_directory_path() /
+           ("ignav_e2e_" + std::to_string(::getpid()) + "_" + std::to_string(domain) + "_" +
+            std::to_string(++instances));
+  }
+
  public:
   // Each test passes its own domain id so that tests running in parallel never meet.
   // `extra_args` go on the server's command line (e.g. --controller galil:127.0.0.1:PORT).
   explicit ServerProcess(std::uint32_t domain, std::vector<std::string> extra_args = {},
                          std::vector<std::string> env = {})
       : domain_(domain), extra_args_(std::move(extra_args)), env_(std::move(env)) {
-    session_dir_ = std::filesystem::temp_directory_path() /
-                   ("ignav_e2e_" + std::to_string(::getpid()) + "_" + std::to_string(domain));
+    session_dir_ = uniqueSessionDir(domain);
     std::filesystem::remove_all(session_dir_);
     start();
   }
@@ -279,8 +286,7 @@ class ServerProcess {
   };
   ServerProcess(std::uint32_t domain, Program program)
       : domain_(domain), program_(std::move(program)) {
-    session_dir_ = std::filesystem::temp_directory_path() /
-                   ("ignav_e2e_" + std::to_string(::getpid()) + "_" + std::to_string(domain));
+    session_dir_ = uniqueSessionDir(domain);
     std::filesystem::remove_all(session_dir_);
     start();
   }
@@ -316,6 +322,11 @@ class ServerProcess {
     if (std::find(extra_args_.begin(), extra_args_.end(), "--igtl-port") == extra_args_.end() &&
         std::find(extra_args_.begin(), extra_args_.end(), "--no-igtl") == extra_args_.end()) {
       args.insert(args.end(), {"--igtl-port", "0"});
+    }
+    // Loopback discovery takes milliseconds: the robot-id check need not hold each test a second.
+    if (std::find(extra_args_.begin(), extra_args_.end(), "--robot-id-check-ms") ==
+        extra_args_.end()) {
+      args.insert(args.end(), {"--robot-id-check-ms", "150"});
     }
     args.insert(args.end(), extra_args_.begin(), extra_args_.end());
     if (!program_.argv.empty()) args = program_.argv;
@@ -354,6 +365,14 @@ class ServerProcess {
     ::close(out[0]);
     ready_line_ = line;
     ASSERT_NE(line.find(ready), std::string::npos) << line << serverLog();
+  }
+
+  // The robot id from the readiness line ("robot-1", configs/server.yaml's, unless given).
+  std::string robotId() const {
+    const auto at = ready_line_.find(" robot=");
+    if (at == std::string::npos) return "robot-1";  // a program that does not say (a replay)
+    const auto end = ready_line_.find_first_of(" \n", at + 7);
+    return ready_line_.substr(at + 7, end - at - 7);
   }
 
   // The OpenIGTLink port from the readiness line (0: none).
@@ -399,7 +418,7 @@ class ServerProcess {
   }
 
   std::unique_ptr<protocol::Client> client(const std::string& id) const {
-    auto c = std::make_unique<protocol::Client>(domain_, loopbackXml(), id);
+    auto c = std::make_unique<protocol::Client>(domain_, loopbackXml(), id, nullptr, robotId());
     EXPECT_TRUE(c->waitForServer(std::chrono::seconds(10)));
     c->waitFor([](const nlohmann::json& s) { return s.contains("workflow"); },
                std::chrono::seconds(10));

@@ -80,7 +80,7 @@ TEST(SlicesE2E, ABurstBeyondTheQueueIsRefusedAtOnceAndEveryRequestIsAnsweredOnce
   ServerProcess server(123);
   auto op = server.client("operator");
   loadPhantom(*op);
-  protocol::Participant p(server.domain(), loopbackXml());
+  protocol::Participant p(server.domain(), loopbackXml(), nullptr, server.robotId());
   protocol::Writer<ignav_msg_SliceRequest> requests(
       p, &ignav_msg_SliceRequest_desc, protocol::topic::kSliceRequest, protocol::Qos::kRequest);
   protocol::Reader<ignav_msg_SliceReply> replies(

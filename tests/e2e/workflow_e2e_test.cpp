@@ -240,7 +240,7 @@ TEST(WorkflowE2E, EveryRejectionNamesTheProblemAndChangesNothing) {
   // exactly one reply, unknown_command, and a line in the server's log; nothing changes.
   {
     const auto before = revision();
-    protocol::Participant p(server.domain(), loopbackXml());
+    protocol::Participant p(server.domain(), loopbackXml(), nullptr, server.robotId());
     protocol::Writer<ignav_msg_Command> commands(
         p, &ignav_msg_Command_desc, protocol::topic::kCommandPlanner, protocol::Qos::kRequest);
     protocol::Reader<ignav_msg_Reply> replies(p, &ignav_msg_Reply_desc, protocol::topic::kReply,

@@ -167,8 +167,9 @@ TEST(JsonView, EveryStateTopicHasTheFieldsTheAppNames) {
             (Names{"auto_detected", "fre_mm", "image_points", "image_to_robot", "kind", "message",
                    "residuals_mm", "robot_points", "scale", "status"}));
   EXPECT_EQ(keys(json(Health{})),
-            (Names{"commands_accepted", "commands_rejected", "igtl_clients", "journal",
-                   "server_time_unix_s", "session_dir", "session_id", "uptime_s", "version"}));
+            (Names{"commands_accepted", "commands_rejected", "host", "igtl_clients", "journal",
+                   "robot_id", "server_time_unix_s", "session_dir", "session_id", "started_unix_s",
+                   "uptime_s", "version"}));
 }
 
 TEST(JsonView, EveryTopicRoundTrips) {

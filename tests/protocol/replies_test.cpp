@@ -22,8 +22,8 @@ bool toA(const void* sample, void*) {
 
 TEST(Replies, AFilteredReaderStoresItsOwnRepliesOnly) {
   const std::string xml = readConfigFile(IGNAV_SOURCE_DIR "/configs/dds/loopback.xml");
-  Participant server(106, xml);
-  Participant client(106, xml);
+  Participant server(106, xml, nullptr, "robot-1");
+  Participant client(106, xml, nullptr, "robot-1");
   Writer<ignav_msg_Reply> replies(server, &ignav_msg_Reply_desc, topic::kReply, Qos::kRequest);
   Reader<ignav_msg_Reply> mine(client, &ignav_msg_Reply_desc, topic::kReply, Qos::kRequest, &toA,
                                nullptr);

@@ -37,6 +37,7 @@ class RunningGateway {
     o.domain = domain;
     o.dds_config_xml = e2e::loopbackXml();
     o.client_id = client_id;
+    o.robot_id = "robot-1";  // configs/server.yaml's, which the tests' servers use
     gateway_ = std::make_unique<Gateway>(o);
     thread_ = std::thread([this] { gateway_->run(); });
   }

@@ -47,8 +47,11 @@ int main(int argc, char** argv) {
   // "operator": an approver in configs/server.yaml. With an identity folder: DDS Security on.
   std::optional<ignav::protocol::SecurityIdentity> identity;
   if (argc > 4) identity = ignav::protocol::identityFromFolder(argv[4]);
-  ignav::protocol::Client c(domain, ignav::protocol::readConfigFile(argv[2]), "operator",
-                            identity ? &*identity : nullptr);
+  const std::string xml = ignav::protocol::readConfigFile(argv[2]);
+  const auto* secure = identity ? &*identity : nullptr;
+  ignav::protocol::Client c(
+      domain, xml, "operator", secure,
+      ignav::protocol::chooseRobot(domain, xml, secure, "", std::chrono::seconds(10)));
   if (!c.waitForServer(std::chrono::seconds(10))) {
     std::fprintf(stderr, "no server on domain %u\n", domain);
     return 3;

@@ -150,10 +150,11 @@ struct ClientResult {
   std::string first_problem;
 };
 
-void runLoadClient(int index, std::uint32_t domain, const std::string& xml, const LoadOptions& o,
-                   Clock::time_point until, ClientResult& out) {
+void runLoadClient(int index, std::uint32_t domain, const std::string& xml,
+                   const std::string& robot, const LoadOptions& o, Clock::time_point until,
+                   ClientResult& out) {
   const std::string id = "load-" + std::to_string(index);
-  Client c(domain, xml, id);
+  Client c(domain, xml, id, nullptr, robot);
   c.setReplySpin(0us);  // 20 polling clients would take the server's cores on a small machine
   if (!c.waitForServer(20s)) {
     out.first_problem = id + ": no server";
@@ -245,7 +246,8 @@ void runLoadClient(int index, std::uint32_t domain, const std::string& xml, cons
 
 int runLoad(std::uint32_t domain, const std::string& xml, const LoadOptions& o) {
   // The monitor: counts every reply sample by (client id, request id).
-  ignav::protocol::Participant monitor_participant(domain, xml);
+  const std::string robot = ignav::protocol::chooseRobot(domain, xml, nullptr, "", 20s);
+  ignav::protocol::Participant monitor_participant(domain, xml, nullptr, robot);
   ignav::protocol::Reader<ignav_msg_Reply> monitor(monitor_participant, &ignav_msg_Reply_desc,
                                                    ignav::protocol::topic::kReply,
                                                    ignav::protocol::Qos::kRequest);
@@ -262,7 +264,7 @@ int runLoad(std::uint32_t domain, const std::string& xml, const LoadOptions& o) 
     }
   });
 
-  Client setup(domain, xml, "operator");
+  Client setup(domain, xml, "operator", nullptr, robot);
   if (!setup.waitForServer(20s) || !registered(setup)) {
     std::fprintf(stderr, "bench_load: the server did not load and register the phantom\n");
     return 1;
@@ -286,7 +288,7 @@ int runLoad(std::uint32_t domain, const std::string& xml, const LoadOptions& o) 
   for (int i = 0; i < o.clients; ++i) {
     threads.emplace_back([&, i] {
       try {
-        runLoadClient(i, domain, xml, o, until, results[static_cast<std::size_t>(i)]);
+        runLoadClient(i, domain, xml, robot, o, until, results[static_cast<std::size_t>(i)]);
       } catch (const std::exception& e) {
         results[static_cast<std::size_t>(i)].first_problem = e.what();
         ++results[static_cast<std::size_t>(i)].timeouts;
@@ -389,7 +391,8 @@ bool waitApprovalAndApprove(Client& c, std::string& why) {
 
 int runSoak(std::uint32_t domain, const std::string& xml, int cycles, int targets_per_cycle,
             int server_pid) {
-  Client c(domain, xml, "operator");
+  Client c(domain, xml, "operator", nullptr,
+           ignav::protocol::chooseRobot(domain, xml, nullptr, "", 20s));
   if (!c.waitForServer(20s) || !registered(c)) {
     std::fprintf(stderr, "bench_load: the server did not load and register the phantom\n");
     return 1;

@@ -141,7 +141,8 @@ int main(int argc, char** argv) {
          "galil:127.0.0.1:" + std::to_string(proxy.port()), "--controller-speed", "2000"},
         "ignav-server ready", (dir / "server.log").string());
     const std::string xml = ignav::protocol::readConfigFile(source + "/configs/dds/loopback.xml");
-    Client op(domain, xml, "operator");
+    const std::string robot = ignav::protocol::chooseRobot(domain, xml, nullptr, "", 10s);
+    Client op(domain, xml, "operator", nullptr, robot);
     if (!op.waitForServer(10s)) throw std::runtime_error("no server");
     op.waitFor([](const json& s) { return s.contains("workflow"); }, 10s);
     op.send("load_volume", {"phantom:", {}, {}});
@@ -166,7 +167,7 @@ int main(int argc, char** argv) {
     Stats query_slow, query_prompt;
     std::mutex stats_mutex;
     std::thread watcher([&] {
-      Client w(domain, xml, "watcher");
+      Client w(domain, xml, "watcher", nullptr, robot);
       w.waitForServer(10s);
       while (!done) {
         const bool was_slow = slow;

@@ -164,10 +164,12 @@ std::variant<BrowserRequest, BadRequest> parseBrowserMessage(std::string_view te
   return out;
 }
 
-json helloMessage(const std::string& client_id, const std::string& subject, bool security,
-                  const std::string& version, const std::vector<std::string>& permitted) {
-  return {{"type", "hello"},      {"client_id", client_id}, {"subject", subject},
-          {"security", security}, {"version", version},     {"permitted", permitted}};
+json helloMessage(const std::string& client_id, const std::string& robot_id,
+                  const std::string& subject, bool security, const std::string& version,
+                  const std::vector<std::string>& permitted) {
+  return {{"type", "hello"},       {"client_id", client_id}, {"robot_id", robot_id},
+          {"subject", subject},    {"security", security},   {"version", version},
+          {"permitted", permitted}};
 }
 
 json connectionMessage(bool server_matched) {

@@ -51,9 +51,11 @@ struct BadRequest {
 std::variant<BrowserRequest, BadRequest> parseBrowserMessage(std::string_view text);
 
 // Gateway -> browser.
-// `permitted`: the commands (and "approve") this gateway's identity may publish at all.
-nlohmann::json helloMessage(const std::string& client_id, const std::string& subject, bool security,
-                            const std::string& version, const std::vector<std::string>& permitted);
+// `permitted`: the commands (and "approve") this gateway's identity may publish at all;
+// `robot_id`: the one robot it serves.
+nlohmann::json helloMessage(const std::string& client_id, const std::string& robot_id,
+                            const std::string& subject, bool security, const std::string& version,
+                            const std::vector<std::string>& permitted);
 nlohmann::json connectionMessage(bool server_matched);
 // `changed`: topic names as protocol::Client::poll() returns them ("target" is sent as the whole
 // "targets" map). Empty `changed`: the whole state.

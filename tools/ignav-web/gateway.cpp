@@ -106,7 +106,7 @@ struct Gateway::Impl {
   Impl(GatewayOptions o)
       : options(std::move(o)),
         client(options.domain, options.dds_config_xml, options.client_id,
-               options.identity ? &*options.identity : nullptr) {
+               options.identity ? &*options.identity : nullptr, options.robot_id) {
     if (options.identity) {
       std::ifstream pem(options.identity->certificate);
       subject = protocol::certificateSubject(
@@ -337,8 +337,8 @@ void Gateway::Impl::accept() {
 void Gateway::Impl::joined(const std::shared_ptr<WsSession>& s) {
   sessions.insert(s);
   spdlog::info("browser {} connected ({} in all)", s->peer(), sessions.size());
-  s->send(
-      helloMessage(options.client_id, subject, options.identity.has_value(), kVersion, permitted));
+  s->send(helloMessage(options.client_id, options.robot_id, subject, options.identity.has_value(),
+                       kVersion, permitted));
   s->send(stateMessage(full_state, {}));
   s->send(connectionMessage(server_matched));
 }

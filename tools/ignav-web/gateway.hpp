@@ -25,6 +25,7 @@ struct GatewayOptions {
   std::uint32_t domain = 0;
   std::string dds_config_xml;  // the XML itself ("" = Cyclone's defaults)
   std::string client_id = "web";
+  std::string robot_id;  // the one robot this gateway serves (protocol::chooseRobot finds it)
   std::optional<protocol::SecurityIdentity> identity;
   // How long a request waits for the server's answer before the browser gets "timeout".
   std::chrono::milliseconds reply_timeout = std::chrono::seconds(10);

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "gateway.hpp"
+#include "ignav/protocol/client.hpp"
 #include "ignav/protocol/config.hpp"
 #include "ignav/protocol/security.hpp"
 
@@ -31,6 +32,13 @@ int main(int argc, char** argv) {
   app.add_option("--app-dir", options.app_dir, "the built browser app");
   app.add_option("--domain", options.domain, "DDS domain id");
   app.add_option("--dds-config", dds_config, "Cyclone XML ('' = defaults)");
+  std::string robot;
+  double wait_s = 10.0;
+  app.add_option("--robot", robot,
+                 "the robot to serve (its robot_id); by default the only one on the domain")
+      ->envname("IGNAV_ROBOT");
+  app.add_option("--wait-server", wait_s,
+                 "without --robot: seconds to wait for a server to appear on the domain");
   app.add_option("--client-id", options.client_id,
                  "the DDS client id every browser of this gateway acts as");
   app.add_option("--identity", identity,
@@ -47,13 +55,17 @@ int main(int argc, char** argv) {
     } else {
       spdlog::warn("DDS Security is off (no --identity): for local development only");
     }
+    // One robot per gateway, chosen now: a viewer never shows one robot and commands another.
+    options.robot_id = ignav::protocol::chooseRobot(
+        options.domain, options.dds_config_xml, options.identity ? &*options.identity : nullptr,
+        robot, std::chrono::milliseconds(static_cast<long>(wait_s * 1000)));
     if (options.listen_address != "127.0.0.1" && options.listen_address != "::1") {
       spdlog::warn("listening on {}, not loopback: anyone who reaches it acts as '{}'",
                    options.listen_address, options.client_id);
     }
     ignav::web::Gateway gateway(options);
     std::cout << "ignav-web ready url=http://" << options.listen_address << ":" << gateway.port()
-              << "/ client_id=" << options.client_id
+              << "/ client_id=" << options.client_id << " robot=" << options.robot_id
               << " security=" << (options.identity ? "on" : "OFF") << std::endl;
     // SIGINT/SIGTERM end the serving loop; the gateway closes its sockets and participant. (A
     // handler, not a blocked mask and sigwait: some of Cyclone's threads unblock every signal.)

@@ -5,6 +5,7 @@
 //   ignavctl approval | approve [--yes] [--plan N --digest HEX] | motion | emergency-stop
 //   ignavctl verify [load PATH | place ID X,Y,Z | accept ID | reject SEED | fit NAME | aim NAME]
 //   ignavctl replay SESSION [--speed 1|10|max] [--until SEQ]
+//   ignavctl robots (the servers on the domain); --robot ID picks one where several share it
 //   and every other command by its name: ignavctl ping | add-target X,Y,Z | check-ready robot ...
 #include <yaml-cpp/yaml.h>
 #include <CLI/CLI.hpp>
@@ -222,6 +223,25 @@ void printStatus(const StateMirror& s) {
 
 Eigen::Vector3d jsonPoint(const json& p) {
   return {p.at(0).get<double>(), p.at(1).get<double>(), p.at(2).get<double>()};
+}
+
+// `ignavctl robots`: one line per server (two with one robot id are both shown, marked).
+void printRobots(const std::vector<Health>& robots, bool as_json) {
+  if (as_json) {
+    std::cout << json(robots).dump(2) << "\n";
+    return;
+  }
+  std::map<std::string, int> per_id;
+  for (const auto& h : robots)
+    ++per_id[h.robot_id];
+  std::printf("%-20s %-20s %-34s %-10s %10s  %s\n", "robot", "host", "session", "version",
+              "uptime(s)", "journal");
+  for (const auto& h : robots) {
+    std::printf("%-20s %-20s %-34s %-10s %10.0f  %s%s\n", h.robot_id.c_str(), h.host.c_str(),
+                h.session_id.c_str(), h.version.c_str(), h.uptime_s, h.journal.c_str(),
+                per_id[h.robot_id] > 1 ? "  DUPLICATE robot id: the later server stops" : "");
+  }
+  if (robots.empty()) std::printf("(none found)\n");
 }
 
 // Robot-frame points become LPS through the current registration (scripts plan in the robot
@@ -446,12 +466,19 @@ int main(int argc, char** argv) {
   app.add_option("--client-id", client_id, "who this client is in replies and the journal");
   app.add_flag("--json", as_json, "machine-readable output");
   app.add_option("--wait-server", wait_s, "seconds to wait for the server");
+  std::string robot_id;
+  app.add_option("--robot", robot_id,
+                 "the robot whose server to talk to (its robot_id); needed when several robots "
+                 "share the domain")
+      ->envname("IGNAV_ROBOT");
   std::string identity;
   app.add_option("--identity", identity,
                  "DDS Security identity folder (cert.pem, key.pem, permissions.p7s, ...); "
                  "without one, security is off")
       ->envname("IGNAV_IDENTITY");
 
+  auto* robots = app.add_subcommand(
+      "robots", "the ignav servers on this DDS domain: robot id, host, session, version, uptime");
   auto* status = app.add_subcommand("status", "phase, volume, registration, targets");
   std::string load_path;
   auto* load = app.add_subcommand("load", "load a CT: a server-side path, or 'phantom'");
@@ -546,6 +573,10 @@ int main(int argc, char** argv) {
     std::vector<std::string> args{
         server,       "--config", server_config,          "--replay",     replay_dir, "--speed",
         replay_speed, "--domain", std::to_string(domain), "--dds-config", dds_config};
+    if (!robot_id.empty()) {  // else the server's: its config's robot id with -replay
+      args.push_back("--robot-id");
+      args.push_back(robot_id);
+    }
     if (!replay_identity.empty()) {
       args.push_back("--identity");
       args.push_back(replay_identity);
@@ -574,10 +605,25 @@ int main(int argc, char** argv) {
     } else {
       std::cerr << "ignavctl: DDS Security is off (no --identity): for local development only\n";
     }
-    Client client(domain, xml, client_id, secure ? &*secure : nullptr);
-    if (!client.waitForServer(std::chrono::milliseconds(static_cast<long>(wait_s * 1000)))) {
-      std::cerr << "ignavctl: no ignav-server on DDS domain " << domain
-                << (secure ? " that authenticates this identity" : "") << "\n";
+    const auto wait = std::chrono::milliseconds(static_cast<long>(wait_s * 1000));
+    const auto* secure_id = secure ? &*secure : nullptr;
+    if (*robots) {
+      const auto found = ignav::protocol::discoverRobots(domain, xml, secure_id, wait);
+      printRobots(found, as_json);
+      return found.empty() ? kExitNoServer : 0;
+    }
+    std::string robot;
+    try {
+      robot = ignav::protocol::chooseRobot(domain, xml, secure_id, robot_id, wait);
+    } catch (const ignav::protocol::RobotNotChosen& e) {
+      std::cerr << "ignavctl: " << e.what() << "\n";
+      return robot_id.empty() ? kExitNoServer : kExitUsage;
+    }
+    Client client(domain, xml, client_id, secure_id, robot);
+    if (!client.waitForServer(wait)) {
+      std::cerr << "ignavctl: no ignav-server for robot '" << robot << "' on DDS domain " << domain
+                << (secure ? " that authenticates this identity" : "")
+                << (robot_id.empty() ? "" : " (ignavctl robots lists those there)") << "\n";
       return kExitNoServer;
     }
     // The state topics are transient-local: a late joiner gets the present at once.

@@ -70,9 +70,10 @@ struct StateMirror {
 class Client {
  public:
   // identity: DDS Security on, as that identity (security.hpp); the writers its permissions
-  // refuse are missing, and using one throws PermissionDenied naming the topic.
+  // refuse are missing, and using one throws PermissionDenied naming the topic. robot_id: the
+  // robot whose server this client talks to (its DDS partition; chooseRobot finds it).
   Client(std::uint32_t domain_id, const std::string& config_xml, std::string client_id,
-         const SecurityIdentity* identity = nullptr);
+         const SecurityIdentity* identity, const std::string& robot_id);
   ~Client();
 
   // How long a command polls for its reply before it sleeps on the waitset (default 2 ms, which
@@ -114,6 +115,7 @@ class Client {
   // command name, or "approve"); always true without security. The server still judges it.
   bool mayPublish(const std::string& command) const;
   const std::string& clientId() const { return client_id_; }
+  const std::string& robotId() const;
 
  private:
   Reply awaitReply(std::uint64_t request_id, const std::string& what,
@@ -126,6 +128,19 @@ class Client {
   nlohmann::json state_ = nlohmann::json::object();
   StateMirror mirror_;
 };
+
+// The ignav servers on a domain, by their Health (robot id, host, session, version, since when),
+// sorted by robot id then start. Waits up to `wait`; less once every Health writer matched has
+// been heard from and nothing new has come for 300 ms. Throws PermissionDenied if this identity
+// may not read every robot's partition (an identity scoped to one robot names it instead).
+std::vector<Health> discoverRobots(std::uint32_t domain_id, const std::string& config_xml,
+                                   const SecurityIdentity* identity,
+                                   std::chrono::milliseconds wait);
+// The robot a client should talk to: `named` if given (checked), else the only one discovered.
+// Throws RobotNotChosen naming the domain and the robots found when there are none or several.
+std::string chooseRobot(std::uint32_t domain_id, const std::string& config_xml,
+                        const SecurityIdentity* identity, const std::string& named,
+                        std::chrono::milliseconds wait);
 
 // A 4x4 matrix mirrored in state() as 16 row-major numbers (e.g. image_to_robot).
 Eigen::Matrix4d matrixFromState(const nlohmann::json& row_major);

@@ -12,6 +12,11 @@ struct DdsError : std::runtime_error {
 struct PermissionDenied : DdsError {
   using DdsError::DdsError;
 };
+// Which robot a client talks to cannot be decided: none found, several and none named, or the
+// one named is not there (client.hpp chooseRobot).
+struct RobotNotChosen : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
 // No reply (or no expected state) in time.
 struct Timeout : std::runtime_error {
   using std::runtime_error::runtime_error;

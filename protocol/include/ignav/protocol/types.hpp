@@ -307,6 +307,9 @@ struct Health {
   std::string journal;  // "ok", or why the journal cannot be written
   std::uint32_t igtl_clients = 0;
   double server_time_unix_s = 0.0;
+  std::string robot_id;
+  std::string host;
+  double started_unix_s = 0.0;
 };
 
 // ---- the fields of each: JSON name, member, C member(s) ------------------------------------
@@ -503,7 +506,8 @@ struct Fields<Health> {
   static constexpr auto list = std::make_tuple(
       IGNAV_FIELD(version), IGNAV_FIELD(session_id), IGNAV_FIELD(session_dir),
       IGNAV_FIELD(uptime_s), IGNAV_FIELD(commands_accepted), IGNAV_FIELD(commands_rejected),
-      IGNAV_FIELD(journal), IGNAV_FIELD(igtl_clients), IGNAV_FIELD(server_time_unix_s));
+      IGNAV_FIELD(journal), IGNAV_FIELD(igtl_clients), IGNAV_FIELD(server_time_unix_s),
+      IGNAV_FIELD(robot_id), IGNAV_FIELD(host), IGNAV_FIELD(started_unix_s));
 };
 
 // ---- which topic each travels on -----------------------------------------------------------

@@ -65,6 +65,8 @@ const connected = () => connectionView(socketStatus, serverConnected).connected;
 const socket = new GatewaySocket(`${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws`, {
   hello(message) {
     hello = message;
+    byId("robot-id").textContent = message.robot_id;
+    document.title = `ignav: ${message.robot_id}`;
     // A new connection: the slices are asked for again once the gateway says the server is there.
     scheduleRender();
   },

@@ -129,6 +129,9 @@ export interface HealthState {
   // The server's wall clock (Unix s) when it wrote this sample, once a second: what an approval's
   // expires_at_unix_s is counted down against (clock.ts). Absent from servers before issue 26.
   server_time_unix_s?: number;
+  robot_id?: string; // which robot this server drives (docs/DEPLOYMENT.md); absent before issue 24
+  host?: string;
+  started_unix_s?: number;
 }
 
 // ---- the closed loop (issue 23): the confirmation CT, its seeds and the targeting error -------
@@ -226,6 +229,7 @@ export interface ServerState {
 export interface HelloMessage {
   type: "hello";
   client_id: string;
+  robot_id: string; // the one robot this gateway serves
   subject: string;
   security: boolean;
   version: string;

@@ -29,19 +29,27 @@ class Participant {
   // config_xml: a Cyclone configuration document (e.g. configs/dds/loopback.xml's text), or ""
   // for Cyclone's defaults / CYCLONEDDS_URI. identity: DDS Security on with that identity
   // (security.hpp); null: off. One identity per process and domain (Cyclone 0.10): another
-  // one throws DdsError.
+  // one throws DdsError. robot_id: every reader and writer is in that robot's partition
+  // (topics.hpp robotPartition; kAnyRobot reads all robots).
   Participant(std::uint32_t domain_id, const std::string& config_xml,
-              const SecurityIdentity* identity = nullptr);
+              const SecurityIdentity* identity, const std::string& robot_id);
   ~Participant();
   Participant(const Participant&) = delete;
   Participant& operator=(const Participant&) = delete;
   dds_entity_t handle() const { return participant_; }
+  // Writers are created in the publisher, readers in the subscriber: both in the robot's partition.
+  dds_entity_t publisher() const { return publisher_; }
+  dds_entity_t subscriber() const { return subscriber_; }
+  const std::string& robotId() const { return robot_id_; }
   bool secure() const { return secure_; }
 
  private:
   void create(std::uint32_t domain_id, const std::string& config_xml,
               const SecurityIdentity* identity);
   std::uint32_t domain_id_ = 0;
+  std::string robot_id_;
+  dds_entity_t publisher_ = 0;
+  dds_entity_t subscriber_ = 0;
   bool secure_ = false;
   dds_entity_t domain_ = 0;
   dds_entity_t participant_ = 0;

@@ -267,8 +267,8 @@ template <typename T>
 class TopicReader {
  public:
   using Msg = typename MsgOf<T>::type;
-  explicit TopicReader(const Participant& p)
-      : reader_(p, MsgOf<T>::descriptor(), TopicOf<T>::name, TopicOf<T>::qos) {}
+  explicit TopicReader(const Participant& p, Qos qos = TopicOf<T>::qos)
+      : reader_(p, MsgOf<T>::descriptor(), TopicOf<T>::name, qos) {}
   // Only the samples `keep(sample, arg)` accepts (Reader's filter; `arg` outlives the reader).
   TopicReader(const Participant& p, dds_topic_filter_arg_fn keep, void* arg)
       : reader_(p, MsgOf<T>::descriptor(), TopicOf<T>::name, TopicOf<T>::qos, keep, arg) {}

@@ -1,0 +1,245 @@
+// Several robots on one DDS domain (docs/DEPLOYMENT.md): real ignav-server processes with robot
+// ids, real Cyclone DDS on loopback. Each robot's topics are in its own partition, so a command for
+// one never reaches the other; a client that names no robot among several is told which exist; a
+// second server with a robot id already served stops before it touches the controller; with DDS
+// Security, an approver of one robot cannot publish approvals to another. Domains 182-185.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <fstream>
+#include <thread>
+
+#include "ignav/protocol/security.hpp"
+#include "server_process.hpp"
+
+namespace ignav::e2e {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using protocol::Client;
+using namespace std::chrono_literals;
+
+struct Run {
+  int exit_code = -1;
+  std::string output;
+};
+
+// A command line to its end: exit code and everything it printed.
+Run run(const std::string& cmd) {
+  Run r;
+  FILE* pipe = ::popen((cmd + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  char buf[512];
+  while (std::fgets(buf, sizeof buf, pipe))
+    r.output += buf;
+  const int status = ::pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string ctlCommand(std::uint32_t domain, const std::string& args) {
+  return std::string(IGNAVCTL_EXE) + " --domain " + std::to_string(domain) +
+         " --dds-config " IGNAV_SOURCE_DIR "/configs/dds/loopback.xml --wait-server 5 " + args;
+}
+
+std::unique_ptr<Client> clientOf(const ServerProcess& server, const std::string& id,
+                                 const protocol::SecurityIdentity* identity = nullptr) {
+  auto c = std::make_unique<Client>(server.domain(), loopbackXml(), id, identity, server.robotId());
+  EXPECT_TRUE(c->waitForServer(15s)) << server.robotId();
+  c->waitFor([](const json& s) { return s.contains("workflow") && s.contains("health"); }, 10s);
+  return c;
+}
+
+TEST(RobotsE2E, TwoRobotsShareADomainAndNeverActOnEachOthersCommands) {
+  ServerProcess a(182, {"--robot-id", "cell-a"});
+  ServerProcess b(182, {"--robot-id", "cell-b"});
+  ASSERT_EQ(a.robotId(), "cell-a");
+  ASSERT_EQ(b.robotId(), "cell-b");
+  auto op_a = clientOf(a, "operator");
+  auto op_b = clientOf(b, "operator");
+  EXPECT_EQ(op_a->mirror().health->robot_id, "cell-a");
+  EXPECT_EQ(op_b->mirror().health->robot_id, "cell-b");
+  const auto b_revision = op_b->mirror().workflow->revision;
+  const auto b_phase = op_b->mirror().workflow->phase;
+
+  // A whole plan on robot A: B neither hears nor answers any of it.
+  const auto target = plannedTarget(*op_a, {8, 12, -175});
+  op_a->waitUntil([&](const protocol::StateMirror& m) { return m.targets.count(target) == 1; },
+                  10s);
+  std::this_thread::sleep_for(1500ms);  // B's Health comes once a second: let it speak again
+  op_b->poll();
+  EXPECT_EQ(op_b->mirror().workflow->revision, b_revision);
+  EXPECT_EQ(op_b->mirror().workflow->phase, b_phase);
+  EXPECT_TRUE(op_b->mirror().targets.empty());
+  EXPECT_EQ(op_b->mirror().health->commands_accepted, 0u);
+  EXPECT_EQ(op_b->mirror().health->commands_rejected, 0u);
+  // Each server's journal holds its own commands only.
+  std::ifstream journal_b(b.sessionDir() / "journal.jsonl");
+  std::string text((std::istreambuf_iterator<char>(journal_b)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(text.find("add_target"), std::string::npos);
+  EXPECT_EQ(text.find("load_volume"), std::string::npos);
+
+  // B answers its own client (a query: its revision stays).
+  const auto ping_b = op_b->send("ping", {}, 10s);
+  EXPECT_TRUE(ping_b.accepted);
+  EXPECT_EQ(ping_b.revision, b_revision);
+
+  // Listing: both robots, with their hosts and sessions.
+  const auto robots = protocol::discoverRobots(182, loopbackXml(), nullptr, 5s);
+  ASSERT_EQ(robots.size(), 2u);
+  EXPECT_EQ(robots[0].robot_id, "cell-a");
+  EXPECT_EQ(robots[1].robot_id, "cell-b");
+  EXPECT_FALSE(robots[0].host.empty());
+  EXPECT_NE(robots[0].session_id, robots[1].session_id);
+  // Naming none among several is an error that lists them.
+  try {
+    protocol::chooseRobot(182, loopbackXml(), nullptr, "", 5s);
+    ADD_FAILURE() << "chooseRobot chose among two robots";
+  } catch (const protocol::RobotNotChosen& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("cell-a"), std::string::npos) << what;
+    EXPECT_NE(what.find("cell-b"), std::string::npos) << what;
+    EXPECT_NE(what.find("--robot"), std::string::npos) << what;
+  }
+
+  // The same through ignavctl: robots lists both; a command without --robot changes nothing.
+  const auto listed = run(ctlCommand(182, "--json robots"));
+  ASSERT_EQ(listed.exit_code, 0) << listed.output;
+  const auto listed_json = json::parse(listed.output.substr(listed.output.find('[')));
+  ASSERT_EQ(listed_json.size(), 2u);
+  EXPECT_EQ(listed_json[0]["robot_id"], "cell-a");
+  const auto unnamed = run(ctlCommand(182, "add-target 1,2,3"));
+  EXPECT_EQ(unnamed.exit_code, 3) << unnamed.output;
+  EXPECT_NE(unnamed.output.find("2 robots on DDS domain 182"), std::string::npos) << unnamed.output;
+  const auto named = run(ctlCommand(182, "--robot cell-b --json status"));
+  EXPECT_EQ(named.exit_code, 0) << named.output;
+  EXPECT_NE(named.output.find("\"robot_id\": \"cell-b\""), std::string::npos) << named.output;
+  const auto absent = run(ctlCommand(182, "--robot cell-c ping"));
+  EXPECT_EQ(absent.exit_code, 3) << absent.output;
+  EXPECT_NE(absent.output.find("no ignav-server for robot 'cell-c'"), std::string::npos)
+      << absent.output;
+  const auto bad = run(ctlCommand(182, "--robot 'cell*' ping"));
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("robot id 'cell*' has '*'"), std::string::npos) << bad.output;
+  op_a->poll();
+  EXPECT_EQ(op_a->mirror().targets.size(), 1u);
+}
+
+TEST(RobotsE2E, ASecondServerWithARobotIdAlreadyServedStopsBeforeTouchingTheController) {
+  ServerProcess first(183, {"--robot-id", "twin"});
+  auto op = clientOf(first, "operator");
+  ASSERT_TRUE(op->send("ping").accepted);
+  const auto revision = op->mirror().workflow->revision;
+
+  const fs::path dir = first.sessionDir().string() + "_second";
+  fs::remove_all(dir);
+  const auto second = run("timeout 30 " IGNAV_SERVER_EXE " --config " IGNAV_SOURCE_DIR
+                          "/configs/server.yaml --domain 183"
+                          " --robot-id twin --no-igtl --session-dir " +
+                          dir.string());
+  EXPECT_EQ(second.exit_code, 4) << second.output;
+  EXPECT_NE(second.output.find("robot_id 'twin': another ignav-server already serves this robot"),
+            std::string::npos)
+      << second.output;
+  EXPECT_NE(second.output.find(op->mirror().health->session_id), std::string::npos)
+      << second.output;
+  EXPECT_EQ(second.output.find("ignav-server ready"), std::string::npos) << second.output;
+  // It journaled nothing (not even its configuration) and started no controller.
+  EXPECT_TRUE(!fs::exists(dir / "journal.jsonl") || fs::file_size(dir / "journal.jsonl") == 0);
+  fs::remove_all(dir);
+
+  // The first serves on, unchanged.
+  const auto again = op->send("ping");
+  EXPECT_TRUE(again.accepted);
+  EXPECT_EQ(again.revision, revision);
+  EXPECT_TRUE(first.alive());
+}
+
+TEST(RobotsE2E, TwoServersThatMissedEachOtherAtStartLeaveTheOlderServing) {
+  // No listening at start (as when a network that was split is joined): they meet once running,
+  // and the later one halts and stops within a Health period or two.
+  ServerProcess older(184, {"--robot-id", "twin", "--robot-id-check-ms", "0"});
+  std::this_thread::sleep_for(50ms);
+  const fs::path dir = older.sessionDir().string() + "_later";
+  fs::remove_all(dir);
+  const auto later = run("timeout 30 " IGNAV_SERVER_EXE " --config " IGNAV_SOURCE_DIR
+                         "/configs/server.yaml --domain 184"
+                         " --robot-id twin --robot-id-check-ms 0 --no-igtl --session-dir " +
+                         dir.string());
+  EXPECT_EQ(later.exit_code, 4) << later.output;
+  EXPECT_NE(later.output.find("ignav-server ready"), std::string::npos) << later.output;
+  EXPECT_NE(later.output.find("robot_id 'twin': another ignav-server already serves this robot"),
+            std::string::npos)
+      << later.output;
+  EXPECT_NE(later.output.find("halting the robot and stopping"), std::string::npos)
+      << later.output;
+  // The halt is journaled: an emergency stop by the server itself.
+  std::ifstream journal(dir / "journal.jsonl");
+  const std::string records((std::istreambuf_iterator<char>(journal)),
+                            std::istreambuf_iterator<char>());
+  EXPECT_NE(records.find("\"emergency_stop\""), std::string::npos) << records;
+  fs::remove_all(dir);
+  auto op = clientOf(older, "operator");
+  EXPECT_TRUE(op->send("ping").accepted);
+  EXPECT_TRUE(older.alive());
+  // The older one says so at its next Health tick.
+  for (int i = 0; i < 30 && older.serverLog().find("a later ignav-server") == std::string::npos;
+       ++i) {
+    std::this_thread::sleep_for(100ms);
+  }
+  EXPECT_NE(older.serverLog().find("a later ignav-server with this robot id appeared"),
+            std::string::npos)
+      << older.serverLog();
+}
+
+// With DDS Security: identities scoped to one robot (make-test-pki.sh --robot).
+TEST(RobotsE2E, AnApproverOfOneRobotCannotApproveAnothersMotion) {
+  const fs::path pki =
+      fs::temp_directory_path() / ("ignav_robot_pki_" + std::to_string(::getpid()));
+  fs::remove_all(pki);
+  ASSERT_EQ(std::system((IGNAV_SOURCE_DIR "/configs/security/make-test-pki.sh " + pki.string() +
+                         " --robot cell-a --robot cell-b >/dev/null")
+                            .c_str()),
+            0);
+  auto subject = [&](const fs::path& folder) {
+    std::ifstream in(folder / "subject.txt");
+    std::string s;
+    std::getline(in, s);
+    return s;
+  };
+  const fs::path a_approver = pki / "robots/cell-a/approver";
+  const fs::path b_approver = pki / "robots/cell-b/approver";
+  // Robot A's server even lists B's approver (a mistake in its config): DDS Security still
+  // keeps B's identity out of A's partition.
+  ServerProcess a(185, {"--robot-id", "cell-a", "--identity",
+                        (pki / "robots/cell-a/service").string(), "--approver", subject(a_approver),
+                        "--approver", subject(b_approver), "--controller-speed", "40000"});
+  const auto planner_id = protocol::identityFromFolder((pki / "robots/cell-a/planner").string());
+  auto planner = clientOf(a, "console", &planner_id);
+  lockedPlanTo(*planner, {8, 12, -175});
+  planner->waitFor([](const json& s) { return stateText(s, "approval", "status") == "pending"; },
+                   10s);
+
+  // B's approver (another process: one identity per process): refused by DDS Security.
+  const auto refused =
+      run(ctlCommand(185, "--robot cell-a --identity " + b_approver.string() + " approve --yes"));
+  EXPECT_NE(refused.exit_code, 0) << refused.output;
+  EXPECT_NE(refused.output.find("not allowed by DDS Security"), std::string::npos)
+      << refused.output;
+  EXPECT_NE(refused.output.find("robot 'cell-a'"), std::string::npos) << refused.output;
+  planner->poll();
+  EXPECT_EQ(stateText(planner->state(), "approval", "status"), "pending");
+  EXPECT_TRUE(phaseIs(planner->state(), "plan_locked"));
+
+  // A's approver releases it.
+  const auto approved =
+      run(ctlCommand(185, "--robot cell-a --identity " + a_approver.string() + " approve --yes"));
+  ASSERT_EQ(approved.exit_code, 0) << approved.output;
+  planner->waitFor([](const json& s) { return phaseIs(s, "at_target"); }, 30s);
+  fs::remove_all(pki);
+}
+
+}  // namespace
+}  // namespace ignav::e2e
