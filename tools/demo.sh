@@ -40,6 +40,8 @@ echo "web viewer: $web_url  (open it in a browser while the demo runs; IGNAV_DEM
 # the approver identity: it may plan and approve. Every command is encrypted on the wire.
 ctl="build/tools/ignavctl/ignavctl --dds-config configs/dds/loopback.xml --identity $out/pki/approver"
 ctl="$ctl --client-id operator"
+# The servers on the domain (docs/DEPLOYMENT.md): one robot here, so ignavctl needs no --robot.
+$ctl robots | tee "$session/robots.txt"
 $ctl run configs/demo/plan.yaml --out-dir "$session"
 echo
 $ctl status

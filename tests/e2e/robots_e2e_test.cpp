@@ -173,8 +173,7 @@ TEST(RobotsE2E, TwoServersThatMissedEachOtherAtStartLeaveTheOlderServing) {
   EXPECT_NE(later.output.find("robot_id 'twin': another ignav-server already serves this robot"),
             std::string::npos)
       << later.output;
-  EXPECT_NE(later.output.find("halting the robot and stopping"), std::string::npos)
-      << later.output;
+  EXPECT_NE(later.output.find("halting the robot and stopping"), std::string::npos) << later.output;
   // The halt is journaled: an emergency stop by the server itself.
   std::ifstream journal(dir / "journal.jsonl");
   const std::string records((std::istreambuf_iterator<char>(journal)),
@@ -192,6 +191,41 @@ TEST(RobotsE2E, TwoServersThatMissedEachOtherAtStartLeaveTheOlderServing) {
   EXPECT_NE(older.serverLog().find("a later ignav-server with this robot id appeared"),
             std::string::npos)
       << older.serverLog();
+}
+
+TEST(RobotsE2E, AMisconfiguredRobotIdOrDomainIsRefusedAtStartNamingTheSetting) {
+  const std::string server =
+      std::string("timeout 30 " IGNAV_SERVER_EXE " --config " IGNAV_SOURCE_DIR
+                  "/configs/server.yaml"
+                  " --no-igtl --session-dir ") +
+      (fs::temp_directory_path() / "ignav_misconfigured").string();
+  const auto spaced = run(server + " --domain 182 --robot-id 'cell a'");
+  EXPECT_EQ(spaced.exit_code, 2) << spaced.output;
+  EXPECT_NE(spaced.output.find("robot_id: 'cell a' has ' '"), std::string::npos) << spaced.output;
+  const auto wildcard = run(server + " --domain 182 --robot-id 'cell*'");
+  EXPECT_EQ(wildcard.exit_code, 2) << wildcard.output;
+  EXPECT_NE(wildcard.output.find("robot_id: 'cell*' has '*'"), std::string::npos)
+      << wildcard.output;
+  const auto far = run(server + " --domain 233");
+  EXPECT_EQ(far.exit_code, 2) << far.output;
+  EXPECT_NE(far.output.find("dds.domain_id: 233 is not within 0..232"), std::string::npos)
+      << far.output;
+  // In the file: the same checks, and an unknown key under dds: named.
+  const fs::path config = fs::temp_directory_path() / "ignav_misconfigured.yaml";
+  std::ofstream(config) << "server:\n  robot_config: " IGNAV_SOURCE_DIR
+                           "/configs/robots/torabi2014.yaml\n  robot_id: ''\n";
+  const auto empty =
+      run(std::string("timeout 30 " IGNAV_SERVER_EXE " --config ") + config.string());
+  EXPECT_EQ(empty.exit_code, 2) << empty.output;
+  EXPECT_NE(empty.output.find("server.robot_id: '' is empty"), std::string::npos) << empty.output;
+  std::ofstream(config) << "server:\n  robot_config: " IGNAV_SOURCE_DIR
+                           "/configs/robots/torabi2014.yaml\n  dds:\n    domian_id: 3\n";
+  const auto typo = run(std::string("timeout 30 " IGNAV_SERVER_EXE " --config ") + config.string());
+  EXPECT_EQ(typo.exit_code, 2) << typo.output;
+  EXPECT_NE(typo.output.find("server.dds.domian_id: unknown key"), std::string::npos)
+      << typo.output;
+  fs::remove(config);
+  EXPECT_FALSE(fs::exists(fs::temp_directory_path() / "ignav_misconfigured"));
 }
 
 // With DDS Security: identities scoped to one robot (make-test-pki.sh --robot).
