@@ -118,6 +118,8 @@ int Server::replay(const std::atomic<bool>& stop, const std::vector<std::string>
   std::cout << "ignav-server replaying " << session_dir_.string()
             << " domain=" << options_.domain_id << " robot=" << options_.robot_id
             << (igtl_ ? " igtl_port=" + std::to_string(igtl_->port()) : std::string()) << std::endl;
+  notifier_.ready(
+      fmt::format("replaying {} as robot {}", session_dir_.string(), options_.robot_id));
   const fs::path journal_path = session_dir_ / "journal.jsonl";
   auto load_ct = [this](const std::string& source) { return reloadCt(source); };
   std::optional<double> previous_t;
@@ -186,9 +188,12 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
   std::cout << "ignav-server ready domain=" << options_.domain_id << " robot=" << options_.robot_id
             << " session=" << session_dir_.string() << " security=" << (identity_ ? "on" : "OFF")
             << (igtl_ ? " igtl_port=" + std::to_string(igtl_->port()) : std::string()) << std::endl;
+  notifier_.ready(fmt::format("robot {} on DDS domain {}, session {}", options_.robot_id,
+                              options_.domain_id, session_dir_.string()));
   auto last_health = Clock::now();
   auto last_event = Clock::now() - kBusyPoll;
   while (!stop.load()) {
+    notifier_.alive();
     // While commands keep coming, poll instead of sleeping: waking a sleeping thread costs
     // ~150 µs on this kind of VM, more than the command itself (docs/PERFORMANCE.md).
     // The controller component wakes the waitset when it has something: no polling here.
@@ -252,10 +257,12 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
         halt.client_id = "ignav-server";
         halt.role = "any";
         step(std::move(halt));
+        notifier_.stopping();
         return 4;
       }
     }
   }
+  notifier_.stopping();
   spdlog::info("shutting down: {} commands accepted, {} rejected", session_.accepted,
                session_.rejected);
   return 0;
@@ -416,6 +423,7 @@ void Server::serveReadOnly(Clock::time_point until, const std::atomic<bool>& sto
                session_.revision});
   };
   while (!stop.load() && Clock::now() < until) {
+    notifier_.alive();
     const auto left = until - Clock::now();
     waitset_.wait(std::chrono::duration_cast<std::chrono::milliseconds>(
         std::min<Clock::duration>(left, std::chrono::milliseconds(50))));

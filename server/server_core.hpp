@@ -33,6 +33,7 @@
 #include "image_analysis.hpp"
 #include "reports.hpp"
 #include "server_options.hpp"
+#include "service_notify.hpp"
 #include "slices.hpp"
 #include "state_publisher.hpp"
 #include "volume_loader.hpp"
@@ -113,6 +114,7 @@ class Server {
   const std::string host_;
   const double started_unix_s_;
   std::set<std::string> peers_warned_;  // sessions of later servers with this id, said once
+  ServiceNotifier notifier_;            // systemd: ready, watchdog, stopping
   StatePublisher state_;
   // The slices clients ask for, drawn on a thread of their own (it writes the replies).
   Slices slices_;

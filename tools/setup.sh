@@ -20,6 +20,9 @@ packages=(
   libopenigtlink-dev
   # DDS
   cyclonedds-dev cyclonedds-tools
+  # the service: sd_notify for the systemd unit, systemd-analyze and dpkg-shlibdeps for the
+  # package's test (tools/package, tests/package)
+  libsystemd-dev systemd dpkg-dev
   # tests and benchmarks (tshark: the DDS Security test captures the loopback)
   libgtest-dev libgmock-dev libbenchmark-dev tshark
   # fuzzing (libFuzzer ships with clang's runtime) and sanitizer symbolisation

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <chrono>
 #include <csignal>
+#include <filesystem>
 #include <iostream>
 #include <thread>
 
@@ -19,12 +20,25 @@ std::atomic<bool> g_stop_requested{false};  // lock-free, so a signal handler ma
 void requestStop(int) {
   g_stop_requested = true;
 }
+// Installed (the Debian package): <prefix>/share/ignav/web beside <prefix>/bin; else the build's.
+std::string defaultAppDir() {
+  std::error_code ec;
+  const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const auto installed = exe.parent_path() / "../share/ignav/web";
+    if (std::filesystem::exists(installed / "index.html", ec)) {
+      return installed.lexically_normal().string();
+    }
+  }
+  return IGNAV_WEB_APP_DIR;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"ignav-web: the web viewer's gateway to ignav-server"};
   ignav::web::GatewayOptions options;
-  options.app_dir = IGNAV_WEB_APP_DIR;
+  options.app_dir = defaultAppDir();
   std::string dds_config = "configs/dds/loopback.xml";
   std::string identity;
   app.add_option("--listen", options.listen_address, "HTTP address (loopback by default)");
