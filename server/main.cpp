@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <csignal>
+#include <filesystem>
 #include <iostream>
 #include <optional>
 
@@ -27,7 +28,15 @@ int main(int argc, char** argv) {
   app.add_option("--domain", domain, "DDS domain id (overrides the config)");
   app.add_option("--session-dir", session_dir, "the session folder (default: a new one)");
   app.add_option("--robot", robot, "robot YAML (overrides the config)");
-  app.add_option("--dds-config", dds_config, "Cyclone XML (overrides the config)");
+  app.add_option("--dds-config", dds_config,
+                 "Cyclone XML, or a name: loopback, site-multicast, site-unicast (overrides the "
+                 "config)");
+  std::string dds_interface;
+  app.add_option("--dds-interface", dds_interface,
+                 "the network interface a site configuration uses (overrides dds.interface)");
+  std::vector<std::string> dds_peers;
+  app.add_option("--dds-peer", dds_peers,
+                 "a unicast discovery peer, once per host (site-unicast; overrides dds.peers)");
   std::string robot_id;
   app.add_option("--robot-id", robot_id,
                  "this robot's id on the DDS domain (overrides the config; a replay's default "
@@ -93,7 +102,16 @@ int main(int argc, char** argv) {
     if (domain) options.domain_id = *domain;
     if (!session_dir.empty()) options.session_dir = session_dir;
     if (!robot.empty()) options.robot_config = robot;
-    if (!dds_config.empty()) options.dds_config = dds_config;
+    if (!dds_config.empty()) {
+      // A name is looked up beside the config file first, then where tools look.
+      std::vector<std::string> dirs{
+          (std::filesystem::path(config_path).parent_path() / "dds").string()};
+      for (auto& d : ignav::protocol::ddsConfigDirs())
+        dirs.push_back(std::move(d));
+      options.dds_config = ignav::protocol::resolveDdsConfig(dds_config, dirs);
+    }
+    if (!dds_interface.empty()) options.dds_site.interface = dds_interface;
+    if (!dds_peers.empty()) options.dds_site.peers = dds_peers;
     if (!robot_id.empty()) {
       options.robot_id = robot_id;
     } else if (!replay.empty()) {

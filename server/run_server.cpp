@@ -29,6 +29,15 @@ std::string sessionName() {
 
 int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
   ServerOptions options = given;
+  // The network settings first: a wrong interface is named here, not as Cyclone's "Error".
+  try {
+    options.dds_config_xml = options.dds_config.empty()
+                                 ? ""
+                                 : protocol::loadDdsConfig(options.dds_config, options.dds_site);
+  } catch (const protocol::DdsError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  }
   // A site that lets OpenIGTLink release motion makes the bridge an approver (by its reserved id).
   if (options.openigtlink.enabled && options.openigtlink.allow_motion_approval) {
     options.approvers.push_back(igtl::kBridgeClientId);

@@ -113,12 +113,21 @@ ServerOptions loadServerOptions(const std::string& path) {
         if (key == "domain_id") {
           o.domain_id = kv.second.as<std::uint32_t>();
         } else if (key == "config") {
-          o.dds_config = resolve(base, kv.second.as<std::string>());
+          // A name ("site-multicast") is a file in the dds folder beside this one.
+          const auto value = kv.second.as<std::string>();
+          o.dds_config = protocol::isDdsConfigName(value)
+                             ? (base / "dds" / (value + ".xml")).lexically_normal().string()
+                             : resolve(base, value);
+        } else if (key == "interface") {
+          o.dds_site.interface = kv.second.as<std::string>();
+        } else if (key == "peers") {
+          o.dds_site.peers = kv.second.as<std::vector<std::string>>();
         } else if (key == "robot_id_check_ms") {
           o.robot_id_check_ms = kv.second.as<int>();
         } else {
           throw ConfigError(path + ": server.dds." + key +
-                            ": unknown key; expected domain_id, config, robot_id_check_ms");
+                            ": unknown key; expected domain_id, config, interface, peers, "
+                            "robot_id_check_ms");
         }
       }
     }

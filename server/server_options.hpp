@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "ignav/config/tissue_profiles.hpp"
+#include "ignav/protocol/config.hpp"
 
 namespace ignav::server {
 
@@ -63,9 +64,11 @@ struct ServerOptions {
   // not at start; only once serving, within a second).
   int robot_id_check_ms = 1000;
   std::uint32_t domain_id = 0;
-  std::string dds_config;    // path of a Cyclone XML file ("" = Cyclone's defaults)
-  std::string session_root;  // a session folder is created inside
-  std::string session_dir;   // or exactly this folder
+  std::string dds_config;      // path of a Cyclone XML file ("" = Cyclone's defaults)
+  protocol::DdsSite dds_site;  // what a site configuration leaves open: interface, peers
+  std::string dds_config_xml;  // dds_config read and filled in (runServer)
+  std::string session_root;    // a session folder is created inside
+  std::string session_dir;     // or exactly this folder
   // Replay instead of serving: publish a recorded session's states as they happened.
   std::string replay_session;      // its folder (read only)
   double replay_speed = 1.0;       // 1, 10, ... times real time; 0 = as fast as possible

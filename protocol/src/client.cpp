@@ -1,6 +1,11 @@
 #include "ignav/protocol/client.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <set>
 #include <thread>
 #include <tuple>
@@ -27,6 +32,13 @@ std::size_t drainInto(const TopicReader<T>& reader, std::optional<T>& kept, json
     state[key] = value;
     kept = value;
   });
+}
+
+// What discovery shows of a participant of this process: "ignavctl operator@host".
+std::string participantName(const std::string& who) {
+  char host[256] = {};
+  ::gethostname(host, sizeof host - 1);
+  return std::string(program_invocation_short_name) + " " + who + "@" + host;
 }
 
 }  // namespace
@@ -88,7 +100,7 @@ struct Client::Impl {
   Impl(std::uint32_t domain, const std::string& xml, const SecurityIdentity* identity,
        std::string id, const std::string& robot_id)
       : client_id(std::move(id)),
-        participant(domain, xml, identity, robot_id),
+        participant(domain, xml, identity, robot_id, participantName(client_id)),
         commands{{participant, &ignav_msg_Command_desc, topic::kCommandViewer},
                  {participant, &ignav_msg_Command_desc, topic::kCommandPlanner},
                  {participant, &ignav_msg_Command_desc, topic::kCommandApprover}},
@@ -324,7 +336,8 @@ bool Client::mayPublish(const std::string& command) const {
 std::vector<Health> discoverRobots(std::uint32_t domain_id, const std::string& config_xml,
                                    const SecurityIdentity* identity,
                                    std::chrono::milliseconds wait) {
-  const Participant participant(domain_id, config_xml, identity, kAnyRobot);
+  const Participant participant(domain_id, config_xml, identity, kAnyRobot,
+                                participantName("robots"));
   const TopicReader<Health> health(participant, Qos::kStateOfMany);
   // By (robot id, session): two servers with one robot id are both listed.
   std::map<std::pair<std::string, std::string>, Health> seen;
@@ -358,6 +371,53 @@ std::vector<Health> discoverRobots(std::uint32_t domain_id, const std::string& c
     return std::tie(a.robot_id, a.started_unix_s) < std::tie(b.robot_id, b.started_unix_s);
   });
   return robots;
+}
+
+std::vector<ParticipantSeen> discoverParticipants(std::uint32_t domain_id,
+                                                  const std::string& config_xml,
+                                                  const SecurityIdentity* identity,
+                                                  std::chrono::milliseconds wait) {
+  const Participant participant(domain_id, config_xml, identity, kAnyRobot,
+                                participantName("doctor"));
+  const dds_entity_t reader = check(
+      dds_create_reader(participant.handle(), DDS_BUILTIN_TOPIC_DCPSPARTICIPANT, nullptr, nullptr),
+      "DCPSParticipant reader");
+  dds_guid_t own{};
+  check(dds_get_guid(participant.handle(), &own), "dds_get_guid");
+  std::this_thread::sleep_for(wait);
+  std::vector<ParticipantSeen> seen;
+  constexpr int kBatch = 256;
+  std::vector<void*> samples(kBatch, nullptr);
+  std::vector<dds_sample_info_t> infos(kBatch);
+  const dds_return_t n = dds_read(reader, samples.data(), infos.data(), kBatch, kBatch);
+  for (int i = 0; i < n; ++i) {
+    if (!infos[i].valid_data || infos[i].instance_state != DDS_IST_ALIVE) continue;
+    const auto* p = static_cast<const dds_builtintopic_participant_t*>(samples[i]);
+    if (std::memcmp(p->key.v, own.v, 12) == 0) continue;  // the prefix: this participant
+    ParticipantSeen s;
+    char hex[3];
+    for (int b = 0; b < 12; ++b) {
+      std::snprintf(hex, sizeof hex, "%02x", p->key.v[b]);
+      s.guid += hex;
+    }
+    char* name = nullptr;
+    if (p->qos && dds_qget_entity_name(p->qos, &name) && name) {
+      s.name = name;
+      dds_free(name);
+    }
+    void* data = nullptr;
+    std::size_t size = 0;
+    if (p->qos && dds_qget_userdata(p->qos, &data, &size) && data) {
+      s.subject = certificateSubject(std::string(static_cast<const char*>(data), size));
+      dds_free(data);
+    }
+    seen.push_back(std::move(s));
+  }
+  if (n > 0) dds_return_loan(reader, samples.data(), n);
+  std::sort(seen.begin(), seen.end(), [](const ParticipantSeen& a, const ParticipantSeen& b) {
+    return std::tie(a.name, a.guid) < std::tie(b.name, b.guid);
+  });
+  return seen;
 }
 
 std::string chooseRobot(std::uint32_t domain_id, const std::string& config_xml,

@@ -93,16 +93,9 @@ dds_return_t check(dds_return_t rc, const char* what) {
   return rc;
 }
 
-std::string readConfigFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw DdsError(path + ": cannot read the DDS configuration");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
 Participant::Participant(std::uint32_t domain_id, const std::string& config_xml,
-                         const SecurityIdentity* identity, const std::string& robot_id)
+                         const SecurityIdentity* identity, const std::string& robot_id,
+                         const std::string& name)
     : domain_id_(domain_id), robot_id_(robot_id) {
   if (robot_id != kAnyRobot) {
     if (const std::string problem = robotIdProblem(robot_id); !problem.empty()) {
@@ -111,7 +104,7 @@ Participant::Participant(std::uint32_t domain_id, const std::string& config_xml,
   }
   claimIdentity(domain_id, identity ? identity->certificate : "");
   try {
-    create(domain_id, config_xml, identity);
+    create(domain_id, config_xml, identity, name);
   } catch (...) {
     releaseIdentity(domain_id);
     throw;
@@ -119,7 +112,7 @@ Participant::Participant(std::uint32_t domain_id, const std::string& config_xml,
 }
 
 void Participant::create(std::uint32_t domain_id, const std::string& config_xml,
-                         const SecurityIdentity* identity) {
+                         const SecurityIdentity* identity, const std::string& name) {
   if (!config_xml.empty()) {
     domain_ = dds_create_domain(domain_id, config_xml.c_str());
     if (domain_ < 0 && domain_ != DDS_RETCODE_PRECONDITION_NOT_MET) {
@@ -129,9 +122,9 @@ void Participant::create(std::uint32_t domain_id, const std::string& config_xml,
     }
     if (domain_ < 0) domain_ = 0;
   }
-  dds_qos_t* qos = nullptr;
+  dds_qos_t* qos = dds_create_qos();
+  if (!name.empty()) dds_qset_entity_name(qos, name.c_str());
   if (identity) {
-    qos = dds_create_qos();
     try {
       addSecurityQos(qos, *identity);
     } catch (...) {

@@ -2,12 +2,14 @@
 // ids, real Cyclone DDS on loopback. Each robot's topics are in its own partition, so a command for
 // one never reaches the other; a client that names no robot among several is told which exist; a
 // second server with a robot id already served stops before it touches the controller; with DDS
-// Security, an approver of one robot cannot publish approvals to another. Domains 182-185.
+// Security, an approver of one robot cannot publish approvals to another; a site configuration
+// chosen by name carries the workflow; ignavctl doctor. Domains 182-185, 188 and 194 (empty).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
 #include <cstdio>
 #include <fstream>
+#include <set>
 #include <thread>
 
 #include "ignav/protocol/security.hpp"
@@ -125,6 +127,28 @@ TEST(RobotsE2E, TwoRobotsShareADomainAndNeverActOnEachOthersCommands) {
   EXPECT_NE(bad.output.find("robot id 'cell*' has '*'"), std::string::npos) << bad.output;
   op_a->poll();
   EXPECT_EQ(op_a->mirror().targets.size(), 1u);
+
+  // doctor: both servers among the participants by name, each robot's round trip and clock
+  // offset (measured; one host, so no clock check may warn), every check passed.
+  const auto doctor = run(ctlCommand(182, "--json doctor --seconds 1"));
+  ASSERT_EQ(doctor.exit_code, 0) << doctor.output;
+  const auto report = json::parse(doctor.output.substr(doctor.output.find('{')));
+  std::set<std::string> names;
+  for (const auto& p : report["participants"])
+    names.insert(p["name"].get<std::string>().substr(0, 19));
+  EXPECT_EQ(names.count("ignav-server cell-a"), 1u) << report.dump();
+  EXPECT_EQ(names.count("ignav-server cell-b"), 1u) << report.dump();
+  ASSERT_EQ(report["robots"].size(), 2u) << report.dump();
+  for (const auto& r : report["robots"]) {
+    EXPECT_GT(r["round_trip_ms"]["median"].get<double>(), 0.0);
+    EXPECT_TRUE(r.contains("clock_offset_ms")) << r.dump();
+    EXPECT_EQ(r["journal"], "ok");
+  }
+  EXPECT_TRUE(report["checks"].empty()) << report.dump();
+  // On an empty domain it says so and exits 3.
+  const auto empty = run(ctlCommand(194, "doctor --seconds 0.5"));
+  EXPECT_EQ(empty.exit_code, 3) << empty.output;
+  EXPECT_NE(empty.output.find("nothing on DDS domain 194"), std::string::npos) << empty.output;
 }
 
 TEST(RobotsE2E, ASecondServerWithARobotIdAlreadyServedStopsBeforeTouchingTheController) {
@@ -226,6 +250,38 @@ TEST(RobotsE2E, AMisconfiguredRobotIdOrDomainIsRefusedAtStartNamingTheSetting) {
       << typo.output;
   fs::remove(config);
   EXPECT_FALSE(fs::exists(fs::temp_directory_path() / "ignav_misconfigured"));
+}
+
+TEST(RobotsE2E, ASiteConfigurationChosenByNameCarriesTheWorkflow) {
+  // site-unicast on this host's loopback interface, with itself as the one peer: the shipped
+  // site configuration, filled in by the server and by ignavctl from their own options.
+  ServerProcess server(
+      188, {"--dds-config", "site-unicast", "--dds-interface", "lo", "--dds-peer", "127.0.0.1"});
+  const auto listed = run(std::string(IGNAVCTL_EXE) +
+                          " --domain 188 --dds-config site-unicast --dds-interface lo"
+                          " --dds-peer 127.0.0.1 --wait-server 5 robots");
+  EXPECT_EQ(listed.exit_code, 0) << listed.output;
+  EXPECT_NE(listed.output.find("robot-1"), std::string::npos) << listed.output;
+  const auto pinged = run(std::string(IGNAVCTL_EXE) +
+                          " --domain 188 --dds-config site-unicast --dds-interface lo"
+                          " --dds-peer 127.0.0.1 --wait-server 5 load phantom");
+  EXPECT_EQ(pinged.exit_code, 0) << pinged.output;
+  // A wrong interface: the setting is named, the host's interfaces listed, nothing starts.
+  const auto wrong = run(std::string("timeout 30 " IGNAV_SERVER_EXE " --config " IGNAV_SOURCE_DIR
+                                     "/configs/server.yaml"
+                                     " --domain 188 --dds-config site-unicast --dds-interface "
+                                     "ens99x --dds-peer 127.0.0.1 --session-dir ") +
+                         (fs::temp_directory_path() / "ignav_wrong_interface").string());
+  EXPECT_EQ(wrong.exit_code, 2) << wrong.output;
+  EXPECT_NE(wrong.output.find("dds.interface: 'ens99x' is not a network interface of this host"),
+            std::string::npos)
+      << wrong.output;
+  EXPECT_FALSE(fs::exists(fs::temp_directory_path() / "ignav_wrong_interface"));
+  const auto client = run(std::string(IGNAVCTL_EXE) +
+                          " --domain 188 --dds-config site-multicast --wait-server 1 robots");
+  EXPECT_NE(client.exit_code, 0) << client.output;
+  EXPECT_NE(client.output.find("needs the network interface: set dds.interface"), std::string::npos)
+      << client.output;
 }
 
 // With DDS Security: identities scoped to one robot (make-test-pki.sh --robot).

@@ -39,13 +39,19 @@ int main(int argc, char** argv) {
   CLI::App app{"ignav-web: the web viewer's gateway to ignav-server"};
   ignav::web::GatewayOptions options;
   options.app_dir = defaultAppDir();
-  std::string dds_config = "configs/dds/loopback.xml";
+  std::string dds_config = "loopback";
+  ignav::protocol::DdsSite dds_site;
   std::string identity;
   app.add_option("--listen", options.listen_address, "HTTP address (loopback by default)");
   app.add_option("--port", options.port, "HTTP port (0: any free port)");
   app.add_option("--app-dir", options.app_dir, "the built browser app");
   app.add_option("--domain", options.domain, "DDS domain id");
-  app.add_option("--dds-config", dds_config, "Cyclone XML ('' = defaults)");
+  app.add_option("--dds-config", dds_config,
+                 "Cyclone XML, or a name: loopback, site-multicast, site-unicast ('' = Cyclone's "
+                 "defaults)");
+  app.add_option("--dds-interface", dds_site.interface,
+                 "the network interface a site configuration uses");
+  app.add_option("--dds-peer", dds_site.peers, "a unicast discovery peer, once per host");
   std::string robot;
   double wait_s = 10.0;
   app.add_option("--robot", robot,
@@ -63,7 +69,12 @@ int main(int argc, char** argv) {
   spdlog::set_default_logger(spdlog::stderr_color_mt("ignav-web"));
 
   try {
-    options.dds_config_xml = dds_config.empty() ? "" : ignav::protocol::readConfigFile(dds_config);
+    options.dds_config_xml =
+        dds_config.empty()
+            ? ""
+            : ignav::protocol::loadDdsConfig(
+                  ignav::protocol::resolveDdsConfig(dds_config, ignav::protocol::ddsConfigDirs()),
+                  dds_site);
     if (!identity.empty()) {
       options.identity = ignav::protocol::identityFromFolder(identity);
     } else {

@@ -6,7 +6,9 @@
 //   ignavctl verify [load PATH | place ID X,Y,Z | accept ID | reject SEED | fit NAME | aim NAME]
 //   ignavctl replay SESSION [--speed 1|10|max] [--until SEQ]
 //   ignavctl robots (the servers on the domain); --robot ID picks one where several share it
+//   ignavctl doctor (participants, robots, round trips, clock offsets, what looks wrong)
 //   and every other command by its name: ignavctl ping | add-target X,Y,Z | check-ready robot ...
+#include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 #include <CLI/CLI.hpp>
 
@@ -244,6 +246,138 @@ void printRobots(const std::vector<Health>& robots, bool as_json) {
   if (robots.empty()) std::printf("(none found)\n");
 }
 
+// `ignavctl doctor`: who is on the domain, each robot's round trip and clock offset, and what looks
+// wrong. Exit 0 when every check passes, 1 when one fails, 3 when nothing answers.
+int runDoctor(std::uint32_t domain, const std::string& xml,
+              const ignav::protocol::SecurityIdentity* identity, const std::string& client_id,
+              std::chrono::milliseconds listen, bool as_json) {
+  using Clock = std::chrono::steady_clock;
+  const auto participants = ignav::protocol::discoverParticipants(domain, xml, identity, listen);
+  const auto robots = ignav::protocol::discoverRobots(domain, xml, identity, listen);
+  json report{{"domain", domain},
+              {"security", identity ? "on" : "off"},
+              {"participants", json::array()},
+              {"robots", json::array()},
+              {"checks", json::array()}};
+  for (const auto& p : participants)
+    report["participants"].push_back({{"guid", p.guid}, {"name", p.name}, {"subject", p.subject}});
+  bool failed = false;
+  auto checkLine = [&](const std::string& level, const std::string& text) {
+    report["checks"].push_back({{"level", level}, {"text", text}});
+    if (level == "FAIL") failed = true;
+  };
+  std::map<std::string, int> per_id;
+  for (const auto& h : robots)
+    ++per_id[h.robot_id];
+  for (const auto& [id, n] : per_id) {
+    if (n > 1)
+      checkLine("FAIL", "robot id '" + id + "' is served by " + std::to_string(n) +
+                            " servers: the later ones stop; give each robot its own");
+  }
+  for (const auto& [id, n] : per_id) {
+    Client c(domain, xml, client_id, identity, id);
+    json r{{"robot_id", id}};
+    if (!c.waitForServer(std::chrono::seconds(5))) {
+      checkLine("FAIL", "robot '" + id + "': its Health is seen but its commands are not matched");
+      report["robots"].push_back(r);
+      continue;
+    }
+    std::vector<double> rtt_ms;
+    for (int i = 0; i < 10; ++i) {
+      const auto t0 = Clock::now();
+      c.send("ping", {}, std::chrono::seconds(5));
+      rtt_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+    }
+    std::sort(rtt_ms.begin(), rtt_ms.end());
+    const double median = rtt_ms[rtt_ms.size() / 2];
+    // The server's clock: the next Health sample (once a second) against ours when it arrives,
+    // plus half the quickest round trip for its way here (slower ones waited for a busy CPU,
+    // not for the network). Good to the poll period plus that half, and whatever delay the
+    // Health sample met on its way beyond it.
+    c.poll();
+    const double before = c.mirror().health ? c.mirror().health->server_time_unix_s : 0.0;
+    std::optional<double> offset_ms;
+    const auto end = Clock::now() + std::chrono::milliseconds(2500);
+    while (Clock::now() < end && !offset_ms) {
+      c.poll();
+      if (c.mirror().health && c.mirror().health->server_time_unix_s != before) {
+        const double now_s =
+            std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
+                .count();
+        offset_ms = (c.mirror().health->server_time_unix_s - now_s) * 1000.0 + rtt_ms.front() / 2;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    const auto& h = *c.mirror().health;
+    r.update(
+        {{"host", h.host},
+         {"session", h.session_id},
+         {"version", h.version},
+         {"uptime_s", h.uptime_s},
+         {"journal", h.journal},
+         {"round_trip_ms", {{"min", rtt_ms.front()}, {"median", median}, {"max", rtt_ms.back()}}}});
+    if (offset_ms) r["clock_offset_ms"] = *offset_ms;
+    report["robots"].push_back(r);
+    if (h.journal != "ok") checkLine("FAIL", "robot '" + id + "': journal: " + h.journal);
+    if (offset_ms && std::abs(*offset_ms) > 1000.0) {
+      checkLine("WARN",
+                fmt::format("robot '{}': its clock is {:+.0f} ms from this host's (approval "
+                            "countdowns use the server's; check NTP)",
+                            id, *offset_ms));
+    }
+  }
+  if (robots.empty() && !participants.empty()) {
+    bool secure_there = false;
+    for (const auto& p : participants)
+      secure_there = secure_there || !p.subject.empty();
+    checkLine("FAIL", std::string("participants are on the domain but no ignav server answers: ") +
+                          (secure_there && !identity
+                               ? "they carry certificates (DDS Security on) and this client has "
+                                 "no --identity"
+                               : "a DDS Security mismatch (another CA, or an identity scoped to "
+                                 "another robot), or no server runs"));
+  }
+  if (robots.empty() && participants.empty()) {
+    checkLine("FAIL", "nothing on DDS domain " + std::to_string(domain) +
+                          " (wrong domain, interface or peers? no multicast on this network?)");
+  }
+  if (as_json) {
+    std::cout << report.dump(2) << "\n";
+  } else {
+    std::cout << "DDS domain " << domain << ", security " << (identity ? "on" : "OFF") << "\n"
+              << "participants (" << participants.size() << ", this one not counted):\n";
+    for (const auto& p : participants) {
+      std::printf("  %s  %-40s %s\n", p.guid.substr(0, 12).c_str(),
+                  p.name.empty() ? "(unnamed: not ignav?)" : p.name.c_str(), p.subject.c_str());
+    }
+    std::cout << "robots (" << report["robots"].size() << "):\n";
+    for (const auto& r : report["robots"]) {
+      if (!r.contains("round_trip_ms")) {
+        std::printf("  %s: not answering\n", r["robot_id"].get<std::string>().c_str());
+        continue;
+      }
+      std::printf(
+          "  %s on %s: session %s, version %s, up %.0f s, journal %s\n"
+          "    round trip (ping x10): median %.2f ms, max %.2f ms; clock offset %s\n",
+          r["robot_id"].get<std::string>().c_str(), r["host"].get<std::string>().c_str(),
+          r["session"].get<std::string>().c_str(), r["version"].get<std::string>().c_str(),
+          r["uptime_s"].get<double>(), r["journal"].get<std::string>().c_str(),
+          r["round_trip_ms"]["median"].get<double>(), r["round_trip_ms"]["max"].get<double>(),
+          r.contains("clock_offset_ms")
+              ? fmt::format("{:+.1f} ms", r["clock_offset_ms"].get<double>()).c_str()
+              : "unknown (no Health sample in 2.5 s)");
+    }
+    std::cout << "checks:\n";
+    if (report["checks"].empty()) std::cout << "  ok   everything answers, each robot id once\n";
+    for (const auto& c : report["checks"]) {
+      std::printf("  %-4s %s\n", c["level"].get<std::string>().c_str(),
+                  c["text"].get<std::string>().c_str());
+    }
+  }
+  if (robots.empty() && participants.empty()) return kExitNoServer;
+  return failed ? kExitRejected : 0;
+}
+
 // Robot-frame points become LPS through the current registration (scripts plan in the robot
 // frame so they do not depend on where the phantom lies).
 Eigen::Vector3d robotToLps(const StateMirror& state, const Eigen::Vector3d& robot) {
@@ -457,12 +591,18 @@ int main(int argc, char** argv) {
   CLI::App app{"ignavctl: drive ignav-server over DDS"};
   app.require_subcommand(1);
   std::uint32_t domain = 0;
-  std::string dds_config = "configs/dds/loopback.xml";
+  std::string dds_config = "loopback";
+  ignav::protocol::DdsSite dds_site;
   std::string client_id = "ignavctl-" + std::to_string(::getpid());
   bool as_json = false;
   double wait_s = 10.0;
   app.add_option("--domain", domain, "DDS domain id");
-  app.add_option("--dds-config", dds_config, "Cyclone XML ('' = defaults)");
+  app.add_option("--dds-config", dds_config,
+                 "Cyclone XML, or a name: loopback, site-multicast, site-unicast ('' = Cyclone's "
+                 "defaults)");
+  app.add_option("--dds-interface", dds_site.interface,
+                 "the network interface a site configuration uses");
+  app.add_option("--dds-peer", dds_site.peers, "a unicast discovery peer, once per host");
   app.add_option("--client-id", client_id, "who this client is in replies and the journal");
   app.add_flag("--json", as_json, "machine-readable output");
   app.add_option("--wait-server", wait_s, "seconds to wait for the server");
@@ -479,6 +619,12 @@ int main(int argc, char** argv) {
 
   auto* robots = app.add_subcommand(
       "robots", "the ignav servers on this DDS domain: robot id, host, session, version, uptime");
+  double doctor_s = 2.0;
+  auto* doctor = app.add_subcommand(
+      "doctor",
+      "check a deployment: the participants and robots on this domain, round trips, clock "
+      "offsets, and what looks wrong");
+  doctor->add_option("--seconds", doctor_s, "how long to listen for participants (default 2)");
   auto* status = app.add_subcommand("status", "phase, volume, registration, targets");
   std::string load_path;
   auto* load = app.add_subcommand("load", "load a CT: a server-side path, or 'phantom'");
@@ -573,6 +719,14 @@ int main(int argc, char** argv) {
     std::vector<std::string> args{
         server,       "--config", server_config,          "--replay",     replay_dir, "--speed",
         replay_speed, "--domain", std::to_string(domain), "--dds-config", dds_config};
+    if (!dds_site.interface.empty()) {
+      args.push_back("--dds-interface");
+      args.push_back(dds_site.interface);
+    }
+    for (const auto& peer : dds_site.peers) {
+      args.push_back("--dds-peer");
+      args.push_back(peer);
+    }
     if (!robot_id.empty()) {  // else the server's: its config's robot id with -replay
       args.push_back("--robot-id");
       args.push_back(robot_id);
@@ -598,7 +752,12 @@ int main(int argc, char** argv) {
   }
 
   try {
-    const std::string xml = dds_config.empty() ? "" : ignav::protocol::readConfigFile(dds_config);
+    const std::string xml =
+        dds_config.empty()
+            ? ""
+            : ignav::protocol::loadDdsConfig(
+                  ignav::protocol::resolveDdsConfig(dds_config, ignav::protocol::ddsConfigDirs()),
+                  dds_site);
     std::optional<ignav::protocol::SecurityIdentity> secure;
     if (!identity.empty()) {
       secure = ignav::protocol::identityFromFolder(identity);
@@ -607,6 +766,10 @@ int main(int argc, char** argv) {
     }
     const auto wait = std::chrono::milliseconds(static_cast<long>(wait_s * 1000));
     const auto* secure_id = secure ? &*secure : nullptr;
+    if (*doctor) {
+      return runDoctor(domain, xml, secure_id, client_id,
+                       std::chrono::milliseconds(static_cast<long>(doctor_s * 1000)), as_json);
+    }
     if (*robots) {
       const auto found = ignav::protocol::discoverRobots(domain, xml, secure_id, wait);
       printRobots(found, as_json);

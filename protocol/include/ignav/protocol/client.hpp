@@ -136,6 +136,18 @@ class Client {
 std::vector<Health> discoverRobots(std::uint32_t domain_id, const std::string& config_xml,
                                    const SecurityIdentity* identity,
                                    std::chrono::milliseconds wait);
+// A DDS participant on the domain, as discovery shows it (`ignavctl doctor`).
+struct ParticipantSeen {
+  std::string guid;     // its GUID prefix, hex
+  std::string name;     // its ENTITY_NAME: "ignav-server robot-1", "ignavctl operator@host", ""
+  std::string subject;  // the certificate subject its USER_DATA carries (DDS Security), or ""
+};
+// Every participant discovered on the domain within `wait`, this one's own left out.
+std::vector<ParticipantSeen> discoverParticipants(std::uint32_t domain_id,
+                                                  const std::string& config_xml,
+                                                  const SecurityIdentity* identity,
+                                                  std::chrono::milliseconds wait);
+
 // The robot a client should talk to: `named` if given (checked), else the only one discovered.
 // Throws RobotNotChosen naming the domain and the robots found when there are none or several.
 std::string chooseRobot(std::uint32_t domain_id, const std::string& config_xml,

@@ -30,9 +30,11 @@ class Participant {
   // for Cyclone's defaults / CYCLONEDDS_URI. identity: DDS Security on with that identity
   // (security.hpp); null: off. One identity per process and domain (Cyclone 0.10): another
   // one throws DdsError. robot_id: every reader and writer is in that robot's partition
-  // (topics.hpp robotPartition; kAnyRobot reads all robots).
+  // (topics.hpp robotPartition; kAnyRobot reads all robots). name: what discovery shows of it
+  // (its ENTITY_NAME, e.g. "ignav-server robot-1"; `ignavctl doctor` lists them).
   Participant(std::uint32_t domain_id, const std::string& config_xml,
-              const SecurityIdentity* identity, const std::string& robot_id);
+              const SecurityIdentity* identity, const std::string& robot_id,
+              const std::string& name = "");
   ~Participant();
   Participant(const Participant&) = delete;
   Participant& operator=(const Participant&) = delete;
@@ -45,7 +47,7 @@ class Participant {
 
  private:
   void create(std::uint32_t domain_id, const std::string& config_xml,
-              const SecurityIdentity* identity);
+              const SecurityIdentity* identity, const std::string& name);
   std::uint32_t domain_id_ = 0;
   std::string robot_id_;
   dds_entity_t publisher_ = 0;
