@@ -6,6 +6,8 @@
 
 #include <ctime>
 #include <filesystem>
+#include <fstream>
+#include <optional>
 
 #include "ignav/igtl/brp.hpp"
 #include "server.hpp"
@@ -23,6 +25,28 @@ std::string sessionName() {
   char buf[64];
   std::strftime(buf, sizeof buf, "%Y%m%dT%H%M%SZ", &tm);
   return std::string(buf) + "-" + std::to_string(::getpid());
+}
+
+// The session a marker names, if the marker and the folder exist.
+std::optional<fs::path> unfinishedSession(const fs::path& marker) {
+  std::ifstream in(marker);
+  std::string name;
+  if (!std::getline(in, name) || name.empty()) return std::nullopt;
+  const fs::path dir = marker.parent_path() / name;
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return std::nullopt;
+  return dir;
+}
+
+bool markUnfinished(const fs::path& marker, const fs::path& dir) {
+  std::ofstream out(marker, std::ios::trunc);
+  out << dir.filename().string() << "\n";
+  out.flush();
+  if (!out) {
+    spdlog::error("{}: cannot write the unfinished-session marker", marker.string());
+    return false;
+  }
+  return true;
 }
 
 }  // namespace
@@ -81,10 +105,20 @@ int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
       return 1;
     }
   }
-  fs::path dir = options.session_dir.empty()
-                     ? fs::path(options.session_root.empty() ? "sessions" : options.session_root) /
-                           sessionName()
-                     : fs::path(options.session_dir);
+  // A server started without a session folder makes a new one in session_root, unless its last
+  // one there did not end cleanly (a crash, a watchdog kill): then it continues that one, as a
+  // service that systemd restarts must (crash recovery). The marker names it until a clean stop.
+  const fs::path root = options.session_root.empty() ? "sessions" : options.session_root;
+  const fs::path marker = root / (".unfinished-" + options.robot_id);
+  fs::path dir = options.session_dir;
+  if (dir.empty()) {
+    if (auto unfinished = unfinishedSession(marker)) {
+      spdlog::warn("{}: the last session did not end cleanly: continuing it", unfinished->string());
+      dir = *unfinished;
+    } else {
+      dir = root / sessionName();
+    }
+  }
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) {
@@ -112,14 +146,20 @@ int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
     spdlog::error("{}", journal.error().message);
     return 2;
   }
+  if (options.session_dir.empty() && !markUnfinished(marker, dir)) return 2;
+  int code = 1;
   try {
     Server server(options, std::make_shared<const config::Robot>(std::move(robot).value()), dir,
                   std::move(journal).value());
-    return server.run(stop, contents->lines);
+    code = server.run(stop, contents->lines);
   } catch (const protocol::DdsError& e) {
     spdlog::error("DDS: {}", e.what());
-    return 1;
   }
+  // Ended cleanly, or never started because another server has this robot (its new session is
+  // empty): nothing to continue.
+  const bool nothing_to_continue = code == 0 || (code == 4 && contents->lines.empty());
+  if (options.session_dir.empty() && nothing_to_continue) fs::remove(marker, ec);
+  return code;
 }
 
 }  // namespace ignav::server

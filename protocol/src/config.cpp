@@ -136,4 +136,8 @@ std::string loadDdsConfig(const std::string& path, const DdsSite& site) {
   return xml;
 }
 
+std::string loadToolDdsConfig(const std::string& value, const DdsSite& site) {
+  return value.empty() ? "" : loadDdsConfig(resolveDdsConfig(value, ddsConfigDirs()), site);
+}
+
 }  // namespace ignav::protocol

@@ -100,5 +100,61 @@ TEST(RecoveryE2E, CorruptJournalIsRefusedWithTheLine) {
   EXPECT_NE(out.find("journal.jsonl line 3: not a JSON object"), std::string::npos) << out;
 }
 
+// As a service (the Debian package's unit starts the server with no session folder): a server
+// killed mid-session and started again continues that session from its journal; one stopped
+// cleanly leaves nothing to continue, and the next start makes a new session.
+TEST(RecoveryE2E, AServiceRestartedAfterACrashContinuesItsSessionAndACleanStopEndsIt) {
+  namespace fs = std::filesystem;
+  const fs::path root = fs::temp_directory_path() / ("ignav_service_" + std::to_string(::getpid()));
+  fs::remove_all(root);
+  fs::create_directories(root);
+  // configs/server.yaml, its sessions in `root`, its relative paths made absolute.
+  std::ifstream in(IGNAV_SOURCE_DIR "/configs/server.yaml");
+  std::string yaml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (const auto& [from, to] : std::vector<std::pair<std::string, std::string>>{
+           {"session_root: ../out/sessions", "session_root: " + (root / "sessions").string()},
+           {"robot_config: robots/", "robot_config: " IGNAV_SOURCE_DIR "/configs/robots/"},
+           {"config: dds/", "config: " IGNAV_SOURCE_DIR "/configs/dds/"},
+           {"profiles: tissues.yaml", "profiles: " IGNAV_SOURCE_DIR "/configs/tissues.yaml"}}) {
+    const auto at = yaml.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    yaml.replace(at, from.size(), to);
+  }
+  std::ofstream(root / "server.yaml") << yaml;
+  ServerProcess server(
+      198, ServerProcess::Program{{IGNAV_SERVER_EXE, "--config", (root / "server.yaml").string(),
+                                   "--domain", "198", "--no-igtl", "--robot-id-check-ms", "150"},
+                                  "ignav-server ready"});
+  std::string session;
+  std::uint64_t revision = 0;
+  {
+    auto c = server.client("operator");
+    ASSERT_TRUE(c->send("load_volume", {"phantom:", {}, {}}).accepted);
+    c->waitFor([](const json& s) { return stateText(s, "volume", "status") == "loaded"; }, 60s);
+    session = c->mirror().workflow->session_id;
+    revision = c->mirror().workflow->revision;
+  }
+  EXPECT_TRUE(fs::exists(root / "sessions" / ".unfinished-robot-1"));
+  server.crash();
+  server.start();
+  {
+    auto c = server.client("operator");
+    EXPECT_EQ(c->mirror().workflow->session_id, session);
+    EXPECT_GE(c->mirror().workflow->revision, revision);
+    EXPECT_EQ(stateText(c->state(), "volume", "status"), "loaded");
+  }
+  EXPECT_NE(server.serverLog().find("did not end cleanly: continuing it"), std::string::npos);
+  EXPECT_EQ(server.stop(), 0);
+  EXPECT_FALSE(fs::exists(root / "sessions" / ".unfinished-robot-1"));
+  server.start();
+  {
+    auto c = server.client("operator");
+    EXPECT_NE(c->mirror().workflow->session_id, session);
+    EXPECT_NE(stateText(c->state(), "volume", "status"), "loaded");
+  }
+  server.stop();
+  fs::remove_all(root);
+}
+
 }  // namespace
 }  // namespace ignav::e2e

@@ -23,22 +23,10 @@ using nlohmann::json;
 using protocol::Client;
 using namespace std::chrono_literals;
 
-struct Run {
-  int exit_code = -1;
-  std::string output;
-};
-
-// A command line to its end: exit code and everything it printed.
-Run run(const std::string& cmd) {
-  Run r;
-  FILE* pipe = ::popen((cmd + " 2>&1").c_str(), "r");
-  if (!pipe) return r;
-  char buf[512];
-  while (std::fgets(buf, sizeof buf, pipe))
-    r.output += buf;
-  const int status = ::pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+// ignav-server on configs/server.yaml with `args`, to its end (at most 30 s).
+std::string serverCommand(const std::string& args) {
+  return "timeout 30 " IGNAV_SERVER_EXE " --config " IGNAV_SOURCE_DIR "/configs/server.yaml " +
+         args;
 }
 
 std::string ctlCommand(std::uint32_t domain, const std::string& args) {
@@ -107,22 +95,22 @@ TEST(RobotsE2E, TwoRobotsShareADomainAndNeverActOnEachOthersCommands) {
   }
 
   // The same through ignavctl: robots lists both; a command without --robot changes nothing.
-  const auto listed = run(ctlCommand(182, "--json robots"));
+  const auto listed = runCommand(ctlCommand(182, "--json robots"));
   ASSERT_EQ(listed.exit_code, 0) << listed.output;
   const auto listed_json = json::parse(listed.output.substr(listed.output.find('[')));
   ASSERT_EQ(listed_json.size(), 2u);
   EXPECT_EQ(listed_json[0]["robot_id"], "cell-a");
-  const auto unnamed = run(ctlCommand(182, "add-target 1,2,3"));
+  const auto unnamed = runCommand(ctlCommand(182, "add-target 1,2,3"));
   EXPECT_EQ(unnamed.exit_code, 3) << unnamed.output;
   EXPECT_NE(unnamed.output.find("2 robots on DDS domain 182"), std::string::npos) << unnamed.output;
-  const auto named = run(ctlCommand(182, "--robot cell-b --json status"));
+  const auto named = runCommand(ctlCommand(182, "--robot cell-b --json status"));
   EXPECT_EQ(named.exit_code, 0) << named.output;
   EXPECT_NE(named.output.find("\"robot_id\": \"cell-b\""), std::string::npos) << named.output;
-  const auto absent = run(ctlCommand(182, "--robot cell-c ping"));
+  const auto absent = runCommand(ctlCommand(182, "--robot cell-c ping"));
   EXPECT_EQ(absent.exit_code, 3) << absent.output;
   EXPECT_NE(absent.output.find("no ignav-server for robot 'cell-c'"), std::string::npos)
       << absent.output;
-  const auto bad = run(ctlCommand(182, "--robot 'cell*' ping"));
+  const auto bad = runCommand(ctlCommand(182, "--robot 'cell*' ping"));
   EXPECT_EQ(bad.exit_code, 2) << bad.output;
   EXPECT_NE(bad.output.find("robot id 'cell*' has '*'"), std::string::npos) << bad.output;
   op_a->poll();
@@ -130,7 +118,7 @@ TEST(RobotsE2E, TwoRobotsShareADomainAndNeverActOnEachOthersCommands) {
 
   // doctor: both servers among the participants by name, each robot's round trip and clock
   // offset (measured; one host, so no clock check may warn), every check passed.
-  const auto doctor = run(ctlCommand(182, "--json doctor --seconds 1"));
+  const auto doctor = runCommand(ctlCommand(182, "--json doctor --seconds 1"));
   ASSERT_EQ(doctor.exit_code, 0) << doctor.output;
   const auto report = json::parse(doctor.output.substr(doctor.output.find('{')));
   std::set<std::string> names;
@@ -146,7 +134,7 @@ TEST(RobotsE2E, TwoRobotsShareADomainAndNeverActOnEachOthersCommands) {
   }
   EXPECT_TRUE(report["checks"].empty()) << report.dump();
   // On an empty domain it says so and exits 3.
-  const auto empty = run(ctlCommand(194, "doctor --seconds 0.5"));
+  const auto empty = runCommand(ctlCommand(194, "doctor --seconds 0.5"));
   EXPECT_EQ(empty.exit_code, 3) << empty.output;
   EXPECT_NE(empty.output.find("nothing on DDS domain 194"), std::string::npos) << empty.output;
 }
@@ -159,10 +147,8 @@ TEST(RobotsE2E, ASecondServerWithARobotIdAlreadyServedStopsBeforeTouchingTheCont
 
   const fs::path dir = first.sessionDir().string() + "_second";
   fs::remove_all(dir);
-  const auto second = run("timeout 30 " IGNAV_SERVER_EXE " --config " IGNAV_SOURCE_DIR
-                          "/configs/server.yaml --domain 183"
-                          " --robot-id twin --no-igtl --session-dir " +
-                          dir.string());
+  const auto second = runCommand(
+      serverCommand("--domain 183 --robot-id twin --no-igtl --session-dir " + dir.string()));
   EXPECT_EQ(second.exit_code, 4) << second.output;
   EXPECT_NE(second.output.find("robot_id 'twin': another ignav-server already serves this robot"),
             std::string::npos)
@@ -188,10 +174,9 @@ TEST(RobotsE2E, TwoServersThatMissedEachOtherAtStartLeaveTheOlderServing) {
   std::this_thread::sleep_for(50ms);
   const fs::path dir = older.sessionDir().string() + "_later";
   fs::remove_all(dir);
-  const auto later = run("timeout 30 " IGNAV_SERVER_EXE " --config " IGNAV_SOURCE_DIR
-                         "/configs/server.yaml --domain 184"
-                         " --robot-id twin --robot-id-check-ms 0 --no-igtl --session-dir " +
-                         dir.string());
+  const auto later = runCommand(
+      serverCommand("--domain 184 --robot-id twin --robot-id-check-ms 0 --no-igtl --session-dir " +
+                    dir.string()));
   EXPECT_EQ(later.exit_code, 4) << later.output;
   EXPECT_NE(later.output.find("ignav-server ready"), std::string::npos) << later.output;
   EXPECT_NE(later.output.find("robot_id 'twin': another ignav-server already serves this robot"),
@@ -218,19 +203,16 @@ TEST(RobotsE2E, TwoServersThatMissedEachOtherAtStartLeaveTheOlderServing) {
 }
 
 TEST(RobotsE2E, AMisconfiguredRobotIdOrDomainIsRefusedAtStartNamingTheSetting) {
-  const std::string server =
-      std::string("timeout 30 " IGNAV_SERVER_EXE " --config " IGNAV_SOURCE_DIR
-                  "/configs/server.yaml"
-                  " --no-igtl --session-dir ") +
-      (fs::temp_directory_path() / "ignav_misconfigured").string();
-  const auto spaced = run(server + " --domain 182 --robot-id 'cell a'");
+  const std::string server = serverCommand(
+      "--no-igtl --session-dir " + (fs::temp_directory_path() / "ignav_misconfigured").string());
+  const auto spaced = runCommand(server + " --domain 182 --robot-id 'cell a'");
   EXPECT_EQ(spaced.exit_code, 2) << spaced.output;
   EXPECT_NE(spaced.output.find("robot_id: 'cell a' has ' '"), std::string::npos) << spaced.output;
-  const auto wildcard = run(server + " --domain 182 --robot-id 'cell*'");
+  const auto wildcard = runCommand(server + " --domain 182 --robot-id 'cell*'");
   EXPECT_EQ(wildcard.exit_code, 2) << wildcard.output;
   EXPECT_NE(wildcard.output.find("robot_id: 'cell*' has '*'"), std::string::npos)
       << wildcard.output;
-  const auto far = run(server + " --domain 233");
+  const auto far = runCommand(server + " --domain 233");
   EXPECT_EQ(far.exit_code, 2) << far.output;
   EXPECT_NE(far.output.find("dds.domain_id: 233 is not within 0..232"), std::string::npos)
       << far.output;
@@ -239,12 +221,13 @@ TEST(RobotsE2E, AMisconfiguredRobotIdOrDomainIsRefusedAtStartNamingTheSetting) {
   std::ofstream(config) << "server:\n  robot_config: " IGNAV_SOURCE_DIR
                            "/configs/robots/torabi2014.yaml\n  robot_id: ''\n";
   const auto empty =
-      run(std::string("timeout 30 " IGNAV_SERVER_EXE " --config ") + config.string());
+      runCommand(std::string("timeout 30 " IGNAV_SERVER_EXE " --config ") + config.string());
   EXPECT_EQ(empty.exit_code, 2) << empty.output;
   EXPECT_NE(empty.output.find("server.robot_id: '' is empty"), std::string::npos) << empty.output;
   std::ofstream(config) << "server:\n  robot_config: " IGNAV_SOURCE_DIR
                            "/configs/robots/torabi2014.yaml\n  dds:\n    domian_id: 3\n";
-  const auto typo = run(std::string("timeout 30 " IGNAV_SERVER_EXE " --config ") + config.string());
+  const auto typo =
+      runCommand(std::string("timeout 30 " IGNAV_SERVER_EXE " --config ") + config.string());
   EXPECT_EQ(typo.exit_code, 2) << typo.output;
   EXPECT_NE(typo.output.find("server.dds.domian_id: unknown key"), std::string::npos)
       << typo.output;
@@ -257,28 +240,28 @@ TEST(RobotsE2E, ASiteConfigurationChosenByNameCarriesTheWorkflow) {
   // site configuration, filled in by the server and by ignavctl from their own options.
   ServerProcess server(
       188, {"--dds-config", "site-unicast", "--dds-interface", "lo", "--dds-peer", "127.0.0.1"});
-  const auto listed = run(std::string(IGNAVCTL_EXE) +
-                          " --domain 188 --dds-config site-unicast --dds-interface lo"
-                          " --dds-peer 127.0.0.1 --wait-server 5 robots");
+  const auto listed = runCommand(std::string(IGNAVCTL_EXE) +
+                                 " --domain 188 --dds-config site-unicast --dds-interface lo"
+                                 " --dds-peer 127.0.0.1 --wait-server 5 robots");
   EXPECT_EQ(listed.exit_code, 0) << listed.output;
   EXPECT_NE(listed.output.find("robot-1"), std::string::npos) << listed.output;
-  const auto pinged = run(std::string(IGNAVCTL_EXE) +
-                          " --domain 188 --dds-config site-unicast --dds-interface lo"
-                          " --dds-peer 127.0.0.1 --wait-server 5 load phantom");
+  const auto pinged = runCommand(std::string(IGNAVCTL_EXE) +
+                                 " --domain 188 --dds-config site-unicast --dds-interface lo"
+                                 " --dds-peer 127.0.0.1 --wait-server 5 load phantom");
   EXPECT_EQ(pinged.exit_code, 0) << pinged.output;
   // A wrong interface: the setting is named, the host's interfaces listed, nothing starts.
-  const auto wrong = run(std::string("timeout 30 " IGNAV_SERVER_EXE " --config " IGNAV_SOURCE_DIR
-                                     "/configs/server.yaml"
-                                     " --domain 188 --dds-config site-unicast --dds-interface "
-                                     "ens99x --dds-peer 127.0.0.1 --session-dir ") +
-                         (fs::temp_directory_path() / "ignav_wrong_interface").string());
+  const auto wrong = runCommand(serverCommand(
+      "--domain 188 --dds-config site-unicast --dds-interface ens99x --dds-peer 127.0.0.1 "
+      "--session-dir " +
+      (fs::temp_directory_path() / "ignav_wrong_interface").string()));
   EXPECT_EQ(wrong.exit_code, 2) << wrong.output;
   EXPECT_NE(wrong.output.find("dds.interface: 'ens99x' is not a network interface of this host"),
             std::string::npos)
       << wrong.output;
   EXPECT_FALSE(fs::exists(fs::temp_directory_path() / "ignav_wrong_interface"));
-  const auto client = run(std::string(IGNAVCTL_EXE) +
-                          " --domain 188 --dds-config site-multicast --wait-server 1 robots");
+  const auto client =
+      runCommand(std::string(IGNAVCTL_EXE) +
+                 " --domain 188 --dds-config site-multicast --wait-server 1 robots");
   EXPECT_NE(client.exit_code, 0) << client.output;
   EXPECT_NE(client.output.find("needs the network interface: set dds.interface"), std::string::npos)
       << client.output;
@@ -313,8 +296,8 @@ TEST(RobotsE2E, AnApproverOfOneRobotCannotApproveAnothersMotion) {
                    10s);
 
   // B's approver (another process: one identity per process): refused by DDS Security.
-  const auto refused =
-      run(ctlCommand(185, "--robot cell-a --identity " + b_approver.string() + " approve --yes"));
+  const auto refused = runCommand(
+      ctlCommand(185, "--robot cell-a --identity " + b_approver.string() + " approve --yes"));
   EXPECT_NE(refused.exit_code, 0) << refused.output;
   EXPECT_NE(refused.output.find("not allowed by DDS Security"), std::string::npos)
       << refused.output;
@@ -324,8 +307,8 @@ TEST(RobotsE2E, AnApproverOfOneRobotCannotApproveAnothersMotion) {
   EXPECT_TRUE(phaseIs(planner->state(), "plan_locked"));
 
   // A's approver releases it.
-  const auto approved =
-      run(ctlCommand(185, "--robot cell-a --identity " + a_approver.string() + " approve --yes"));
+  const auto approved = runCommand(
+      ctlCommand(185, "--robot cell-a --identity " + a_approver.string() + " approve --yes"));
   ASSERT_EQ(approved.exit_code, 0) << approved.output;
   planner->waitFor([](const json& s) { return phaseIs(s, "at_target"); }, 30s);
   fs::remove_all(pki);

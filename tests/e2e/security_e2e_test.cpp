@@ -98,24 +98,10 @@ const json* record(const std::vector<json>& records, const std::string& input) {
 
 // ignavctl as another process with a role's identity (Cyclone authenticates one identity per
 // process): its exit code and everything it printed.
-struct CtlResult {
-  int exit_code = -1;
-  std::string output;
-};
-CtlResult ctl(const ServerProcess& server, const std::string& role, const std::string& args) {
-  const std::string cmd =
-      std::string(IGNAVCTL_EXE) + " --domain " + std::to_string(server.domain()) +
-      " --dds-config " IGNAV_SOURCE_DIR "/configs/dds/loopback.xml" +
-      (role.empty() ? "" : " --identity " + (pki() / role).string()) + " " + args + " 2>&1";
-  CtlResult r;
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  if (!pipe) return r;
-  char buf[512];
-  while (std::fgets(buf, sizeof buf, pipe))
-    r.output += buf;
-  const int status = ::pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+CommandRun ctl(const ServerProcess& server, const std::string& role, const std::string& args) {
+  return runCommand(std::string(IGNAVCTL_EXE) + " --domain " + std::to_string(server.domain()) +
+                    " --dds-config " IGNAV_SOURCE_DIR "/configs/dds/loopback.xml" +
+                    (role.empty() ? "" : " --identity " + (pki() / role).string()) + " " + args);
 }
 
 TEST(SecurityE2E, TheWholeWorkflowWorksForTheProperRolesAndTheJournalNamesWhoActed) {

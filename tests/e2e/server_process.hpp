@@ -258,6 +258,23 @@ inline std::vector<std::uint32_t> insertAll(protocol::Client& op,
   return ids;
 }
 
+// A command line run to its end (stderr with stdout): its exit code and everything it printed.
+struct CommandRun {
+  int exit_code = -1;
+  std::string output;
+};
+inline CommandRun runCommand(const std::string& cmd) {
+  CommandRun r;
+  FILE* pipe = ::popen((cmd + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  char buf[512];
+  while (std::fgets(buf, sizeof buf, pipe))
+    r.output += buf;
+  const int status = ::pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
 class ServerProcess {
   // Per test process and instance: two servers may share a domain (several robots).
   static std::filesystem::path uniqueSessionDir(std::uint32_t domain) {

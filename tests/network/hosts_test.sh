@@ -108,5 +108,9 @@ grep -q '"subject": "CN=service,O=ignav,C=NL"' "$work/doctor.json" ||
 approvals="$(grep -c '"input":"approve"' "$work/session/journal.jsonl" || true)"
 [ "$approvals" -ge 1 ] || fail "no approval in the journal"
 segments="$(grep -c '"input":"segment_done"' "$work/session/journal.jsonl" || true)"
+# What doctor measured across the bridge, for the record.
+across="$(python3 -c 'import json,sys; r=json.load(open(sys.argv[1]))["robots"][0]
+print("round trip median %.2f ms, max %.2f ms; clock offset %+.1f ms" % (r["round_trip_ms"]["median"],
+      r["round_trip_ms"]["max"], r.get("clock_offset_ms", float("nan"))))' "$work/doctor.json")"
 echo "hosts_test: ok (3 hosts on $net.0/24, DDS Security on; $approvals approvals, $segments" \
-  "motion segments; the browser, doctor and the offline check pass)"
+  "motion segments; the browser, doctor and the offline check pass; planning -> robot: $across)"

@@ -69,12 +69,7 @@ int main(int argc, char** argv) {
   spdlog::set_default_logger(spdlog::stderr_color_mt("ignav-web"));
 
   try {
-    options.dds_config_xml =
-        dds_config.empty()
-            ? ""
-            : ignav::protocol::loadDdsConfig(
-                  ignav::protocol::resolveDdsConfig(dds_config, ignav::protocol::ddsConfigDirs()),
-                  dds_site);
+    options.dds_config_xml = ignav::protocol::loadToolDdsConfig(dds_config, dds_site);
     if (!identity.empty()) {
       options.identity = ignav::protocol::identityFromFolder(identity);
     } else {

@@ -752,12 +752,7 @@ int main(int argc, char** argv) {
   }
 
   try {
-    const std::string xml =
-        dds_config.empty()
-            ? ""
-            : ignav::protocol::loadDdsConfig(
-                  ignav::protocol::resolveDdsConfig(dds_config, ignav::protocol::ddsConfigDirs()),
-                  dds_site);
+    const std::string xml = ignav::protocol::loadToolDdsConfig(dds_config, dds_site);
     std::optional<ignav::protocol::SecurityIdentity> secure;
     if (!identity.empty()) {
       secure = ignav::protocol::identityFromFolder(identity);

@@ -29,5 +29,8 @@ std::vector<std::string> ddsConfigDirs();
 // a placeholder the site left empty, an interface this host does not have (listing those it has),
 // a peer that is not an address or host name.
 std::string loadDdsConfig(const std::string& path, const DdsSite& site);
+// What a tool's --dds-config VALUE gives: "" for "" (Cyclone's defaults), else the file or the
+// name found in ddsConfigDirs(), loaded with `site`.
+std::string loadToolDdsConfig(const std::string& value, const DdsSite& site);
 
 }  // namespace ignav::protocol
