@@ -62,10 +62,6 @@ std::string hostName() {
   return ::gethostname(name, sizeof name - 1) == 0 ? std::string(name) : std::string("?");
 }
 
-double unixNowS() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
-
 }  // namespace
 
 Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robot,
@@ -87,7 +83,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
       robot_peers_(participant_, Qos::kStateOfMany),
       participant_started_(Clock::now()),
       host_(hostName()),
-      started_unix_s_(unixNowS()),
+      started_unix_s_(wallS()),
       state_(participant_, controller_name_, session_dir_),
       slices_(participant_),
       waitset_(participant_),

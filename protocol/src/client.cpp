@@ -158,10 +158,6 @@ Client::Client(std::uint32_t domain_id, const std::string& config_xml, std::stri
 
 Client::~Client() = default;
 
-const std::string& Client::robotId() const {
-  return impl_->participant.robotId();
-}
-
 bool Client::waitForServer(std::chrono::milliseconds timeout) {
   const auto end = Clock::now() + timeout;
   while (Clock::now() < end) {
@@ -346,11 +342,7 @@ std::vector<Health> discoverRobots(std::uint32_t domain_id, const std::string& c
   std::size_t last_matched = 0;
   while (Clock::now() < end) {
     health.take([&](const Health& h) {
-      if (seen.emplace(std::make_pair(h.robot_id, h.session_id), h).second) {
-        last_news = Clock::now();
-      } else {
-        seen[{h.robot_id, h.session_id}] = h;
-      }
+      if (seen.insert_or_assign({h.robot_id, h.session_id}, h).second) last_news = Clock::now();
     });
     const std::size_t matched = health.matched();
     if (matched != last_matched) {

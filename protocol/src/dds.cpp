@@ -96,7 +96,7 @@ dds_return_t check(dds_return_t rc, const char* what) {
 Participant::Participant(std::uint32_t domain_id, const std::string& config_xml,
                          const SecurityIdentity* identity, const std::string& robot_id,
                          const std::string& name)
-    : domain_id_(domain_id), robot_id_(robot_id) {
+    : domain_id_(domain_id) {
   if (robot_id != kAnyRobot) {
     if (const std::string problem = robotIdProblem(robot_id); !problem.empty()) {
       throw DdsError("robot id '" + robot_id + "' " + problem);
@@ -104,15 +104,19 @@ Participant::Participant(std::uint32_t domain_id, const std::string& config_xml,
   }
   claimIdentity(domain_id, identity ? identity->certificate : "");
   try {
-    create(domain_id, config_xml, identity, name);
+    create(domain_id, config_xml, identity, robot_id, name);
   } catch (...) {
+    // No destructor runs: what create() made goes here.
+    if (participant_ > 0) dds_delete(participant_);
+    if (domain_ > 0) dds_delete(domain_);
     releaseIdentity(domain_id);
     throw;
   }
 }
 
 void Participant::create(std::uint32_t domain_id, const std::string& config_xml,
-                         const SecurityIdentity* identity, const std::string& name) {
+                         const SecurityIdentity* identity, const std::string& robot_id,
+                         const std::string& name) {
   if (!config_xml.empty()) {
     domain_ = dds_create_domain(domain_id, config_xml.c_str());
     if (domain_ < 0 && domain_ != DDS_RETCODE_PRECONDITION_NOT_MET) {
@@ -133,7 +137,7 @@ void Participant::create(std::uint32_t domain_id, const std::string& config_xml,
     }
   }
   participant_ = dds_create_participant(domain_id, qos, nullptr);
-  if (qos) dds_delete_qos(qos);
+  dds_delete_qos(qos);
   if (participant_ < 0 && identity) {
     throw DdsError("DDS Security refused the identity in " + identity->folder +
                    " (its certificate, key, permissions or governance is invalid, expired or "
@@ -143,16 +147,13 @@ void Participant::create(std::uint32_t domain_id, const std::string& config_xml,
   check(participant_, "participant");
   secure_ = identity != nullptr;
   dds_qos_t* scope = dds_create_qos();
-  const std::string partition = robotPartition(robot_id_);
+  const std::string partition = robotPartition(robot_id);
   const char* partitions[] = {partition.c_str()};
   dds_qset_partition(scope, 1, partitions);
   publisher_ = dds_create_publisher(participant_, scope, nullptr);
   subscriber_ = dds_create_subscriber(participant_, scope, nullptr);
   dds_delete_qos(scope);
-  if (publisher_ < 0 || subscriber_ < 0) {
-    dds_delete(participant_);
-    check(publisher_ < 0 ? publisher_ : subscriber_, "publisher/subscriber of the robot partition");
-  }
+  check(publisher_ < 0 ? publisher_ : subscriber_, "publisher/subscriber of the robot partition");
 }
 
 Participant::~Participant() {

@@ -115,7 +115,6 @@ class Client {
   // command name, or "approve"); always true without security. The server still judges it.
   bool mayPublish(const std::string& command) const;
   const std::string& clientId() const { return client_id_; }
-  const std::string& robotId() const;
 
  private:
   Reply awaitReply(std::uint64_t request_id, const std::string& what,

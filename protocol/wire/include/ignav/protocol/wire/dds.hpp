@@ -42,14 +42,13 @@ class Participant {
   // Writers are created in the publisher, readers in the subscriber: both in the robot's partition.
   dds_entity_t publisher() const { return publisher_; }
   dds_entity_t subscriber() const { return subscriber_; }
-  const std::string& robotId() const { return robot_id_; }
   bool secure() const { return secure_; }
 
  private:
   void create(std::uint32_t domain_id, const std::string& config_xml,
-              const SecurityIdentity* identity, const std::string& name);
+              const SecurityIdentity* identity, const std::string& robot_id,
+              const std::string& name);
   std::uint32_t domain_id_ = 0;
-  std::string robot_id_;
   dds_entity_t publisher_ = 0;
   dds_entity_t subscriber_ = 0;
   bool secure_ = false;
