@@ -110,8 +110,8 @@ TEST(ClosedLoopE2E, MeasuredFittedAndCompensatedThroughTheServer) {
   // The server's agar had predicted something else: the prediction is on every row.
   for (const auto& row : v1["targets"])
     EXPECT_FALSE(row["predicted_robot"].is_null()) << row.dump();
-  // The session folder has the seeds for Slicer and the figure.
-  EXPECT_TRUE(std::filesystem::exists(server.sessionDir() / "verification" / "seeds.mrk.json"));
+  // The session folder has the seeds for Slicer and the figure (the reports thread writes them).
+  EXPECT_TRUE(fileAppears(server.sessionDir() / "verification" / "seeds.mrk.json", 10s));
 
   // The tissue from the errors: within two standard errors of the hidden one.
   const auto fitted = op->send("fit_tissue", {"hidden_gel", {}, {}});

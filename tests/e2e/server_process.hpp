@@ -258,6 +258,15 @@ inline std::vector<std::uint32_t> insertAll(protocol::Client& op,
   return ids;
 }
 
+// Whether `path` exists within `timeout`: files the server's reports thread writes come a little
+// after the state that made them.
+inline bool fileAppears(const std::filesystem::path& path, std::chrono::milliseconds timeout) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  while (!std::filesystem::exists(path) && std::chrono::steady_clock::now() < end)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  return std::filesystem::exists(path);
+}
+
 // A command line run to its end (stderr with stdout): its exit code and everything it printed.
 struct CommandRun {
   int exit_code = -1;
