@@ -282,11 +282,33 @@ int runDoctor(std::uint32_t domain, const std::string& xml,
       report["robots"].push_back(r);
       continue;
     }
-    std::vector<double> rtt_ms;
-    for (int i = 0; i < 10; ++i) {
+    // A first ping until one is answered: with DDS Security the server may match this client's
+    // reply reader a moment after this client sees the server, and a reply written before is
+    // lost. Then ten measured ones; one unanswered is a finding, not the end of the check.
+    auto ping = [&](std::chrono::milliseconds timeout) -> std::optional<double> {
       const auto t0 = Clock::now();
-      c.send("ping", {}, std::chrono::seconds(5));
-      rtt_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+      try {
+        c.send("ping", {}, timeout);
+      } catch (const ignav::protocol::Timeout&) {
+        return std::nullopt;
+      }
+      return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    };
+    bool answered = false;
+    for (int attempt = 0; attempt < 3 && !answered; ++attempt)
+      answered = ping(std::chrono::seconds(2)).has_value();
+    std::vector<double> rtt_ms;
+    for (int i = 0; i < 10 && answered; ++i) {
+      if (auto ms = ping(std::chrono::seconds(2))) rtt_ms.push_back(*ms);
+    }
+    if (rtt_ms.empty()) {
+      checkLine("FAIL", "robot '" + id + "': matched, but no ping was answered");
+      report["robots"].push_back(r);
+      continue;
+    }
+    if (rtt_ms.size() < 10) {
+      checkLine("WARN", "robot '" + id + "': " + std::to_string(10 - rtt_ms.size()) +
+                            " of 10 pings unanswered (packet loss?)");
     }
     std::sort(rtt_ms.begin(), rtt_ms.end());
     const double median = rtt_ms[rtt_ms.size() / 2];
