@@ -23,8 +23,9 @@ packages=(
   # the service: sd_notify for the systemd unit, systemd-analyze and dpkg-shlibdeps for the
   # package's test (tools/package, tests/package)
   libsystemd-dev systemd dpkg-dev
-  # the multi-host test's network namespaces, veth pairs and bridge (tests/network)
-  iproute2
+  # the multi-host tests' network namespaces, veth pairs, bridge and router (tests/network);
+  # ping measures the impaired link there
+  iproute2 iputils-ping
   # tests and benchmarks (tshark: the DDS Security test captures the loopback)
   libgtest-dev libgmock-dev libbenchmark-dev tshark
   # fuzzing (libFuzzer ships with clang's runtime) and sanitizer symbolisation

@@ -18,13 +18,13 @@ hosts=(robot plan view)
 switch="$tag-switch"
 work="$(mktemp -d)"
 fail() { echo "hosts_test: $*" >&2; exit 1; }
-# Every process in the namespaces goes with them (a process left behind would keep the
-# namespace, and any lock the test runner holds, alive).
+# on, wait_for, and netns_cleanup: every process in the namespaces goes with them (a process left
+# behind would keep the namespace, and any lock the test runner holds, alive).
+. "$source/tests/network/netns.sh"
+netns_tag="$tag"
+netns_hosts=("${hosts[@]}")
 cleanup() {
-  for h in "${hosts[@]}"; do ip netns pids "$tag-$h" 2>/dev/null | xargs -r kill 2>/dev/null || true; done
-  sleep 0.5
-  for h in "${hosts[@]}"; do ip netns pids "$tag-$h" 2>/dev/null | xargs -r kill -9 2>/dev/null || true; done
-  for h in "${hosts[@]}"; do ip netns del "$tag-$h" 2>/dev/null || true; done
+  netns_cleanup
   ip netns del "$switch" 2>/dev/null || true
   rm -rf "$work"
 }
@@ -48,14 +48,6 @@ for h in "${hosts[@]}"; do
   ip -n "$ns" link set lo up
   n=$((n + 1))
 done
-on() { local h="$1"; shift; ip netns exec "$tag-$h" "$@"; }
-
-# Waits until FILE has a line matching PATTERN (the program's readiness line), or fails.
-wait_for() {
-  for _ in $(seq 200); do grep -q "$2" "$1" 2>/dev/null && return 0; sleep 0.1; done
-  cat "$1" "${1%.out}.log" 2>/dev/null >&2 || true
-  fail "$3 did not start"
-}
 
 "$source/configs/security/make-test-pki.sh" "$work/pki" >/dev/null
 dds=(--domain 197 --dds-config site-multicast --dds-interface eth0)

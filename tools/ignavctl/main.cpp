@@ -474,12 +474,16 @@ int runScript(Client& client, const std::string& path, const std::string& out_di
   if (!doc["steps"] || !doc["steps"].IsSequence()) throw UsageError(path + ": steps: is missing");
   std::map<std::string, std::uint32_t> names;
   int index = 0;
-  // Read your writes: the next step sees at least the state the last reply's revision names
-  // (state topics and replies travel separately).
+  // Read your writes: the next step sees at least the state the last reply's revision names, and
+  // the target the reply names (state topics and replies travel separately, and each state topic
+  // on its own: on a lossy network the workflow's sample may come before the target's).
   auto catchUp = [&](const ignav::protocol::Reply& r) {
     if (!r.accepted) return;
     client.waitUntil(
-        [&](const StateMirror& s) { return s.workflow && s.workflow->revision >= r.revision; },
+        [&](const StateMirror& s) {
+          return s.workflow && s.workflow->revision >= r.revision &&
+                 (r.target_id == 0 || s.targets.count(r.target_id) > 0);
+        },
         std::chrono::seconds(10));
   };
   for (const auto& step_node : doc["steps"]) {
