@@ -27,10 +27,13 @@ std::unique_ptr<IgtlBridge> IgtlBridge::start(const OpenIgtlinkOptions& g,
 IgtlBridge::IgtlBridge(const OpenIgtlinkOptions& g, std::unique_ptr<IgtlListener> listener,
                        int port)
     // Request ids never repeat across restarts (the core answers a repeated one from the journal).
-    : bridge_(igtl::BrpOptions{g.allow_motion_approval}, static_cast<std::uint64_t>(wallS() * 1e6)),
+    : bridge_(igtl::BrpOptions{g.allow_motion_approval,
+                               igtl::parseRevision(g.protocol).value_or(igtl::Revision::kSlicer)},
+              static_cast<std::uint64_t>(wallS() * 1e6)),
       port_(port),
       listener_(std::move(listener)) {
-  spdlog::info("OpenIGTLink (BRP workphase protocol) listening on {}:{}", g.address, port_);
+  spdlog::info("OpenIGTLink (BRP workphase protocol, revision {}) listening on {}:{}", g.protocol,
+               g.address, port_);
   if (g.allow_motion_approval) {
     safety_notice_ = fmt::format(
         "motion approval over OpenIGTLink is ON ({}:{}): OpenIGTLink is unauthenticated, so "

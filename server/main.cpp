@@ -80,6 +80,10 @@ int main(int argc, char** argv) {
   app.add_option("--igtl-timeout", igtl_timeout,
                  "seconds after which a dropped or stalled OpenIGTLink client is let go "
                  "(overrides the config)");
+  std::string igtl_protocol;
+  app.add_option("--igtl-protocol", igtl_protocol,
+                 "the BRP revision OpenIGTLink clients speak: slicer or brp2013 (overrides the "
+                 "config)");
   bool igtl_off = false, igtl_approval = false;
   app.add_flag("--no-igtl", igtl_off, "no OpenIGTLink bridge whatever the config says");
   app.add_flag("--igtl-allow-approval", igtl_approval,
@@ -126,6 +130,7 @@ int main(int argc, char** argv) {
     }
     if (igtl_approval) options.openigtlink.allow_motion_approval = true;
     if (igtl_timeout) options.openigtlink.timeout_s = *igtl_timeout;
+    if (!igtl_protocol.empty()) options.openigtlink.protocol = igtl_protocol;
     if (igtl_off) options.openigtlink.enabled = false;
     if (controller == "simulated") {
       options.controller.kind = controller;

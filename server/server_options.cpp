@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include "ignav/igtl/brp.hpp"
 #include "ignav/protocol/topics.hpp"
 #include "ignav/workflow/session.hpp"
 
@@ -75,6 +76,12 @@ std::optional<std::string> checkServerOptions(const ServerOptions& o) {
   }
   if (!(g.timeout_s >= 0.5) || g.timeout_s > 3600.0) {
     return fmt::format("openigtlink.timeout_s: {} s; must be within 0.5..3600", g.timeout_s);
+  }
+  if (!igtl::parseRevision(g.protocol)) {
+    return fmt::format(
+        "openigtlink.protocol: '{}' is not a BRP revision: slicer (the current 3D "
+        "Slicer module) or brp2013 (the 2013 revision's reference robots)",
+        g.protocol);
   }
   if (!(o.approval_expiry_s > 0) || !std::isfinite(o.approval_expiry_s)) {
     return fmt::format("approval.expiry_s: {} must be positive", o.approval_expiry_s);
@@ -210,10 +217,12 @@ ServerOptions loadServerOptions(const std::string& path) {
           go.timeout_s = kv.second.as<double>();
         } else if (key == "allow_motion_approval") {
           go.allow_motion_approval = kv.second.as<bool>();
+        } else if (key == "protocol") {
+          go.protocol = kv.second.as<std::string>();
         } else {
           throw ConfigError(path + ": server.openigtlink." + key +
                             ": unknown key; expected enabled, address, port, timeout_s, "
-                            "allow_motion_approval");
+                            "allow_motion_approval, protocol");
         }
       }
     }

@@ -40,6 +40,9 @@ struct OpenIgtlinkOptions {
   // OpenIGTLink has no authentication: MOVE_TO_TARGET over it releases motion only if a site
   // says so here (the server then says so loudly, in its log and in the workflow state).
   bool allow_motion_approval = false;
+  // The BRP revision its clients speak (docs/OPENIGTLINK.md): "slicer" (the current 3D Slicer
+  // module) or "brp2013" (the 2013 revision as its reference robots write it).
+  std::string protocol = "slicer";
 };
 
 // The largest DDS domain id: RTPS's default port mapping (7400 + 250 x id + 11) stays a UDP port.

@@ -3,11 +3,14 @@
 // RAS <-> LPS; results come from the core's own verdicts.
 #include <gtest/gtest.h>
 
+#include <set>
+
 #include <Eigen/Geometry>
 
 #include "ignav/config/robot_config.hpp"
 #include "ignav/igtl/brp.hpp"
 #include "ignav/workflow/reducer.hpp"
+#include "ignav/workflow/reply_codes.hpp"
 #include "support/phantom_ct.hpp"
 
 namespace ignav::igtl {
@@ -188,6 +191,39 @@ TEST(BrpBridge, RejectionsBecomeTheProtocolsCodes) {
   EXPECT_EQ(statusCodeFor("not_similarity", Phase::kImaging), StatusCode::kConfigurationError);
   EXPECT_EQ(statusCodeFor("not_registered", Phase::kImaging), StatusCode::kNotReady);
   EXPECT_EQ(statusCodeFor("empty_plan", Phase::kPlanning), StatusCode::kNotReady);
+  // The 2013 revision's reference robots: configuration error for values, not ready for the rest
+  // (a start-up without its controller too), a hardware failure only for a robot that failed.
+  const auto r2013 = Revision::kBrp2013;
+  EXPECT_EQ(statusCodeFor("wrong_phase", Phase::kManual, r2013), StatusCode::kNotReady);
+  EXPECT_EQ(statusCodeFor("controller_unavailable", Phase::kImaging, r2013), StatusCode::kNotReady);
+  EXPECT_EQ(statusCodeFor("unreachable", Phase::kPlanning, r2013), StatusCode::kConfigurationError);
+  EXPECT_EQ(statusCodeFor("", Phase::kFault, r2013), StatusCode::kHardwareFailure);
+}
+
+// libOpenIGTLink keeps 19 characters of an error name: every reply code of the core goes out
+// whole or as a short form of its own, and no two codes share a name.
+TEST(BrpBridge, EveryReplyCodeFitsTheErrorNameFieldAndStaysDistinct) {
+  std::set<std::string> names;
+  for (const auto& spec : workflow::replyCodeTable()) {
+    const std::string name = errorNameFor(spec.name);
+    EXPECT_LE(name.size(), kMaxErrorName) << spec.name;
+    EXPECT_FALSE(name.empty()) << spec.name;
+    EXPECT_TRUE(names.insert(name).second) << spec.name << " -> " << name << " twice";
+  }
+  EXPECT_EQ(errorNameFor("controller_unavailable"), "no_controller");
+  EXPECT_EQ(errorNameFor("wrong_phase"), "wrong_phase");
+}
+
+TEST(BrpBridge, StatusStringsGoOutAsAscii) {
+  EXPECT_EQ(asciiText("\u03b8c 30\u00b0 \u00b1 0.5 mm, \u2264 2 \u00b5m"),
+            "thetac 30 deg +/- 0.5 mm, <= 2 um");
+  EXPECT_EQ(asciiText("caf\u00e9\u2603."), "caf??.");  // unknown signs: one '?' each
+  EXPECT_EQ(asciiText("a\tb\x01"
+                      "c"),
+            "a\tb c");
+  const auto m = statusMessage("X", StatusCode::kOk, "\u03b8 = 12\u00b0", "\u03bb");
+  EXPECT_EQ(m.status.status_string, "theta = 12 deg");
+  EXPECT_EQ(m.status.error_name, "lambda");
 }
 
 TEST(BrpBridge, AWorkphaseChangeNoCommandAskedForIsToldToEveryone) {

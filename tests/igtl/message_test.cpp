@@ -197,7 +197,11 @@ TEST(IgtlCodec, EncodingRefusesWhatTheWireCannotCarry) {
   EXPECT_NE(long_name.error().message.find("A_DEVICE_NAME_OVER_20"), std::string::npos);
   // libOpenIGTLink reads a 20-character error name without a terminator: at most 19 go out.
   EXPECT_TRUE(encode(statusMessage("X", StatusCode::kOk, "", std::string(19, 'e'))).ok());
-  EXPECT_FALSE(encode(statusMessage("X", StatusCode::kOk, "", std::string(20, 'e'))).ok());
+  Message twenty = statusMessage("X", StatusCode::kOk);
+  twenty.status.error_name = std::string(20, 'e');  // statusMessage itself cuts it to 19
+  EXPECT_FALSE(encode(twenty).ok());
+  EXPECT_EQ(statusMessage("X", StatusCode::kOk, "", std::string(25, 'e')).status.error_name,
+            std::string(19, 'e'));
   Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
   m(0, 3) = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(encode(transformMessage("X", m)).ok());

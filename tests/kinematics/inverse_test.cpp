@@ -96,6 +96,19 @@ TEST(Reachability, EveryReasonCode) {
   EXPECT_EQ(s.reach, Reach::kTooDeep);
   EXPECT_NEAR(s.excess_mm, 1.0, 1e-9);
   EXPECT_EQ(std::string(toString(Reach::kTooDeep)), "too_deep");
+
+  // Out of reach both ways: the larger miss is the reason. 5 m above the base on the axis is far
+  // too shallow (by 5 m and the home depth), not 1.8 mm inside the minimum radius (issue 25).
+  const Eigen::Vector3d above(0.0, 0.0, 5000.0);
+  s = k.inverse(above).value();
+  EXPECT_EQ(s.reach, Reach::kTooShallow);
+  EXPECT_NEAR(s.excess_mm, 5000.0 - k.forward({0.0, 0.0, 0.0}).tip_mm.z(), 1e-9);
+  // Wide and a little too deep: the radius is the larger miss and stays the reason.
+  s = k.inverse(Eigen::Vector3d(40.0, 0.0, deepest.z() - 1.0)).value();
+  EXPECT_EQ(s.reach, Reach::kBeyondMaxRadius);
+  // A wire's width off the axis and 1 m deep: too deep.
+  s = k.inverse(Eigen::Vector3d(0.0, 1.0, -1000.0)).value();
+  EXPECT_EQ(s.reach, Reach::kTooDeep);
 }
 
 // Found by fuzz_command: the message of a target 1e300 mm away (300 digits per coordinate)

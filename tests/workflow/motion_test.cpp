@@ -329,7 +329,12 @@ TEST(Approval, ControllerFaultMidMoveBecomesTheFaultPhaseWithItsReason) {
   ASSERT_EQ(b.s.phase, Phase::kFault);
   EXPECT_NE(b.s.fault.find("motor 1 stalled"), std::string::npos) << b.s.fault;
   EXPECT_EQ(b.send(b.approve(1, "x")).error_code, "wrong_phase");
-  EXPECT_EQ(b.send(b.command(InputKind::kStop)).error_code, "wrong_phase");
+  // A stop is always taken (issue 25): it halts the controller again; the fault stays.
+  const auto stop = b.feed(b.command(InputKind::kStop));
+  ASSERT_TRUE(stop.effects.replies.at(0).accepted);
+  ASSERT_FALSE(stop.effects.controller.empty());
+  EXPECT_TRUE(stop.effects.controller.front().isHalt());
+  EXPECT_EQ(b.s.phase, Phase::kFault);
   // Stalled halfway along its move: the position check accepts it, then resume re-plans from
   // there and the new plan reaches the target.
   const auto r = b.send(b.command(InputKind::kResetEmergency));
@@ -638,13 +643,19 @@ TEST(Manual, HaltsRefusesMotionAndResumeAdoptsThePosition) {
   ASSERT_FALSE(manual.effects.controller.empty());
   EXPECT_TRUE(manual.effects.controller.front().isHalt());
   EXPECT_FALSE(b.s.pending.has_value());  // the approval request died with the change
-  for (InputKind kind : {InputKind::kStop, InputKind::kLockPlan, InputKind::kRequestApproval,
-                         InputKind::kCheckReady, InputKind::kManual}) {
+  for (InputKind kind : {InputKind::kLockPlan, InputKind::kRequestApproval, InputKind::kCheckReady,
+                         InputKind::kManual}) {
     auto in = b.command(kind);
     in.path = "robot";
     const auto r = b.send(in);
     EXPECT_EQ(r.error_code, "wrong_phase") << toString(kind);
   }
+  // A stop button always stops (issue 25): the controller is halted again, manual control stays.
+  const auto stop = b.feed(b.command(InputKind::kStop));
+  ASSERT_TRUE(stop.effects.replies.at(0).accepted);
+  ASSERT_FALSE(stop.effects.controller.empty());
+  EXPECT_TRUE(stop.effects.controller.front().isHalt());
+  EXPECT_EQ(b.s.phase, Phase::kManual);
   // Someone turns the cannula by hand, a tenth of a radian.
   const Steps hands = paperRobot()->transmission.toSteps({0.1, 0.0, 0.0}).steps;
   ASSERT_NE(hands, Steps{});

@@ -1,8 +1,8 @@
 // Round trips through the OpenIGTLink bridge of a running ignav-server (tools/bench/bench_igtl.sh):
 // a query answered by the bridge alone, a BRP command through the workflow core (receipt and
 // result), and a calibration that the journal must hold before it is answered. Prints medians and
-// 99th percentiles over ROUNDS each.
-//   bench_igtl PORT [ROUNDS]
+// 99th percentiles over ROUNDS each. REVISION: the server's openigtlink.protocol (slicer|brp2013).
+//   bench_igtl PORT [ROUNDS] [REVISION]
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <sys/socket.h>
@@ -78,19 +78,22 @@ double since_us(Clock::time_point t0) {
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: bench_igtl PORT [ROUNDS]\n");
+    std::fprintf(stderr, "usage: bench_igtl PORT [ROUNDS] [slicer|brp2013]\n");
     return 2;
   }
   const int port = std::atoi(argv[1]);
   const int rounds = argc > 2 ? std::atoi(argv[2]) : 1000;
+  // The 2013 revision says nothing on connect and answers GET_STATUS with STATUS(<workphase>).
+  const bool brp2013 = argc > 3 && std::string(argv[3]) == "brp2013";
   Connection c(port);
-  c.until("CURRENT_STATUS");  // the greeting
+  if (!brp2013) c.until("CURRENT_STATUS");  // the greeting
+  const std::string status_answer = brp2013 ? "START_UP" : "CURRENT_STATUS";
 
   std::vector<double> query, receipt, result, calibration;
   for (int i = 0; i < rounds; ++i) {
     auto t0 = Clock::now();
     c.send(ignav::igtl::queryMessage("GET_STATUS", "CURRENT_STATUS"));
-    c.until("CURRENT_STATUS");
+    c.until(status_answer);
     query.push_back(since_us(t0));
 
     const std::string id = std::to_string(i);
@@ -98,7 +101,8 @@ int main(int argc, char** argv) {
     c.send(ignav::igtl::stringMessage("CMD_" + id, "START_UP"));
     c.until("ACK_" + id);
     receipt.push_back(since_us(t0));
-    c.until("START_UP");
+    c.until(brp2013 ? "CURRENT_STATUS" : "START_UP");  // 2013: the workphase, then the result
+    if (brp2013) c.until("START_UP");
     result.push_back(since_us(t0));
   }
   // Re-registrations: each is journaled (fsync) before it is answered.

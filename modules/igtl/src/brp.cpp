@@ -27,10 +27,10 @@ std::string ackName(const std::string& id) {
   return ("ACK_" + id).substr(0, kMaxDeviceName);
 }
 
-// The status string and error name fields: printable, bounded.
-std::string errorName(const std::string& error_code) {
-  return error_code.substr(0, kMaxErrorName);
-}
+// The reply codes longer than the error-name field (19 characters), by a short form of their own.
+constexpr std::pair<const char*, const char*> kShortErrorNames[] = {
+    {"controller_unavailable", "no_controller"},
+};
 
 Eigen::Matrix4d poseRas(const workflow::Session& s, const Eigen::Vector3d& robot_mm) {
   const auto& reg = *s.registration;
@@ -66,6 +66,23 @@ const char* toString(Workphase phase) {
   return "UNKNOWN";
 }
 
+const char* toString(Revision revision) {
+  return revision == Revision::kBrp2013 ? "brp2013" : "slicer";
+}
+
+std::optional<Revision> parseRevision(const std::string& text) {
+  if (text == "slicer") return Revision::kSlicer;
+  if (text == "brp2013") return Revision::kBrp2013;
+  return std::nullopt;
+}
+
+std::string errorNameFor(const std::string& error_code) {
+  for (const auto& [code, short_name] : kShortErrorNames) {
+    if (error_code == code) return short_name;
+  }
+  return error_code.substr(0, kMaxErrorName);
+}
+
 std::optional<Workphase> parseWorkphase(const std::string& text) {
   for (Workphase w : kAllWorkphases) {
     if (text == toString(w)) return w;
@@ -84,7 +101,15 @@ std::optional<Eigen::Matrix4d> tipToImageRas(const workflow::Session& s,
   return poseRas(s, s.robot->kinematics.forward(joints).tip_mm);
 }
 
-StatusCode statusCodeFor(const std::string& error_code, Phase phase) {
+StatusCode statusCodeFor(const std::string& error_code, Phase phase, Revision revision) {
+  if (revision == Revision::kBrp2013) {
+    // The reference robots know OK, configuration error and not ready, and a hardware failure
+    // for a robot that failed on its way.
+    if (phase == Phase::kFault) return StatusCode::kHardwareFailure;
+    return statusCodeFor(error_code, Phase::kPlanning) == StatusCode::kConfigurationError
+               ? StatusCode::kConfigurationError
+               : StatusCode::kNotReady;
+  }
   if (phase == Phase::kEmergency) return StatusCode::kPanic;
   if (phase == Phase::kManual) return StatusCode::kManualMode;
   static const std::set<std::string> hardware = {"controller_fault", "controller_unavailable",
@@ -171,6 +196,39 @@ void BrpBridge::reportCurrentStatus(std::uint64_t client, const workflow::Sessio
   out.messages.push_back({changed ? 0 : client, std::move(status)});
 }
 
+Message BrpBridge::refusal(const char* device, const workflow::Reply& reply, Workphase asked,
+                           const workflow::Session& s) const {
+  std::string text = reply.message;
+  if (reply.error_code == "wrong_phase") {
+    // The core names its own inputs ("request_approval is not allowed in manual"): a Slicer user
+    // needs the workphase asked for, what the robot is doing, and what to send.
+    const char* now = "";
+    switch (s.phase) {
+      case Phase::kManual:
+        now = "the robot is under manual control; send START_UP to take it back";
+        break;
+      case Phase::kEmergency:
+        now = "the robot is in an emergency stop; an approver resets it (ignavctl)";
+        break;
+      case Phase::kFault:
+        now = "the robot has a fault; an approver resets it once it is mended";
+        break;
+      case Phase::kStopped:
+        now = "the robot is stopped; send START_UP or the workphase to go on with";
+        break;
+      case Phase::kMoving:
+        now = "the robot is moving; wait for it, or send STOP";
+        break;
+      default:
+        now = "the robot is not ready for it";
+        break;
+    }
+    text = fmt::format("{} is not possible now: {}", toString(asked), now);
+  }
+  return statusMessage(device, statusCodeFor(reply.error_code, s.phase, options_.revision), text,
+                       errorNameFor(reply.error_code));
+}
+
 workflow::Input BrpBridge::input(InputKind kind) {
   workflow::Input in;
   in.kind = kind;
@@ -182,6 +240,7 @@ workflow::Input BrpBridge::input(InputKind kind) {
 
 BrpOutput BrpBridge::onConnected(std::uint64_t client, const workflow::Session& s) const {
   BrpOutput out;
+  if (brp2013()) return out;  // its robots say nothing until asked
   out.messages.push_back({client, currentStatus(s)});
   if (s.registration) {
     out.messages.push_back(
@@ -215,8 +274,12 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
     // The receipt first, whatever becomes of the command.
     send(stringMessage(ackName(*id), m.text));
     const auto phase = parseWorkphase(m.text);
+    if (brp2013() && phase) {
+      // Then the workphase asked for, before anything is tried: the result says how it went.
+      send(statusMessage("CURRENT_STATUS", StatusCode::kOk, "", toString(*phase)));
+    }
     if (!phase) {
-      send(currentStatus(s));
+      if (!brp2013()) send(currentStatus(s));
       send(statusMessage(m.text.substr(0, kMaxDeviceName), StatusCode::kUnknownInstruction,
                          fmt::format("'{}' is not a workphase", m.text.substr(0, 64)),
                          "unknown_workphase"));
@@ -257,6 +320,11 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
       case Workphase::kEmergency:
         r.push_back(InputKind::kEmergencyStop);
         break;
+    }
+    // A move this client halts is answered by the halt's own result, not as interrupted.
+    if ((*phase == Workphase::kStop || *phase == Workphase::kEmergency) &&
+        s.phase == Phase::kMoving) {
+      halt_asked_ = true;
     }
     dispatch(std::move(p), s, out);
     return out;
@@ -306,7 +374,8 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
     return out;
   }
   if (m.type == "GET_STATUS") {
-    send(currentStatus(s));
+    // brp2013: the reference robots answer with a STATUS named after the workphase.
+    send(brp2013() ? statusMessage(toString(workphase(s)), StatusCode::kOk) : currentStatus(s));
     return out;
   }
   if (m.type == "GET_TRANS") {  // GET_TRANSFORM (type names are 12 characters at most)
@@ -380,10 +449,6 @@ BrpOutput BrpBridge::onReply(const workflow::Reply& reply, const workflow::Sessi
   Pending p = std::move(it->second);
   pending_.erase(it);
   const auto send = [&](Message msg) { out.messages.push_back({p.client, std::move(msg)}); };
-  const auto refusal = [&](const char* device) {
-    return statusMessage(device, statusCodeFor(reply.error_code, s.phase), reply.message,
-                         errorName(reply.error_code));
-  };
   switch (p.purpose) {
     case Purpose::kCommand: {
       if (reply.accepted && !p.remaining.empty()) {
@@ -391,17 +456,20 @@ BrpOutput BrpBridge::onReply(const workflow::Reply& reply, const workflow::Sessi
         return out;
       }
       if (reply.accepted) last_accepted_ = p.phase;
-      reportCurrentStatus(p.client, s, out);
+      if (!brp2013()) reportCurrentStatus(p.client, s, out);
       const char* device = toString(p.phase);
       if (!reply.accepted) {
-        send(refusal(device));
+        send(refusal(device, reply, p.phase, s));
       } else if (p.phase == Workphase::kMoveToTarget && !options_.allow_motion_approval) {
         // Released by an approver over DDS; the arrival is reported then.
         send(statusMessage(device, StatusCode::kNotReady,
                            fmt::format("waiting for an approver over DDS: {}",
                                        s.pending ? s.pending->summary : std::string("no request")),
                            "awaiting_approval"));
-      } else if (p.phase != Workphase::kMoveToTarget) {
+      } else if (p.phase != Workphase::kMoveToTarget &&
+                 !(brp2013() &&
+                   (p.phase == Workphase::kPlanning || p.phase == Workphase::kCalibration))) {
+        // (brp2013: PLANNING has no result, CALIBRATION's follows the CLB_ transform.)
         send(statusMessage(device, StatusCode::kOk, reply.message));
       }
       // An approved move is answered when it arrives (onState).
@@ -409,11 +477,11 @@ BrpOutput BrpBridge::onReply(const workflow::Reply& reply, const workflow::Sessi
     }
     case Purpose::kCalibration:
       send(reply.accepted ? statusMessage("CALIBRATION", StatusCode::kOk, reply.message)
-                          : refusal("CALIBRATION"));
+                          : refusal("CALIBRATION", reply, Workphase::kCalibration, s));
       return out;
     case Purpose::kTarget: {
       if (!reply.accepted) {
-        send(refusal("TARGET"));
+        send(refusal("TARGET", reply, Workphase::kTargeting, s));
         return out;
       }
       const auto t = std::find_if(s.targets.begin(), s.targets.end(),
@@ -422,7 +490,8 @@ BrpOutput BrpBridge::onReply(const workflow::Reply& reply, const workflow::Sessi
       if (t->status() == "planned") {
         send(statusMessage("TARGET", StatusCode::kOk, t->message));
         const auto tip = s.robot->kinematics.forward(t->solution.joints).tip_mm;
-        send(transformMessage("REACHABLE_TARGET", poseRas(s, tip)));
+        // The 2013 revision names it TARGET, the current Slicer module REACHABLE_TARGET.
+        send(transformMessage(brp2013() ? "TARGET" : "REACHABLE_TARGET", poseRas(s, tip)));
         return out;
       }
       // The core judged it out of reach: it leaves the plan, and the reason goes back.
@@ -446,20 +515,29 @@ BrpOutput BrpBridge::onState(const workflow::Session& s) {
   last_phase_ = s.phase;
   if (before == Phase::kMoving && s.phase != Phase::kMoving) {
     const auto& last = s.motions.empty() ? workflow::MotionRecord{} : s.motions.back();
+    const bool halted_by_client = halt_asked_;
+    halt_asked_ = false;
     if (s.phase == Phase::kAtTarget || s.phase == Phase::kDone) {
       out.messages.push_back(
           {0, statusMessage("MOVE_TO_TARGET", StatusCode::kOk,
                             last.target_id == 0
                                 ? std::string("stylet retracted")
                                 : fmt::format("arrived at target {}", last.target_id))});
-    } else {
+      // Where it came to rest, after the result (the 2013 reference client waits for it).
+      if (auto pose = tipToImageRas(s, s.position)) {
+        out.messages.push_back({0, transformMessage("CURRENT_POSITION", *pose)});
+      }
+    } else if (!(brp2013() && halted_by_client && s.phase != Phase::kFault)) {
+      // (brp2013: a STOP or EMERGENCY of the client's is answered by its own result alone.)
       const std::string why = s.phase == Phase::kFault ? s.fault : last.outcome;
       out.messages.push_back(
-          {0, statusMessage("MOVE_TO_TARGET", statusCodeFor("", s.phase),
+          {0, statusMessage("MOVE_TO_TARGET", statusCodeFor("", s.phase, options_.revision),
                             fmt::format("motion interrupted: {}", why.empty() ? "stop" : why),
                             s.phase == Phase::kStopped ? "stopped" : workflow::toString(s.phase))});
     }
   }
+  // brp2013's robots say nothing unasked but the motion's result.
+  if (brp2013()) return out;
   // Changes no command of ours asked for (a DDS client, the controller) are told to everyone.
   if (pending_.empty()) {
     Message status = currentStatus(s);
@@ -484,7 +562,7 @@ BrpOutput BrpBridge::onPosition(const workflow::Session& s, const actuation::Ste
   BrpOutput out;
   if (auto pose = tipToImageRas(s, live)) {
     out.messages.push_back({0, transformMessage("CURRENT_POSITION", *pose)});
-    out.messages.push_back({0, transformMessage("NeedleTipToImage", *pose)});
+    if (!brp2013()) out.messages.push_back({0, transformMessage("NeedleTipToImage", *pose)});
   }
   return out;
 }

@@ -1,6 +1,8 @@
 #include "ignav/igtl/message.hpp"
 
 #include <cstring>
+#include <string>
+#include <utility>
 
 #include <fmt/format.h>
 #include <igtlMessageHeader.h>
@@ -131,14 +133,50 @@ Message stringMessage(std::string device, std::string text) {
   return m;
 }
 
+std::string asciiText(const std::string& text) {
+  // The signs our messages use, in words a US-ASCII reader shows; anything else becomes '?'.
+  static constexpr std::pair<const char*, const char*> kWords[] = {
+      {"\u03b8", "theta"},  {"\u00b0", " deg"},  {"\u00b1", "+/-"}, {"\u00b5", "u"},
+      {"\u03bb", "lambda"}, {"\u00d7", "x"},     {"\u2192", "->"},  {"\u2264", "<="},
+      {"\u2265", ">="},     {"\u2212", "-"},     {"\u2026", "..."}, {"\u2013", "-"},
+      {"\u2014", "-"},      {"\u00b2", "^2"},    {"\u00b3", "^3"},  {"\u2248", "~"},
+      {"\u03c6", "phi"},    {"\u03b3", "gamma"}, {"\u2202", "d"}};
+  std::string out;
+  out.reserve(text.size());
+  for (std::size_t i = 0; i < text.size();) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if (c < 0x80) {
+      out += (c >= 0x20 || c == '\n' || c == '\t') ? static_cast<char>(c) : ' ';
+      ++i;
+      continue;
+    }
+    bool named = false;
+    for (const auto& [utf8, word] : kWords) {
+      const std::size_t n = std::char_traits<char>::length(utf8);
+      if (text.compare(i, n, utf8) == 0) {
+        out += word;
+        i += n;
+        named = true;
+        break;
+      }
+    }
+    if (named) continue;
+    out += '?';
+    ++i;  // past the lead byte and its continuation bytes
+    while (i < text.size() && (static_cast<unsigned char>(text[i]) & 0xC0) == 0x80)
+      ++i;
+  }
+  return out;
+}
+
 Message statusMessage(std::string device, StatusCode code, std::string status_string,
                       std::string error_name) {
   Message m;
   m.type = "STATUS";
   m.device_name = std::move(device);
   m.status.code = static_cast<std::uint16_t>(code);
-  m.status.status_string = std::move(status_string);
-  m.status.error_name = std::move(error_name);
+  m.status.status_string = asciiText(status_string);
+  m.status.error_name = asciiText(error_name).substr(0, kMaxErrorName);
   return m;
 }
 

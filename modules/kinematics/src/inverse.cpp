@@ -99,20 +99,26 @@ Expected<InverseSolution> Kinematics::inverse(const Eigen::Vector3d& p) const {
   }
   InverseSolution s;
   const double r = std::hypot(p.x(), p.y());
-  if (r < r_min_mm_ - kLimitSlack_mm) {
-    s.reach = Reach::kInsideMinRadius;
-    s.excess_mm = r_min_mm_ - r;
-    return s;
-  }
-  if (r > r_max_mm_ + kLimitSlack_mm) {
-    s.reach = Reach::kBeyondMaxRadius;
-    s.excess_mm = r - r_max_mm_;
+  const double zc_max = instrument_.cannula_travel_mm;
+  if (r < r_min_mm_ - kLimitSlack_mm || r > r_max_mm_ + kLimitSlack_mm) {
+    const bool inside = r < r_min_mm_;
+    s.reach = inside ? Reach::kInsideMinRadius : Reach::kBeyondMaxRadius;
+    s.excess_mm = inside ? r_min_mm_ - r : r - r_max_mm_;
+    // Out of reach sideways; if it is further out of reach in depth (a point metres above the
+    // robot is not "inside the minimum radius"), that is the reason a person needs.
+    const double zc = tipDepthAtHome_mm(inside ? 0.0 : instrument_.stylet_travel_mm) - p.z();
+    if (-zc > s.excess_mm) {
+      s.reach = Reach::kTooShallow;
+      s.excess_mm = -zc;
+    } else if (zc - zc_max > s.excess_mm) {
+      s.reach = Reach::kTooDeep;
+      s.excess_mm = zc - zc_max;
+    }
     return s;
   }
   s.joints.theta_c_rad = rotationFor(p);
   s.joints.z_s_mm = styletForRadius_mm(r);
   double zc = tipDepthAtHome_mm(s.joints.z_s_mm) - p.z();
-  const double zc_max = instrument_.cannula_travel_mm;
   if (zc < -kLimitSlack_mm) {
     s.reach = Reach::kTooShallow;
     s.excess_mm = -zc;

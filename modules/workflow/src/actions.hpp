@@ -86,6 +86,7 @@ Refusal restartedInDoubt(Session& s, const Input& in, ActionOutput& out);
 Refusal restartedRobotInPlace(Session& s, const Input& in, ActionOutput& out);
 Refusal restartedIdle(Session& s, const Input& in, ActionOutput& out);
 Refusal stop(Session& s, const Input& in, ActionOutput& out);
+Refusal haltInPlace(Session& s, const Input& in, ActionOutput& out);
 Refusal emergencyStop(Session& s, const Input& in, ActionOutput& out);
 Refusal handOverTheRobot(Session& s, const Input& in, ActionOutput& out);
 Refusal checkReadiness(Session& s, const Input& in, ActionOutput& out);

@@ -42,7 +42,8 @@ const std::vector<InputSpec> kInputs = {
     {I::kUnlockPlan, "unlock_plan", 9, R::kPlanner, kCommand, kNone,
      "unlock the plan to edit it; a pending approval request dies"},
     {I::kStop, "stop", 10, R::kPlanner, kCommand, kNone,
-     "halt whatever is in progress (a move decelerates to rest) and wait in stopped"},
+     "halt whatever is in progress (a move decelerates to rest) and wait in stopped; already "
+     "stopped, manual, in an emergency or a fault: halt the controller again, the phase stays"},
     {I::kResume, "resume", 11, R::kApprover, kCommand | kNeedsReading, kNone,
      "back to the phase the first interruption left (a move in flight: plan_locked, planned "
      "again from where the robot stands; done when nothing is left); from manual, the motors' "

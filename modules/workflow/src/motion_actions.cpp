@@ -195,6 +195,15 @@ Refusal stop(Session& s, const Input& in, ActionOutput& out) {
   return std::nullopt;
 }
 
+// A stop while the robot is already interrupted (stopped, manual, emergency, fault): a stop
+// button must always stop, so the controller is told to halt again (a hand jog in manual, a
+// motor still coasting); the phase, and where resume would return, stay.
+Refusal haltInPlace(Session&, const Input&, ActionOutput& out) {
+  out.effects.controller.push_back(ControllerCommand::stop());
+  out.note = "halted; the robot stays interrupted";
+  return std::nullopt;
+}
+
 Refusal emergencyStop(Session& s, const Input& in, ActionOutput& out) {
   out.effects.controller.push_back(ControllerCommand::abort());  // whatever moves, halt it
   interruptMotion(s, out.effects, in.time_s, "emergency stop");

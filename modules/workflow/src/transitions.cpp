@@ -214,14 +214,16 @@ std::vector<Transition> buildTable() {
                  "back to the interrupted phase, position taken over"});
   }
   for (Phase p : kAllPhases) {
-    // A fault is left only by a reset with a position check (or an emergency stop).
-    // Manual control is left by resume (the robot is already halted and in someone's hands).
+    // A stop button always stops (issue 25). Where the robot is already interrupted it halts the
+    // controller again and the phase stays: a fault is left only by a reset with a position check
+    // (or an emergency stop), manual control by resume, an emergency by its reset.
     if (p != P::kStopped && p != P::kEmergency && p != P::kFault && p != P::kManual) {
       t.push_back({p, I::kStop, always, P::kStopped, stop, "stop"});
+    } else {
+      t.push_back({p, I::kStop, always, p, haltInPlace, "stop: halt again"});
     }
-    if (p != P::kEmergency) {
-      t.push_back({p, I::kEmergencyStop, always, P::kEmergency, emergencyStop, "EMERGENCY"});
-    }
+    // An emergency stop is always taken, an emergency's too: the controller is aborted again.
+    t.push_back({p, I::kEmergencyStop, always, P::kEmergency, emergencyStop, "EMERGENCY"});
     for (const auto& spec : inputTable()) {
       if (spec.traits & kEveryPhase) {
         t.push_back({p, spec.kind, always, p, everyPhaseAction(spec.kind), spec.name});

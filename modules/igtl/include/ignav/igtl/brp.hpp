@@ -39,10 +39,28 @@ Eigen::Matrix4d rasFromLps();
 // The client id (and role) of every input the bridge sends. DDS clients may not use it.
 inline constexpr const char* kBridgeClientId = "openigtlink";
 
+// The revisions of the BRP protocol a site meets (server.yaml openigtlink.protocol; the message
+// sequences of each, scenario by scenario: docs/OPENIGTLINK.md).
+enum class Revision {
+  // "slicer": what the current 3D Slicer module reads: the workphase in CURRENT_STATUS's status
+  // string, told on connect and on every change; REACHABLE_TARGET; ImageToRobot and
+  // NeedleTipToImage streamed.
+  kSlicer,
+  // "brp2013": the June 2013 revision exactly as its reference robots (the ProstateBRP
+  // communication test's robot, the WPI robot) write it, for clients that read strictly in order:
+  // nothing unasked; every command ACK_<id>, then CURRENT_STATUS (code 1, the requested
+  // workphase in the error-name field), then its result; PLANNING and CALIBRATION have none (the
+  // calibration's follows the CLB_ transform); TARGET; CURRENT_POSITION only.
+  kBrp2013,
+};
+const char* toString(Revision revision);  // "slicer" | "brp2013"
+std::optional<Revision> parseRevision(const std::string& text);
+
 struct BrpOptions {
   // OpenIGTLink has no authentication: MOVE_TO_TARGET approves the motion only when a site
   // enables this (and lists kBridgeClientId as an approver); otherwise a DDS approver must.
   bool allow_motion_approval = false;
+  Revision revision = Revision::kSlicer;
 };
 
 struct BrpOutgoing {
@@ -92,6 +110,11 @@ class BrpBridge {
   // The next input of a command (an approval is filled in from the session's pending request).
   void dispatch(Pending p, const workflow::Session& s, BrpOutput& out);
   Message currentStatus(const workflow::Session& s) const;
+  bool brp2013() const { return options_.revision == Revision::kBrp2013; }
+  // A refusal in the user's words: a command the phase does not allow says what the robot is
+  // doing and what to send instead, not the core's input names.
+  Message refusal(const char* device, const workflow::Reply& reply, Workphase asked,
+                  const workflow::Session& s) const;
   void reportCurrentStatus(std::uint64_t client, const workflow::Session& s, BrpOutput& out);
 
   BrpOptions options_;
@@ -100,6 +123,7 @@ class BrpBridge {
   std::optional<Workphase> last_accepted_;    // none yet (or a replay: then from the phase)
   std::optional<std::pair<Workphase, std::uint16_t>> last_reported_;
   workflow::Phase last_phase_ = workflow::Phase::kStartup;
+  bool halt_asked_ = false;  // a STOP / EMERGENCY of a client's interrupted the move
   std::optional<Eigen::Matrix4d> last_registration_;
 };
 
@@ -107,8 +131,14 @@ class BrpBridge {
 // robot frame's axes. Nothing without a registration.
 std::optional<Eigen::Matrix4d> tipToImageRas(const workflow::Session& s,
                                              const actuation::Steps& steps);
-// The core's rejection as a BRP STATUS code: panic in an emergency, manual mode, hardware
-// failure, configuration error for bad values, not ready for the rest.
-StatusCode statusCodeFor(const std::string& error_code, workflow::Phase phase);
+// The core's rejection as a BRP STATUS code. slicer: panic in an emergency, manual mode, hardware
+// failure, configuration error for bad values, not ready for the rest. brp2013 (as its reference
+// robots): configuration error for bad values, not ready for everything else.
+StatusCode statusCodeFor(const std::string& error_code, workflow::Phase phase,
+                         Revision revision = Revision::kSlicer);
+// The error-name field for a reply code of the core (docs/PROTOCOL.md): the code itself, or a
+// short form of it where it is longer than the field's 19 characters (docs/OPENIGTLINK.md lists
+// them).
+std::string errorNameFor(const std::string& error_code);
 
 }  // namespace ignav::igtl

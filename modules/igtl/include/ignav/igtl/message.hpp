@@ -52,8 +52,13 @@ struct Message {
 };
 
 Message stringMessage(std::string device, std::string text);
+// A STATUS. Its status string and error name go out as US-ASCII (asciiText), the error name cut
+// to its field's 19 characters.
 Message statusMessage(std::string device, StatusCode code, std::string status_string = {},
                       std::string error_name = {});
+// `text` in US-ASCII, which OpenIGTLink's STATUS strings are: θ -> "theta", ° -> " deg", ± ->
+// "+/-", → -> "->" and the like; any other non-ASCII character -> '?'; control characters -> ' '.
+std::string asciiText(const std::string& text);
 Message transformMessage(std::string device, const Eigen::Matrix4d& matrix);
 // GET_STATUS, GET_TRANS (OpenIGTLink's GET_TRANSFORM: type names have at most 12 characters).
 Message queryMessage(std::string type, std::string device);
