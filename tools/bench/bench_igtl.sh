@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # Round trips through ignav-server's OpenIGTLink bridge on loopback (docs/PERFORMANCE.md).
-#   tools/bench/bench_igtl.sh [ROUNDS] [SESSION_PARENT] [REVISION=slicer|brp2013] [DOMAIN=92]
+#   tools/bench/bench_igtl.sh [ROUNDS] [SESSION_PARENT] [REVISION=slicer|brp2013]
+# IGNAV_BENCH_DOMAIN (default 92): the DDS domain; the bridge takes a free port.
 # SESSION_PARENT defaults to a disk folder; pass /dev/shm to take the journal's fsync off disk.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 rounds=${1:-1000}
 parent=${2:-out/bench}
 revision=${3:-slicer}
-domain=${4:-92}
+domain=${IGNAV_BENCH_DOMAIN:-92}
 mkdir -p "$parent"
 session=$(mktemp -d "$parent/igtl.XXXXXX")
 build/server/ignav-server --config configs/server.yaml --domain "$domain" --session-dir "$session" \

@@ -4,12 +4,13 @@
 #   tools/bench/bench_load.sh soak [CYCLES=60] [TARGETS_PER_CYCLE=5]
 # SESSION_PARENT (env, default out/bench) holds the session folder; /dev/shm takes the journal's
 # fsync off disk. The server runs the simulated controller, fast (--controller-speed 40000).
+# IGNAV_BENCH_DOMAIN (default 92): the DDS domain.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 mode=${1:-load}
 parent=${SESSION_PARENT:-out/bench}
 xml=configs/dds/loopback.xml
-domain=92
+domain=${IGNAV_BENCH_DOMAIN:-92}
 mkdir -p "$parent"
 session=$(mktemp -d "$parent/load.XXXXXX")
 build/server/ignav-server --config configs/server.yaml --domain $domain --session-dir "$session" \

@@ -2,17 +2,19 @@
 # Round trips through the web viewer's gateway (bench_web), with ignav-server and ignav-web on
 # loopback; then the same server round trips without the gateway (bench_latency) for comparison.
 #   tools/bench/bench_web.sh [ROUNDS] [SESSION_PARENT]
+# IGNAV_BENCH_DOMAIN (default 94): the DDS domain; the gateway takes a free port.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 rounds=${1:-500}
 parent=${2:-out/bench}
 xml=configs/dds/loopback.xml
+domain=${IGNAV_BENCH_DOMAIN:-94}
 mkdir -p "$parent"
 session=$(mktemp -d "$parent/web.XXXXXX")
-build/server/ignav-server --config configs/server.yaml --domain 94 --session-dir "$session" \
+build/server/ignav-server --config configs/server.yaml --domain "$domain" --session-dir "$session" \
   --insecure > "$session.ready" 2> "$session.log" &
 server=$!
-build/tools/ignav-web/ignav-web --dds-config "$xml" --domain 94 --port 0 --client-id operator \
+build/tools/ignav-web/ignav-web --dds-config "$xml" --domain "$domain" --port 0 --client-id operator \
   > "$session.web" 2> "$session.weblog" &
 web=$!
 trap 'kill $server $web 2>/dev/null || true; rm -rf "$session" "$session".*' EXIT
