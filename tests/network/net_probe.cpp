@@ -50,7 +50,9 @@ std::int64_t monotonicNs() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
 }
 
-bool exists(const std::string& path) { return !path.empty() && ::access(path.c_str(), F_OK) == 0; }
+bool exists(const std::string& path) {
+  return !path.empty() && ::access(path.c_str(), F_OK) == 0;
+}
 
 struct Options {
   std::uint32_t domain = 0;
@@ -64,7 +66,9 @@ struct Connection {
   std::string xml;
   std::optional<ignav::protocol::SecurityIdentity> identity;
   std::string robot;
-  const ignav::protocol::SecurityIdentity* secure() const { return identity ? &*identity : nullptr; }
+  const ignav::protocol::SecurityIdentity* secure() const {
+    return identity ? &*identity : nullptr;
+  }
 };
 
 Connection connect(const Options& o) {
@@ -114,9 +118,7 @@ int watch(const Options& o) {
   std::ifstream(o.stop_file) >> final_revision;
   const auto start = std::chrono::steady_clock::now();
   const auto give_up = start + 60s;
-  auto revision = [&] {
-    return client.mirror().workflow ? client.mirror().workflow->revision : 0;
-  };
+  auto revision = [&] { return client.mirror().workflow ? client.mirror().workflow->revision : 0; };
   while (revision() < final_revision && std::chrono::steady_clock::now() < give_up) {
     takeReplies();
     client.poll();
@@ -130,8 +132,8 @@ int watch(const Options& o) {
   client.poll();
   const double waited_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  writeFile(o.out, json{{"replies", seen}, {"state", client.state()}, {"waited_ms", waited_ms}}
-                       .dump(1));
+  writeFile(o.out,
+            json{{"replies", seen}, {"state", client.state()}, {"waited_ms", waited_ms}}.dump(1));
   return 0;
 }
 
