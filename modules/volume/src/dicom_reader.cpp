@@ -649,6 +649,9 @@ Expected<DicomLoadResult> readDicomSeries(const std::vector<std::string>& paths,
       const std::size_t m = members[i];
       Status ok = decodeFile(headers[m], *datasets[m]->getDataset(), frames_of_file[m], layout,
                              scratch, vol);
+      // Done with this file: a compressed one holds its decoded frames in the dataset, and kept
+      // to the end they doubled the peak memory (issue 28). Each file is one worker's alone.
+      datasets[m].reset();
       if (!ok) {
         const std::lock_guard<std::mutex> lock(error_mutex);
         if (i < error_index) {
