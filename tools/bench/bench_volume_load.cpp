@@ -1,5 +1,6 @@
 // Loads a DICOM series N times with ignav's reader alone (no CLI, no other libraries) and
 // prints the median wall time, MB/s and the peak RSS. Used by bench_volume_load.sh.
+//   bench_volume_load SERIES_DIR [runs=5] [threads=0: every core, at most 8]
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -13,11 +14,12 @@
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: bench_volume_load SERIES_DIR [runs=5]\n");
+    std::fprintf(stderr, "usage: bench_volume_load SERIES_DIR [runs=5] [threads=0]\n");
     return 2;
   }
   const std::string dir = argv[1];
   const int runs = argc > 2 ? std::max(1, std::atoi(argv[2])) : 5;
+  const int threads = argc > 3 ? std::max(0, std::atoi(argv[3])) : 0;
   std::uintmax_t bytes = 0;
   for (const auto& e : std::filesystem::directory_iterator(dir))
     bytes += e.file_size();
@@ -27,6 +29,7 @@ int main(int argc, char** argv) {
     const auto t0 = std::chrono::steady_clock::now();
     auto scan_end = t0;
     ignav::volume::DicomLoadOptions options;
+    options.threads = threads;
     options.progress = [&](const ignav::volume::Progress& p) {
       if (p.stage == "scan") scan_end = std::chrono::steady_clock::now();
     };
