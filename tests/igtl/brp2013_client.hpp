@@ -30,6 +30,8 @@
 #include <igtlTransformMessage.h>
 #include <Eigen/Core>
 
+#include "igtl_matrix.hpp"
+
 namespace ignav::brp2013_test {
 
 using Clock = std::chrono::steady_clock;
@@ -119,11 +121,7 @@ class StrictClient {
   void sendTransform(const std::string& device, const Eigen::Matrix4d& matrix) {
     auto m = igtl::TransformMessage::New();
     m->SetDeviceName(device.c_str());
-    igtl::Matrix4x4 f;
-    for (int r = 0; r < 4; ++r)
-      for (int c = 0; c < 4; ++c)
-        f[r][c] = static_cast<float>(matrix(r, c));
-    m->SetMatrix(f);
+    igtl_test::setMatrix(*m, matrix);
     m->Pack();
     std::ostringstream t;
     t << "> TRANSFORM(" << device << ", t = (" << matrix(0, 3) << ", " << matrix(1, 3) << ", "
@@ -193,11 +191,7 @@ class StrictClient {
       auto t = igtl::TransformMessage::New();
       if (!read_body(t)) return std::nullopt;
       m.crc_ok = (t->Unpack(1) & igtl::MessageHeader::UNPACK_BODY) != 0;
-      igtl::Matrix4x4 f;
-      t->GetMatrix(f);
-      for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j)
-          m.matrix(i, j) = static_cast<double>(f[i][j]);
+      m.matrix = igtl_test::matrixOf(*t);
     } else {
       std::string skip(static_cast<std::size_t>(body_size), '\0');
       if (!skip.empty() &&

@@ -12,9 +12,6 @@
 // (0, 0, 0) with an identity calibration; our tips are 135-200 mm below the base), the CLB maps
 // the suite's target onto a reachable point instead: identity rotation, a translation.
 #include <gtest/gtest.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
@@ -314,19 +311,6 @@ void expectAtRest(protocol::Client& viewer, const std::string& phase, const std:
   EXPECT_EQ(motionSnapshot(viewer), before) << "the robot is still moving";
 }
 
-// A controller address where nothing listens.
-int closedPort() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t n = sizeof a;
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &n);
-  ::close(fd);
-  return ntohs(a.sin_port);
-}
-
 std::string lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
@@ -351,7 +335,8 @@ TEST(Brp2013, NormalOperation) {
 // Test 2: the controller cannot be reached. START_UP answers "not ready" (13).
 TEST(Brp2013, StartUpError) {
   ServerProcess server(
-      201, brp2013({"--controller", "galil:127.0.0.1:" + std::to_string(closedPort())}));
+      201,
+      brp2013({"--controller", "galil:127.0.0.1:" + std::to_string(test::closedLoopbackPort())}));
   ASSERT_GT(server.igtlPort(), 0) << "the server did not start";
   Navigation nav(server.igtlPort());
   ASSERT_NO_FATAL_FAILURE(nav.connect());

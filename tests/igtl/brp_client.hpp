@@ -20,6 +20,8 @@
 #include <igtlTransformMessage.h>
 #include <Eigen/Core>
 
+#include "igtl_matrix.hpp"
+
 namespace ignav::brp_test {
 
 struct Received {
@@ -60,11 +62,7 @@ class BrpClient {
   void sendTransform(const std::string& device, const Eigen::Matrix4d& matrix) {
     auto m = igtl::TransformMessage::New();
     m->SetDeviceName(device.c_str());
-    igtl::Matrix4x4 f;
-    for (int r = 0; r < 4; ++r)
-      for (int c = 0; c < 4; ++c)
-        f[r][c] = static_cast<float>(matrix(r, c));
-    m->SetMatrix(f);
+    igtl_test::setMatrix(*m, matrix);
     m->Pack();
     socket_->Send(m->GetPackPointer(), m->GetPackSize());
   }
@@ -162,11 +160,7 @@ class BrpClient {
       r.status_string = m->GetStatusString();
     } else if (r.type == "TRANSFORM") {
       auto m = body(igtl::TransformMessage::New());
-      igtl::Matrix4x4 f;
-      m->GetMatrix(f);
-      for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j)
-          r.matrix(i, j) = f[i][j];
+      r.matrix = igtl_test::matrixOf(*m);
     } else {
       std::string skip(header->GetBodySizeToRead(), '\0');
       if (!skip.empty()) receiveExactly(skip.data(), static_cast<int>(skip.size()), until);

@@ -312,18 +312,7 @@ TEST(BrpE2E, OutOfRangeTarget) {
 }
 
 TEST(BrpE2E, StartUpError) {
-  // A controller address where nothing listens.
-  const int closed_port = [] {
-    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-    socklen_t n = sizeof a;
-    ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &n);
-    ::close(fd);
-    return ntohs(a.sin_port);
-  }();
+  const int closed_port = test::closedLoopbackPort();
   ServerProcess server(167, {"--controller", "galil:127.0.0.1:" + std::to_string(closed_port)});
   Navigation nav(server.igtlPort());
   ASSERT_NO_FATAL_FAILURE(nav.expectOpening());

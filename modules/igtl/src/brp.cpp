@@ -102,19 +102,6 @@ std::optional<Eigen::Matrix4d> tipToImageRas(const workflow::Session& s,
 }
 
 StatusCode statusCodeFor(const std::string& error_code, Phase phase, Revision revision) {
-  if (revision == Revision::kBrp2013) {
-    // The reference robots know OK, configuration error and not ready, and a hardware failure
-    // for a robot that failed on its way.
-    if (phase == Phase::kFault) return StatusCode::kHardwareFailure;
-    return statusCodeFor(error_code, Phase::kPlanning) == StatusCode::kConfigurationError
-               ? StatusCode::kConfigurationError
-               : StatusCode::kNotReady;
-  }
-  if (phase == Phase::kEmergency) return StatusCode::kPanic;
-  if (phase == Phase::kManual) return StatusCode::kManualMode;
-  static const std::set<std::string> hardware = {"controller_fault", "controller_unavailable",
-                                                 "controller_changed"};
-  if (phase == Phase::kFault || hardware.count(error_code)) return StatusCode::kHardwareFailure;
   // Values the core refused (as opposed to a robot or workflow that is not ready for them).
   static const std::set<std::string> values = {
       "bad_arguments",       "non_finite",       "out_of_range",
@@ -122,7 +109,19 @@ StatusCode statusCodeFor(const std::string& error_code, Phase phase, Revision re
       "not_similarity",      "mirror",           "scale_out_of_range",
       "unreachable",         "too_many_targets", "unknown_target",
       "unreachable_targets", "outside_volume"};
-  return values.count(error_code) ? StatusCode::kConfigurationError : StatusCode::kNotReady;
+  const bool bad_value = values.count(error_code) > 0;
+  if (revision == Revision::kBrp2013) {
+    // The reference robots know OK, configuration error and not ready, and a hardware failure
+    // for a robot that failed on its way.
+    if (phase == Phase::kFault) return StatusCode::kHardwareFailure;
+    return bad_value ? StatusCode::kConfigurationError : StatusCode::kNotReady;
+  }
+  if (phase == Phase::kEmergency) return StatusCode::kPanic;
+  if (phase == Phase::kManual) return StatusCode::kManualMode;
+  static const std::set<std::string> hardware = {"controller_fault", "controller_unavailable",
+                                                 "controller_changed"};
+  if (phase == Phase::kFault || hardware.count(error_code)) return StatusCode::kHardwareFailure;
+  return bad_value ? StatusCode::kConfigurationError : StatusCode::kNotReady;
 }
 
 BrpBridge::BrpBridge(BrpOptions options, std::uint64_t first_request_id)
