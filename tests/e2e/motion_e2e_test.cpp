@@ -248,6 +248,8 @@ TEST(MotionE2E, BadControllerAndApprovalOptionsNameTheKey) {
       {"planning: {max_targets: 101}", "server.planning.max_targets: 101 is not within 1..100"},
       {"planning: {max_total_rotation_deg: 400}",
        "server.planning.max_total_rotation_deg: 400 is not within (0, 360]"},
+      {"openigtlink: {protocol: brp2012}",
+       "server.openigtlink.protocol: 'brp2012' is not a BRP revision: slicer"},
   };
   for (const auto& c : cases) {
     const auto file = dir / "server.yaml";
