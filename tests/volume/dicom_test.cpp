@@ -1,6 +1,9 @@
 // The DICOM reader against real third-party files (Debian's python3-pydicom test data) and the
 // phantom series. Reference values were read with pydicom (dcmread(...).pixel_array and the
 // geometry tags), an implementation independent of DCMTK.
+#include <dcmtk/config/osconfig.h>  // must come first
+#include <dcmtk/dcmdata/dcdeftag.h>
+#include <dcmtk/dcmdata/dcfilefo.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <sstream>
 
 #include "ignav/volume/dicom.hpp"
 #include "ignav/volume/phantom.hpp"
@@ -253,6 +257,99 @@ TEST(Phantom, FiducialsAreBrightWhereTheyWereAsked) {
     EXPECT_GT(v.sampleLps(f, -2000), 2000.0);
   EXPECT_NEAR(v.sampleLps({0, 0, 0}, -2000), spec.box_hu, 1e-9);   // gelatin
   EXPECT_NEAR(v.sampleLps({36, 0, 0}, -2000), spec.air_hu, 1e-9);  // air outside the box
+}
+
+// Compressed series are decoded frame by frame into the reader's own buffer (issue 28). DCMTK's
+// command-line encoders (package dcmtk, run as separate processes) compress a phantom series
+// losslessly; every encoding must read back to exactly the phantom's voxels, on one thread and on
+// two.
+std::vector<std::string> compressEach(const std::vector<std::string>& files, const fs::path& to,
+                                      const std::string& encoder) {
+  fs::create_directories(to);
+  std::vector<std::string> out;
+  for (const auto& f : files) {
+    const std::string dst = (to / fs::path(f).filename()).string();
+    const std::string cmd = encoder + " \"" + f + "\" \"" + dst + "\"";
+    EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd << ": DCMTK's encoders (package dcmtk)";
+    out.push_back(dst);
+  }
+  return out;
+}
+
+TEST(Phantom, LosslessCompressedSeriesReadBackExactly) {
+  PhantomSpec spec;
+  spec.dims = {48, 40, 12};
+  spec.noise_sigma_hu = 20.0;  // so that every codec has real entropy to code
+  const Volume made = makePhantom(spec).value();
+  const fs::path dir = testing::scratchDir();
+  const auto files = writeDicomSeries(made, (dir / "native").string()).value();
+  // JPEG lossless (process 14, first-order and predictor 6), JPEG-LS, RLE; one with an empty
+  // basic offset table and 1 KB fragments, so that the frame's fragments must be found by walking.
+  const std::vector<std::pair<std::string, std::string>> encoders = {
+      {"jpeg_sv1", "dcmcjpeg +e1"},
+      {"jpeg_sv6", "dcmcjpeg +el +sv 6"},
+      {"jpeg_ls", "dcmcjpls"},
+      {"rle", "dcmcrle"},
+      {"jpeg_ls_fragments", "dcmcjpls -ot +fs 1"}};
+  for (const auto& [name, encoder] : encoders) {
+    compressEach(files, dir / name, encoder);
+    for (int threads : {1, 2}) {
+      DicomLoadOptions options;
+      options.threads = threads;
+      const auto r = readDicomSeries({(dir / name).string()}, options);
+      ASSERT_TRUE(r.ok()) << name << ": " << r.error().message;
+      EXPECT_EQ(r->volume.voxels, made.voxels) << name << ", " << threads << " threads";
+      EXPECT_TRUE(r->volume.geometry.ijkToLps().isApprox(made.geometry.ijkToLps(), 1e-9)) << name;
+    }
+  }
+}
+
+// One legacy multi-frame file (as RT dose and some CT exports): the slices' pixels as frames,
+// placed by GridFrameOffsetVector; made with DCMTK's API from the single-frame files.
+std::string joinFrames(const std::vector<std::string>& slices, double spacing_mm,
+                       const fs::path& out) {
+  DcmFileFormat joined;
+  EXPECT_TRUE(joined.loadFile(slices.front().c_str()).good());
+  DcmDataset* ds = joined.getDataset();
+  std::vector<Uint16> pixels;
+  std::ostringstream offsets;
+  for (std::size_t f = 0; f < slices.size(); ++f) {
+    DcmFileFormat one;
+    EXPECT_TRUE(one.loadFile(slices[f].c_str()).good());
+    const Uint16* p = nullptr;
+    unsigned long n = 0;
+    EXPECT_TRUE(one.getDataset()->findAndGetUint16Array(DCM_PixelData, p, &n).good());
+    pixels.insert(pixels.end(), p, p + n);
+    offsets << (f ? "\\" : "") << static_cast<double>(f) * spacing_mm;
+  }
+  ds->putAndInsertUint16Array(DCM_PixelData, pixels.data(), pixels.size());
+  ds->putAndInsertString(DCM_NumberOfFrames, std::to_string(slices.size()).c_str());
+  ds->putAndInsertString(DCM_GridFrameOffsetVector, offsets.str().c_str());
+  fs::create_directories(out.parent_path());
+  EXPECT_TRUE(joined.saveFile(out.c_str(), EXS_LittleEndianExplicit).good());
+  return out.string();
+}
+
+TEST(Phantom, CompressedMultiFrameFileReadsBackExactly) {
+  PhantomSpec spec;
+  spec.dims = {40, 32, 9};
+  spec.noise_sigma_hu = 20.0;
+  const Volume made = makePhantom(spec).value();
+  const fs::path dir = testing::scratchDir();
+  const auto files = writeDicomSeries(made, (dir / "native").string()).value();
+  const std::string multi =
+      joinFrames(files, made.geometry.spacing_mm.z(), dir / "multi" / "volume.dcm");
+  const auto native = readDicomSeries({multi});
+  ASSERT_TRUE(native.ok()) << native.error().message;
+  ASSERT_EQ(native->volume.voxels, made.voxels);
+  // Fragments found by walking (no offset table, several per frame) and from the table.
+  for (const std::string encoder : {"dcmcjpls -ot +fs 1", "dcmcjpeg +e1", "dcmcrle -ot"}) {
+    const auto packed =
+        compressEach({multi}, dir / ("packed" + std::to_string(encoder.size())), encoder);
+    const auto r = readDicomSeries({packed.front()});
+    ASSERT_TRUE(r.ok()) << encoder << ": " << r.error().message;
+    EXPECT_EQ(r->volume.voxels, made.voxels) << encoder;
+  }
 }
 
 TEST(Phantom, MissingAndDuplicateSlicesAreDetected) {

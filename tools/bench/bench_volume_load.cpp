@@ -1,18 +1,78 @@
 // Loads a DICOM series N times with ignav's reader alone (no CLI, no other libraries) and
 // prints the median wall time, MB/s and the peak RSS. Used by bench_volume_load.sh.
 //   bench_volume_load SERIES_DIR [runs=5] [threads=0: every core, at most 8]
+//   bench_volume_load --read-loop SERIES_DIR   (the I/O limit: read(2) every file, decode nothing)
+//   bench_volume_load --read-into SERIES_DIR   (the same into one fresh buffer of all the bytes:
+//                                               the I/O and fresh-memory limit of a new process)
+#include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "ignav/volume/dicom.hpp"
 
+namespace {
+
+// Reads every file of `dir` whole, one thread, in name order as a reader would: into one reused
+// 1 MiB buffer (what any reader pays before decoding a voxel), or `into_fresh_memory`, one after
+// the other into a buffer as large as all of them (a new process also pays for the kernel to hand
+// over, zeroed, the pages its volume will live in).
+int readLoop(const std::string& dir, bool into_fresh_memory) {
+  std::vector<std::filesystem::path> files;
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  std::uintmax_t all_bytes = 0;
+  for (const auto& f : files)
+    all_bytes += std::filesystem::file_size(f);
+  const std::size_t chunk = 1 << 20;
+  // Uninitialised, so the pages are first touched by read(2), and in transparent huge pages as the
+  // reader's voxels are (4 KiB pages cost this VM 3-5x more to fault in).
+  const std::size_t huge_page = std::size_t{2} << 20;
+  const std::size_t size =
+      ((into_fresh_memory ? all_bytes + chunk : chunk) + huge_page - 1) / huge_page * huge_page;
+  const std::unique_ptr<char, decltype(&std::free)> buffer(
+      static_cast<char*>(std::aligned_alloc(huge_page, size)), &std::free);
+  if (!buffer) return 1;
+  madvise(buffer.get(), size, MADV_HUGEPAGE);
+  std::uintmax_t total = 0;
+  for (const auto& f : files) {
+    const int fd = ::open(f.c_str(), O_RDONLY);
+    if (fd < 0) {
+      std::perror(f.c_str());
+      return 1;
+    }
+    for (;;) {
+      char* to = buffer.get() + (into_fresh_memory ? total : 0);
+      const ssize_t n = ::read(fd, to, chunk);
+      if (n < 0) {
+        std::perror(f.c_str());
+        ::close(fd);
+        return 1;
+      }
+      if (n == 0) break;
+      total += static_cast<std::uintmax_t>(n);
+    }
+    ::close(fd);
+  }
+  std::printf("read %ju bytes in %zu files\n", total, files.size());
+  return 0;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  if (argc == 3 && std::string(argv[1]) == "--read-loop") return readLoop(argv[2], false);
+  if (argc == 3 && std::string(argv[1]) == "--read-into") return readLoop(argv[2], true);
   if (argc < 2) {
     std::fprintf(stderr, "usage: bench_volume_load SERIES_DIR [runs=5] [threads=0]\n");
     return 2;

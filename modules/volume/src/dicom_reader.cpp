@@ -6,6 +6,7 @@
 #include <dcmtk/dcmdata/dcfcache.h>
 #include <dcmtk/dcmdata/dcfilefo.h>
 #include <dcmtk/dcmdata/dcmetinf.h>
+#include <dcmtk/dcmdata/dcpixel.h>
 #include <dcmtk/dcmdata/dcrledrg.h>
 #include <dcmtk/dcmdata/dcuid.h>
 #include <dcmtk/dcmjpeg/djdecode.h>
@@ -362,9 +363,11 @@ struct PixelLayout {
   double slope = 1.0, intercept = 0.0;
 };
 
-// Decodes the listed frames of one file into their slices of `volume`. Compressed data is decoded
-// by DCMTK as a whole; native data is read frame by frame from the file into `scratch` (no
-// per-file allocation, no copy of the whole element).
+// Decodes the listed frames of one file into their slices of `volume`, one frame at a time into
+// `scratch` (one frame, reused): native data is read from the file, compressed data decoded by
+// DCMTK's codec straight into it. Nothing else is allocated per file, and the dataset never holds
+// a decoded copy (issue 28: that doubled the peak memory of a compressed series, and the fresh
+// pages of a decoded copy per file were page faults that kept two threads from scaling).
 Status decodeFile(const FileHeader& h, DcmDataset& ds,
                   const std::vector<std::pair<int, int>>& frames, const PixelLayout& L,
                   std::vector<Uint16>& scratch, Volume& volume) {
@@ -383,40 +386,42 @@ Status decodeFile(const FileHeader& h, DcmDataset& ds,
                          std::to_string(needed_bytes) + " expected (truncated or malformed file)");
   };
   const bool encapsulated = DcmXfer(xfer).isEncapsulated();
-  const Uint8* decoded8 = nullptr;
-  const Uint16* decoded16 = nullptr;
   DcmElement* pixel_element = nullptr;
-  if (encapsulated) {
-    if (ds.chooseRepresentation(EXS_LittleEndianExplicit, nullptr).bad()) {
-      return makeError(ErrorCode::kUnsupported, h.path + ": cannot decompress transfer syntax " +
-                                                    DcmXfer(xfer).getXferName());
-    }
-    unsigned long count = 0;
-    const OFCondition got = L.bits_allocated == 8
-                                ? ds.findAndGetUint8Array(DCM_PixelData, decoded8, &count)
-                                : ds.findAndGetUint16Array(DCM_PixelData, decoded16, &count);
-    count *= static_cast<unsigned long>(L.bits_allocated / 8);
-    if (got.bad() || count < needed_bytes) return truncated(count);
-  } else if (ds.findAndGetElement(DCM_PixelData, pixel_element).bad() ||
-             pixel_element->getLength() < needed_bytes) {
-    return truncated(pixel_element ? pixel_element->getLength() : 0);
+  if (ds.findAndGetElement(DCM_PixelData, pixel_element).bad()) return truncated(0);
+  auto* pixel_data = dynamic_cast<DcmPixelData*>(pixel_element);  // what DCMTK makes of (7FE0,0010)
+  if (encapsulated && pixel_data == nullptr) return truncated(0);
+  if (!encapsulated && pixel_element->getLength() < needed_bytes) {
+    return truncated(pixel_element->getLength());
   }
+  // Frames of one file come in increasing order; DCMTK finds a frame's first fragment from where
+  // the previous one ended (needed when the basic offset table is empty).
+  Uint32 start_fragment = 0;
+  int next_frame = 0;
   DcmFileCache file_cache;  // keeps the file open across this file's frames
   for (const auto& [frame, k] : frames) {
     const std::size_t offset = L.frame_bytes * static_cast<std::size_t>(frame);
-    const std::size_t first = L.plane * static_cast<std::size_t>(frame);
-    const Uint8* raw8 = decoded8 ? decoded8 + first : nullptr;
-    const Uint16* raw16 = decoded16 ? decoded16 + first : nullptr;
-    if (!encapsulated) {
-      if (pixel_element
-              ->getPartialValue(scratch.data(), static_cast<Uint32>(offset),
-                                static_cast<Uint32>(L.frame_bytes), &file_cache, gLocalByteOrder)
-              .bad()) {
-        return truncated(offset);
+    if (encapsulated) {
+      if (frame != next_frame) start_fragment = 0;
+      OFString colour_model;
+      const OFCondition c = pixel_data->getUncompressedFrame(
+          &ds, static_cast<Uint32>(frame), start_fragment, scratch.data(),
+          static_cast<Uint32>(L.frame_bytes), colour_model, &file_cache);
+      if (c.bad()) {
+        return makeError(ErrorCode::kFormat, h.path + ": frame " + std::to_string(frame + 1) +
+                                                 " of " + DcmXfer(xfer).getXferName() +
+                                                 " pixel data cannot be decoded (" + c.text() +
+                                                 ")");
       }
-      raw16 = scratch.data();
-      raw8 = reinterpret_cast<const Uint8*>(scratch.data());  // char-typed view: allowed
+      next_frame = frame + 1;
+    } else if (pixel_element
+                   ->getPartialValue(scratch.data(), static_cast<Uint32>(offset),
+                                     static_cast<Uint32>(L.frame_bytes), &file_cache,
+                                     gLocalByteOrder)
+                   .bad()) {
+      return truncated(offset);
     }
+    const Uint16* raw16 = scratch.data();
+    const Uint8* raw8 = reinterpret_cast<const Uint8*>(scratch.data());  // char-typed view
     std::int16_t* out = volume.voxels.data() + L.plane * static_cast<std::size_t>(k);
     const auto [lo, hi] = L.bits_allocated == 8
                               ? convertFrame(raw8, out, L.plane, L.mask, L.sign_bit, L.shift)
@@ -649,8 +654,7 @@ Expected<DicomLoadResult> readDicomSeries(const std::vector<std::string>& paths,
       const std::size_t m = members[i];
       Status ok = decodeFile(headers[m], *datasets[m]->getDataset(), frames_of_file[m], layout,
                              scratch, vol);
-      // Done with this file: a compressed one holds its decoded frames in the dataset, and kept
-      // to the end they doubled the peak memory (issue 28). Each file is one worker's alone.
+      // Done with this file: its parsed header and fragments go now (each file is one worker's).
       datasets[m].reset();
       if (!ok) {
         const std::lock_guard<std::mutex> lock(error_mutex);
