@@ -6,8 +6,11 @@
 #include <chrono>
 #include <exception>
 #include <fstream>
+#include <memory>
+#include <mutex>
 #include <utility>
 
+#include "ignav/kinematics/reachable_region.hpp"
 #include "ignav/registration/slicer_export.hpp"
 #include "ignav/verification/targeting_report.hpp"
 #include "ignav/volume/slice.hpp"
@@ -41,6 +44,21 @@ bool writeAtomically(const fs::path& path, const char* data, std::size_t size) {
   return !ec;
 }
 
+// The robot's ReachableRegion, made once (its table takes ~16k inverse solves, ~7 ms) and
+// kept while the robot is; the slices and reports threads share it.
+std::shared_ptr<const kinematics::ReachableRegion> reachableRegionOf(
+    const std::shared_ptr<const config::Robot>& robot) {
+  static std::mutex mutex;
+  static std::weak_ptr<const config::Robot> cached_robot;
+  static std::shared_ptr<const kinematics::ReachableRegion> cached;
+  const std::lock_guard<std::mutex> lock(mutex);
+  if (!cached || cached_robot.lock() != robot) {
+    cached = std::make_shared<const kinematics::ReachableRegion>(robot->kinematics);
+    cached_robot = robot;
+  }
+  return cached;
+}
+
 }  // namespace
 
 volume::Overlays overlaysFor(const Session& session) {
@@ -49,15 +67,17 @@ volume::Overlays overlaysFor(const Session& session) {
     for (std::size_t i = 0; i < reg->image_mm.size(); ++i) {
       o.points.push_back({reg->image_mm[i], "F" + std::to_string(i + 1), {255, 255, 0}, 4});
     }
-    const auto robot = session.robot;
+    const auto region = reachableRegionOf(session.robot);
     const registration::Registration r = *reg;
-    o.regions.push_back({[robot, r](const Eigen::Vector3d& lps) {
-                           const auto s = robot->kinematics.inverse(r.toRobot(lps));
-                           return s.ok() && s->reachable();
-                         },
-                         {},
-                         {0, 200, 80},
-                         0.25});
+    std::vector<Eigen::Vector3d> bounds;
+    for (const Eigen::Vector3d& corner : region->boundingBox())
+      bounds.push_back(r.toImage(corner));
+    o.regions.push_back(
+        {[region, r](const Eigen::Vector3d& lps) { return region->contains(r.toRobot(lps)); },
+         std::move(bounds),
+         {},
+         {0, 200, 80},
+         0.25});
   }
   for (const auto& t : session.targets) {
     const volume::Rgb colour = !t.registered   ? volume::Rgb{160, 160, 160}

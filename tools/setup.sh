@@ -9,7 +9,7 @@ packages=(
   # math, config, logging, CLI
   libeigen3-dev libyaml-cpp-dev nlohmann-json3-dev libspdlog-dev libfmt-dev libcli11-dev
   # images, point clouds, DICOM
-  libopencv-dev libpcl-dev libdcmtk-dev dcmtk zlib1g-dev libpng-dev
+  libopencv-dev libpcl-dev libdcmtk-dev dcmtk zlib1g-dev libpng-dev libdeflate-dev
   # ODE integration (Boost.Odeint, header-only) for the needle-deflection model
   libboost-dev
   # SHA-256 digests of motion plans (and DDS Security)

@@ -124,6 +124,39 @@ TEST(Render, RegionPredicateAndPolygonAreTintedTranslucently) {
   EXPECT_EQ(rgbAt(img, 30, 35), cv::Vec3i(128, 128, 128));
 }
 
+TEST(Render, RegionBoundsLimitWhereThePredicateIsAsked) {
+  // The slice is the plane z = 7 mm, pixels 0.5 mm: u = 2 (x + 16), v = 2 (y + 12).
+  const Slice s = flatSlice(40.0f);
+  int asked = 0;
+  RegionOverlay ball;  // a 3 mm ball at (0, 0, 7): pixels (32, 24) +- 6
+  ball.contains = [&](const Eigen::Vector3d& p) {
+    ++asked;
+    return (p - Eigen::Vector3d(0, 0, 7)).norm() <= 3.0;
+  };
+  for (int c = 0; c < 8; ++c) {  // its bounding cube
+    ball.bounds_lps_mm.emplace_back(c & 1 ? 3 : -3, c & 2 ? 3 : -3, 7 + (c & 4 ? 3 : -3));
+  }
+  Overlays ov;
+  ov.regions = {ball};
+  const cv::Mat img = decode(renderPng(s, ov, plain()));
+  EXPECT_NE(rgbAt(img, 32, 24), cv::Vec3i(128, 128, 128));  // tinted inside
+  EXPECT_NE(rgbAt(img, 32, 30), cv::Vec3i(128, 128, 128));  // 3 mm off the centre: the edge
+  EXPECT_EQ(rgbAt(img, 32, 31), cv::Vec3i(128, 128, 128));
+  EXPECT_GT(asked, 12 * 12);  // every pixel of the ball's box was asked
+  EXPECT_LE(asked, 15 * 15);  // and little else of the 64 x 48
+  // The same ball 5 mm off the plane: the slice misses its box, nothing is asked or tinted.
+  asked = 0;
+  for (auto& corner : ov.regions[0].bounds_lps_mm)
+    corner.z() += 6.5;
+  ov.regions[0].contains = [&](const Eigen::Vector3d&) {
+    ++asked;
+    return true;
+  };
+  const cv::Mat beside = decode(renderPng(s, ov, plain()));
+  EXPECT_EQ(asked, 0);
+  EXPECT_EQ(rgbAt(beside, 32, 24), cv::Vec3i(128, 128, 128));
+}
+
 TEST(Render, PathIsDrawnThroughProjectedPoints) {
   const Slice s = flatSlice(40.0f);
   Overlays ov;

@@ -1,4 +1,5 @@
 // Round trips to a running ignav-server (tools/bench/bench_latency.sh starts one):
+//   refused : a command refused (remove_target of a target that does not exist) -> reply
 //   query   : command -> reply
 //   move    : move_target (a click) -> reply, with the journal fsync
 //   click   : move_target -> the target's new state sample arrives
@@ -71,9 +72,14 @@ int main(int argc, char** argv) {
   const auto added = c.send("add_target", {"", {{0.0, 10.0, -30.0}}, {}});
   const std::string id = std::to_string(added.target_id);
 
-  std::vector<double> query, move, click;
+  std::vector<double> refused, query, move, click;
   for (int i = 0; i < rounds / 10; ++i)
     c.send("query");  // warm-up
+  for (int i = 0; i < rounds; ++i) {
+    auto t = Clock::now();
+    if (c.send("remove_target", {"", {}, {999999}}).accepted) return 9;
+    refused.push_back(since_us(t));
+  }
   for (int i = 0; i < rounds; ++i) {
     auto t = Clock::now();
     c.send("query");
@@ -125,6 +131,7 @@ int main(int argc, char** argv) {
     std::printf("%-44s median %8.1f us   p99 %8.1f us   (%zu rounds)\n", name, s.median_us,
                 s.p99_us, v.size());
   };
+  print("refused command -> reply", refused);
   print("query command -> reply", query);
   print("move_target -> reply (journal fsync)", move);
   print("move_target -> target state", click);

@@ -818,6 +818,13 @@ int main(int argc, char** argv) {
       return r.accepted ? 0 : kExitRejected;
     };
     if (*status) {
+      // Each state topic's history arrives on its own: show the server's health (its robot id,
+      // host, session) too, which may come a moment after the workflow.
+      try {
+        client.waitFor([](const json& s) { return s.contains("health"); }, 2s);
+      } catch (const ignav::protocol::Timeout&) {
+        // an old server, or a slow network: print what there is
+      }
       client.poll();
       if (as_json) {
         std::cout << client.state().dump(2) << "\n";

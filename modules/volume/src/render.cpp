@@ -2,8 +2,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include <png.h>
-#include <zlib.h>
+#include <libdeflate.h>
 
 #include <algorithm>
 #include <cmath>
@@ -39,22 +38,55 @@ void blend(cv::Mat& img, int u, int v, const Rgb& c, double alpha) {
   }
 }
 
+// The pixels (u0, v0)-(u1, v1), inclusive, that contains() must be asked about: the image, or
+// the box of the region's bounds on it; empty (u0 > u1) when the slice misses the bounds.
+cv::Rect askedPixels(const cv::Mat& img, const Slice& slice, const RegionOverlay& region) {
+  const cv::Rect whole(0, 0, img.cols, img.rows);
+  if (region.bounds_lps_mm.empty()) return whole;
+  double u0 = INFINITY, u1 = -INFINITY, v0 = INFINITY, v1 = -INFINITY, d0 = INFINITY,
+         d1 = -INFINITY;
+  for (const auto& p : region.bounds_lps_mm) {
+    const Eigen::Vector3d uvd = slice.lpsToPixel(p);
+    u0 = std::min(u0, uvd.x());
+    u1 = std::max(u1, uvd.x());
+    v0 = std::min(v0, uvd.y());
+    v1 = std::max(v1, uvd.y());
+    d0 = std::min(d0, uvd.z());
+    d1 = std::max(d1, uvd.z());
+  }
+  if (!(d0 <= 0.0 && d1 >= 0.0)) return {};  // the plane passes beside the hull (or NaN)
+  const cv::Rect box(cv::Point(static_cast<int>(std::floor(std::max(u0, -1.0))),
+                               static_cast<int>(std::floor(std::max(v0, -1.0)))),
+                     cv::Point(static_cast<int>(std::ceil(std::min(u1, double(img.cols)))) + 1,
+                               static_cast<int>(std::ceil(std::min(v1, double(img.rows)))) + 1));
+  return box & whole;
+}
+
 void drawRegion(cv::Mat& img, const Slice& slice, const RegionOverlay& region) {
   const double alpha = std::clamp(region.opacity, 0.0, 1.0);
-  cv::Mat mask = cv::Mat::zeros(img.size(), CV_8U);
+  cv::Mat mask;
   if (region.polygon_lps_mm.size() >= 3) {
     std::vector<cv::Point> poly;
     for (const auto& p : region.polygon_lps_mm) {
       const Eigen::Vector3d uvd = slice.lpsToPixel(p);
       if (projectable(uvd)) poly.push_back(toPoint(uvd));
     }
-    if (poly.size() >= 3) cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{poly}, 255);
+    if (poly.size() >= 3) {
+      mask = cv::Mat::zeros(img.size(), CV_8U);
+      cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{poly}, 255);
+      for (int v = 0; v < img.rows; ++v) {
+        for (int u = 0; u < img.cols; ++u) {
+          if (mask.at<uchar>(v, u) != 0) blend(img, u, v, region.colour, alpha);
+        }
+      }
+    }
   }
-  for (int v = 0; v < img.rows; ++v) {
-    for (int u = 0; u < img.cols; ++u) {
-      bool inside = mask.at<uchar>(v, u) != 0;
-      if (!inside && region.contains) inside = region.contains(slice.pixelToLps(u, v));
-      if (inside) blend(img, u, v, region.colour, alpha);
+  if (!region.contains) return;
+  const cv::Rect asked = askedPixels(img, slice, region);
+  for (int v = asked.y; v < asked.y + asked.height; ++v) {
+    for (int u = asked.x; u < asked.x + asked.width; ++u) {
+      if (!mask.empty() && mask.at<uchar>(v, u) != 0) continue;  // tinted once
+      if (region.contains(slice.pixelToLps(u, v))) blend(img, u, v, region.colour, alpha);
     }
   }
 }
@@ -102,10 +134,21 @@ void drawOrientation(cv::Mat& img, const Slice& slice) {
 
 }  // namespace
 
+namespace {
+
+// windowGrey's arithmetic, written so that the compiler vectorises the loop over a slice (no
+// libm call; halves round up, as lround does for values >= 0). NaN must be handled before.
+inline std::uint8_t greyOf(double value, double lo, double width) {
+  double g = 255.0 * (value - lo) / width;
+  g = g < 0.0 ? 0.0 : (g > 255.0 ? 255.0 : g);
+  return static_cast<std::uint8_t>(g + 0.5);
+}
+
+}  // namespace
+
 std::uint8_t windowGrey(double value, const WindowLevel& window) {
-  const double lo = window.level - 0.5 * window.width;
-  const double g = 255.0 * (value - lo) / window.width;
-  return static_cast<std::uint8_t>(std::lround(std::clamp(g, 0.0, 255.0)));
+  if (std::isnan(value)) return 0;
+  return greyOf(value, window.level - 0.5 * window.width, window.width);
 }
 
 Expected<std::vector<std::uint8_t>> renderPng(const Slice& slice, const Overlays& overlays,
@@ -126,17 +169,22 @@ Expected<std::vector<std::uint8_t>> renderPng(const Slice& slice, const Overlays
   const double tolerance_mm = options.in_plane_tolerance_mm > 0.0 ? options.in_plane_tolerance_mm
                                                                   : 0.5 * slice.thickness_mm;
   try {
-    cv::Mat img(slice.height, slice.width, CV_8UC3);
+    // This thread's canvas, kept from one slice to the next (see encodePngBgr's buffers).
+    thread_local cv::Mat canvas;
+    canvas.create(slice.height, slice.width, CV_8UC3);
+    cv::Mat& img = canvas;
+    const double lo = window.level - 0.5 * window.width;
+    const Rgb out = options.outside;
     for (int v = 0; v < slice.height; ++v) {
+      const float* in = &slice.values[static_cast<std::size_t>(v) * slice.width];
+      std::uint8_t* row = img.ptr<std::uint8_t>(v);
       for (int u = 0; u < slice.width; ++u) {
-        const float value = slice.at(u, v);
-        if (std::isnan(value)) {
-          img.at<cv::Vec3b>(v, u) =
-              cv::Vec3b(options.outside.b, options.outside.g, options.outside.r);
-        } else {
-          const std::uint8_t g = windowGrey(value, window);
-          img.at<cv::Vec3b>(v, u) = cv::Vec3b(g, g, g);
-        }
+        const double value = in[u];
+        const bool outside = value != value;  // NaN: beyond the volume
+        const std::uint8_t g = greyOf(outside ? lo : value, lo, window.width);
+        row[3 * u] = outside ? out.b : g;  // BGR, as OpenCV draws
+        row[3 * u + 1] = outside ? out.g : g;
+        row[3 * u + 2] = outside ? out.r : g;
       }
     }
     for (const auto& region : overlays.regions)
@@ -175,77 +223,89 @@ Expected<std::vector<std::uint8_t>> renderPng(const Slice& slice, const Overlays
 
 namespace {
 
-// Where libpng writes: a buffer sized for the worst case beforehand, so nothing is allocated
-// while libpng runs (its errors longjmp).
-struct PngBuffer {
-  std::uint8_t* data = nullptr;
+void putBigEndian32(std::vector<std::uint8_t>& out, std::uint32_t v) {
+  for (int shift = 24; shift >= 0; shift -= 8)
+    out.push_back(static_cast<std::uint8_t>(v >> shift));
+}
+
+// One PNG chunk: length, type, data, and the CRC-32 of type and data (PNG spec §5.3).
+void putChunk(std::vector<std::uint8_t>& out, const char (&type)[5], const std::uint8_t* data,
+              std::size_t size) {
+  putBigEndian32(out, static_cast<std::uint32_t>(size));
+  const std::size_t type_at = out.size();
+  out.insert(out.end(), type, type + 4);
+  out.insert(out.end(), data, data + size);
+  putBigEndian32(out, libdeflate_crc32(0, out.data() + type_at, size + 4));
+}
+
+// Bytes left uninitialised, grown when too small, never shrunk.
+struct Scratch {
+  std::unique_ptr<std::uint8_t[]> data;
   std::size_t capacity = 0;
-  std::size_t size = 0;
+  void reserve(std::size_t bytes) {
+    if (bytes <= capacity) return;
+    data.reset(new std::uint8_t[bytes]);
+    capacity = bytes;
+  }
 };
 
-void appendPng(png_structp png, png_bytep bytes, png_size_t count) {
-  auto* out = static_cast<PngBuffer*>(png_get_io_ptr(png));
-  if (count > out->capacity - out->size) png_error(png, "larger than its worst case");
-  std::memcpy(out->data + out->size, bytes, count);
-  out->size += count;
-}
-
-void flushPng(png_structp) {}
-
-// libpng reports errors by longjmp: only trivially destructible locals live in this frame.
-bool encodeRows(const std::uint8_t* bgr, png_uint_32 width, png_uint_32 height,
-                std::size_t stride_bytes, PngBuffer* out) {
-  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
-  if (!png) return false;
-  png_infop info = png_create_info_struct(png);
-  if (!info) {
-    png_destroy_write_struct(&png, nullptr);
-    return false;
-  }
-  if (setjmp(png_jmpbuf(png))) {
-    png_destroy_write_struct(&png, &info);
-    return false;
-  }
-  png_set_write_fn(png, out, appendPng, flushPng);
-  png_set_IHDR(png, info, width, height, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
-               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-  // Slices go to a viewer at every scroll step: zlib's fastest level without row filters encodes
-  // a 512² CT slice in 2.5-4.5 ms instead of 14-34 ms (libpng's defaults) for 1.1-1.6 times the
-  // bytes (docs/PERFORMANCE.md, tools/bench/bench_render).
-  png_set_compression_level(png, 1);
-  png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_NONE);
-  png_write_info(png, info);
-  png_set_bgr(png);
-  for (png_uint_32 y = 0; y < height; ++y)
-    png_write_row(png, bgr + y * stride_bytes);
-  png_write_end(png, nullptr);
-  png_destroy_write_struct(&png, &info);
-  return true;
-}
+struct CompressorDeleter {
+  void operator()(libdeflate_compressor* c) const { libdeflate_free_compressor(c); }
+};
 
 }  // namespace
 
-// libpng rather than OpenCV's imgcodecs, which on Debian links GDAL and ~120 libraries: that
-// cost 0.14 s at every start of every program that renders. One pass (asking libpng's simplified
-// API for the size first encoded every image twice, issue 28).
+// The PNG container (signature, IHDR, one IDAT, IEND) around a zlib stream from libdeflate's
+// fastest level, rows unfiltered (issue 28: a slice goes to a viewer at every scroll step; with
+// zlib's level 1 the encode was 90 % of a 512² slice's cost, docs/PERFORMANCE.md). The tests read
+// these back with OpenCV's decoder (libpng underneath, which checks every CRC). Not OpenCV's
+// imgcodecs: on Debian it links GDAL and ~120 libraries, 0.14 s at every program's start.
 Expected<std::vector<std::uint8_t>> encodePngBgr(const std::uint8_t* bgr, int width, int height,
                                                  std::size_t stride_bytes) {
-  if (width <= 0 || height <= 0 || stride_bytes < 3 * static_cast<std::size_t>(width)) {
+  if (width <= 0 || height <= 0 || width > (1 << 24) || height > (1 << 24) ||
+      stride_bytes < 3 * static_cast<std::size_t>(width)) {
     return makeError(ErrorCode::kInvalidArgument, "PNG: bad image size or stride");
   }
-  // The worst case: the filtered rows deflated (zlib's bound), in IDAT chunks of at most 8 KiB
-  // (12 bytes each around them), plus the signature, IHDR and IEND.
-  const auto raw = static_cast<uLong>(height) * (3 * static_cast<uLong>(width) + 1);
-  const std::size_t deflated = compressBound(raw);
-  PngBuffer out;
-  out.capacity = deflated + 12 * (deflated / 8192 + 1) + 1024;
-  const std::unique_ptr<std::uint8_t[]> buffer(new std::uint8_t[out.capacity]);
-  out.data = buffer.get();
-  if (!encodeRows(bgr, static_cast<png_uint_32>(width), static_cast<png_uint_32>(height),
-                  stride_bytes, &out)) {
-    return makeError(ErrorCode::kInternal, "PNG encoding failed (libpng)");
+  const auto w = static_cast<std::size_t>(width), h = static_cast<std::size_t>(height);
+  // The rows as PNG filters them (type 0, none: a leading 0 byte), in RGB order.
+  const std::size_t row_bytes = 3 * w + 1;
+  // The rows and the zlib stream live in this thread's buffers, kept from one slice to the next:
+  // fresh ones cost a page fault per 4 KiB and zeroing (half the encode on this VM).
+  thread_local Scratch raw, zlib;
+  raw.reserve(row_bytes * h);
+  for (std::size_t y = 0; y < h; ++y) {
+    const std::uint8_t* in = bgr + y * stride_bytes;
+    std::uint8_t* out = raw.data.get() + y * row_bytes;
+    out[0] = 0;
+    for (std::size_t x = 0; x < w; ++x) {
+      out[1 + 3 * x] = in[3 * x + 2];
+      out[2 + 3 * x] = in[3 * x + 1];
+      out[3 + 3 * x] = in[3 * x];
+    }
   }
-  return std::vector<std::uint8_t>(out.data, out.data + out.size);
+  // Level 1; one compressor per thread, reused (it holds ~700 KB of tables).
+  thread_local std::unique_ptr<libdeflate_compressor, CompressorDeleter> compressor(
+      libdeflate_alloc_compressor(1));
+  if (!compressor) return makeError(ErrorCode::kInternal, "PNG: libdeflate has no memory");
+  const std::size_t raw_bytes = row_bytes * h;
+  zlib.reserve(libdeflate_zlib_compress_bound(compressor.get(), raw_bytes));
+  const std::size_t zlib_bytes = libdeflate_zlib_compress(
+      compressor.get(), raw.data.get(), raw_bytes, zlib.data.get(), zlib.capacity);
+  if (zlib_bytes == 0) return makeError(ErrorCode::kInternal, "PNG: deflate failed (libdeflate)");
+
+  std::vector<std::uint8_t> png;
+  png.reserve(zlib_bytes + 64);
+  static const std::uint8_t kSignature[8] = {137, 80, 78, 71, 13, 10, 26, 10};
+  png.insert(png.end(), kSignature, kSignature + 8);
+  std::vector<std::uint8_t> ihdr;
+  putBigEndian32(ihdr, static_cast<std::uint32_t>(width));
+  putBigEndian32(ihdr, static_cast<std::uint32_t>(height));
+  // bit depth 8, colour type 2 (RGB), deflate, adaptive filtering method 0, no interlace
+  ihdr.insert(ihdr.end(), {8, 2, 0, 0, 0});
+  putChunk(png, "IHDR", ihdr.data(), ihdr.size());
+  putChunk(png, "IDAT", zlib.data.get(), zlib_bytes);
+  putChunk(png, "IEND", nullptr, 0);
+  return png;
 }
 
 Status writePng(const std::vector<std::uint8_t>& png, const std::string& path) {

@@ -37,6 +37,10 @@ struct PathOverlay {
 // inside `polygon_lps_mm` (projected onto the slice).
 struct RegionOverlay {
   std::function<bool(const Eigen::Vector3d& lps_mm)> contains;
+  // When given: points (LPS mm) whose convex hull holds every point where contains() holds, so
+  // that contains() is asked only inside their box on the slice, and not at all on a slice that
+  // misses them.
+  std::vector<Eigen::Vector3d> bounds_lps_mm;
   std::vector<Eigen::Vector3d> polygon_lps_mm;
   Rgb colour{0, 255, 0};
   double opacity = 0.3;
@@ -57,7 +61,7 @@ struct RenderOptions {
 };
 
 // Grey level of a physical value: 255 * (value - (level - width/2)) / width, rounded, clamped.
-std::uint8_t windowGrey(double value, const WindowLevel& window);
+std::uint8_t windowGrey(double value, const WindowLevel& window);  // NaN: 0
 
 Expected<std::vector<std::uint8_t>> renderPng(const Slice& slice, const Overlays& overlays = {},
                                               const RenderOptions& options = {});
