@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "ignav/igtl/brp.hpp"
+#include "ignav/protocol/config.hpp"
 #include "ignav/workflow/reducer.hpp"
 #include "server_core.hpp"
 
@@ -23,7 +24,9 @@ using workflow::Input;
 using workflow::InputKind;
 using workflow::Session;
 
-constexpr auto kBusyPoll = std::chrono::milliseconds(2);
+// Polling after an event, while commands keep coming (none when confined to one CPU).
+const auto kBusyPoll =
+    protocol::pollingPaysOff() ? std::chrono::milliseconds(2) : std::chrono::milliseconds(0);
 
 // The controller the options name, as MotionState names it.
 std::string controllerName(const ControllerOptions& c) {

@@ -1,5 +1,7 @@
 #include "ignav/protocol/config.hpp"
 
+#include <sched.h>
+
 #include <ifaddrs.h>
 #include <net/if.h>
 
@@ -138,6 +140,13 @@ std::string loadDdsConfig(const std::string& path, const DdsSite& site) {
 
 std::string loadToolDdsConfig(const std::string& value, const DdsSite& site) {
   return value.empty() ? "" : loadDdsConfig(resolveDdsConfig(value, ddsConfigDirs()), site);
+}
+
+bool pollingPaysOff() {
+  cpu_set_t allowed;
+  CPU_ZERO(&allowed);
+  if (sched_getaffinity(0, sizeof allowed, &allowed) != 0) return true;
+  return CPU_COUNT(&allowed) > 1;
 }
 
 }  // namespace ignav::protocol

@@ -123,7 +123,8 @@ class Client {
   std::unique_ptr<Impl> impl_;
   std::string client_id_;
   std::uint64_t next_request_ = 0;  // set from the clock (see the constructor)
-  std::chrono::microseconds reply_spin_ = std::chrono::milliseconds(2);
+  std::chrono::microseconds reply_spin_ =
+      pollingPaysOff() ? std::chrono::milliseconds(2) : std::chrono::milliseconds(0);
   nlohmann::json state_ = nlohmann::json::object();
   StateMirror mirror_;
 };

@@ -33,4 +33,10 @@ std::string loadDdsConfig(const std::string& path, const DdsSite& site);
 // name found in ddsConfigDirs(), loaded with `site`.
 std::string loadToolDdsConfig(const std::string& value, const DdsSite& site);
 
+// Whether a thread waiting for a DDS sample should poll for a while before sleeping: only when
+// this process may run on more than one CPU. Waking a sleeping thread on another, idle core costs
+// ~150 µs on a VM, so polling pays there; confined to one CPU (taskset, cpusets), polling only
+// takes that CPU from the DDS receive thread that has to deliver the sample (docs/PERFORMANCE.md).
+bool pollingPaysOff();
+
 }  // namespace ignav::protocol
