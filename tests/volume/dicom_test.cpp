@@ -302,6 +302,21 @@ TEST(Phantom, LosslessCompressedSeriesReadBackExactly) {
       EXPECT_TRUE(r->volume.geometry.ijkToLps().isApprox(made.geometry.ijkToLps(), 1e-9)) << name;
     }
   }
+  // A compressed frame that cannot be decoded (its code stream overwritten, the file's length
+  // kept) is refused with an error that names the file and the frame.
+  const fs::path victim = dir / "jpeg_ls" / fs::path(files[5]).filename();
+  {
+    std::fstream f(victim, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(-400, std::ios::end);
+    for (int i = 0; i < 300; ++i)
+      f.put('\xff');
+  }
+  const auto broken = readDicomSeries({(dir / "jpeg_ls").string()});
+  ASSERT_FALSE(broken.ok());
+  EXPECT_EQ(broken.error().code, ErrorCode::kFormat) << broken.error().message;
+  EXPECT_NE(broken.error().message.find(victim.filename().string()), std::string::npos)
+      << broken.error().message;
+  EXPECT_NE(broken.error().message.find("frame 1"), std::string::npos) << broken.error().message;
 }
 
 // One legacy multi-frame file (as RT dose and some CT exports): the slices' pixels as frames,

@@ -406,6 +406,10 @@ Status decodeFile(const FileHeader& h, DcmDataset& ds,
       const OFCondition c = pixel_data->getUncompressedFrame(
           &ds, static_cast<Uint32>(frame), start_fragment, scratch.data(),
           static_cast<Uint32>(L.frame_bytes), colour_model, &file_cache);
+      if (c == EC_CannotChangeRepresentation) {  // no codec for it here
+        return makeError(ErrorCode::kUnsupported, h.path + ": cannot decompress transfer syntax " +
+                                                      DcmXfer(xfer).getXferName());
+      }
       if (c.bad()) {
         return makeError(ErrorCode::kFormat, h.path + ": frame " + std::to_string(frame + 1) +
                                                  " of " + DcmXfer(xfer).getXferName() +

@@ -38,8 +38,8 @@ void blend(cv::Mat& img, int u, int v, const Rgb& c, double alpha) {
   }
 }
 
-// The pixels (u0, v0)-(u1, v1), inclusive, that contains() must be asked about: the image, or
-// the box of the region's bounds on it; empty (u0 > u1) when the slice misses the bounds.
+// The pixels contains() must be asked about: the whole image, or the box of the region's bounds
+// projected onto it (a pixel's margin around); none when the slice's plane misses the bounds.
 cv::Rect askedPixels(const cv::Mat& img, const Slice& slice, const RegionOverlay& region) {
   const cv::Rect whole(0, 0, img.cols, img.rows);
   if (region.bounds_lps_mm.empty()) return whole;
