@@ -87,7 +87,7 @@ void Slices::loop() {
   }
 }
 
-Slices::Result Slices::render(const Job& req) const {
+Slices::Result Slices::render(const Job& req) {
   Result out;
   out.client_id = req.client_id;
   out.request_id = req.request_id;
@@ -125,7 +125,7 @@ Slices::Result Slices::render(const Job& req) const {
     overlays.points.clear();
     overlays.paths.clear();
   }
-  auto png = volume::renderPng(*slice, overlays);
+  auto png = renderer_.renderPng(*slice, overlays);
   if (!png) return fail(png.error().message);
   out.ok = true;
   out.width = static_cast<std::uint32_t>(slice->width);

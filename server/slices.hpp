@@ -23,6 +23,7 @@
 
 #include "ignav/protocol/types.hpp"
 #include "ignav/protocol/wire/messages.hpp"
+#include "ignav/volume/render.hpp"
 #include "ignav/workflow/session.hpp"
 
 namespace ignav::server {
@@ -61,11 +62,12 @@ class Slices {
   };
 
   void loop();
-  Result render(const Job& job) const;
+  Result render(const Job& job);
   void send(Result& result) const;
   void refuse(const Job& job, const std::string& why) const;
 
   protocol::TopicWriter<protocol::SliceReply> replies_;
+  volume::SliceRenderer renderer_;  // the slices thread's alone: its buffers serve every slice
   std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<Job> queue_;

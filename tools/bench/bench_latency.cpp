@@ -16,6 +16,7 @@
 
 #include <Eigen/LU>
 
+#include "bench_support.hpp"
 #include "ignav/protocol/client.hpp"
 
 namespace {
@@ -27,9 +28,8 @@ struct Stats {
   double median_us, p99_us;
 };
 
-Stats stats(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return {v[v.size() / 2], v[std::min(v.size() - 1, v.size() * 99 / 100)]};
+Stats stats(const std::vector<double>& v) {
+  return {ignav::bench::percentile(v, 50), ignav::bench::percentile(v, 99)};
 }
 
 double since_us(Clock::time_point t) {
@@ -57,18 +57,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "no server on domain %u\n", domain);
     return 3;
   }
-  c.waitFor([](const json& s) { return s.contains("workflow"); }, std::chrono::seconds(5));
   // Planning needs a CT and a registration.
-  c.send("load_volume", {"phantom:", {}, {}});
-  c.waitFor([](const json& s) { return s.contains("volume") && s["volume"]["status"] == "loaded"; },
-            std::chrono::seconds(120));
-  if (!c.send("auto_fiducials").accepted) return 4;
-  // Accepted when the detection starts; the registration follows (issue 22).
-  c.waitFor(
-      [](const json& s) {
-        return s.contains("registration") && s["registration"]["status"] == "registered";
-      },
-      std::chrono::seconds(60));
+  if (!ignav::bench::loadAndRegister(c, "phantom:")) return 4;
   const auto added = c.send("add_target", {"", {{0.0, 10.0, -30.0}}, {}});
   const std::string id = std::to_string(added.target_id);
 

@@ -19,6 +19,7 @@
 
 #include <Eigen/LU>
 
+#include "bench_support.hpp"
 #include "ignav/protocol/client.hpp"
 #include "ignav/volume/dicom.hpp"
 #include "ignav/volume/render.hpp"
@@ -26,27 +27,18 @@
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using ignav::bench::Clock;
+using ignav::bench::percentile;
+using ignav::bench::sinceMs;
 using nlohmann::json;
-
-double since_ms(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
-
-double percentile(std::vector<double> v, int p) {
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, v.size() * static_cast<std::size_t>(p) / 100)];
-}
 
 // The client doing it itself: reslice, window to grey, libpng's simplified API with its defaults.
 std::size_t resliceAndEncode(const ignav::volume::Volume& ct,
                              const ignav::volume::SliceSpec& spec) {
   const auto slice = ignav::volume::reslice(ct, spec).value();
   std::vector<std::uint8_t> grey(slice.values.size());
-  for (std::size_t i = 0; i < grey.size(); ++i) {
-    grey[i] =
-        std::isnan(slice.values[i]) ? 0 : ignav::volume::windowGrey(slice.values[i], spec.window);
-  }
+  for (std::size_t i = 0; i < grey.size(); ++i)
+    grey[i] = ignav::volume::windowGrey(slice.values[i], spec.window);  // NaN (outside): black
   png_image image{};
   image.version = PNG_IMAGE_VERSION;
   image.width = static_cast<png_uint_32>(slice.width);
@@ -76,16 +68,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "no server on domain %u\n", domain);
     return 3;
   }
-  c.waitFor([](const json& s) { return s.contains("workflow"); }, std::chrono::seconds(5));
-  if (!c.send("load_volume", {series, {}, {}}).accepted) return 4;
-  c.waitFor([](const json& s) { return s.contains("volume") && s["volume"]["status"] == "loaded"; },
-            std::chrono::seconds(120));
-  if (!c.send("auto_fiducials").accepted) return 5;
-  c.waitFor(
-      [](const json& s) {
-        return s.contains("registration") && s["registration"]["status"] == "registered";
-      },
-      std::chrono::seconds(60));
+  if (!ignav::bench::loadAndRegister(c, series)) return 4;
   const Eigen::Matrix4d to_image =
       ignav::protocol::matrixFromState(c.state()["registration"]["image_to_robot"]).inverse();
   // Two targets in view, as a planning session has.
@@ -118,7 +101,7 @@ int main(int argc, char** argv) {
     s.region_only = region_only;
     const auto t = Clock::now();
     const auto r = c.slice(s, std::chrono::seconds(10));
-    const double took = since_ms(t);
+    const double took = sinceMs(t);
     if (!r.ok) {
       ++failed;
       std::fprintf(stderr, "%s: %s\n", name, r.message.c_str());
@@ -136,13 +119,15 @@ int main(int argc, char** argv) {
     spec.window = ignav::volume::kWindowBone;
     const auto t = Clock::now();
     bytes["anchor"] = resliceAndEncode(ct->volume, spec);
-    if (keep) ms["anchor"].push_back(since_ms(t));
+    if (keep) ms["anchor"].push_back(sinceMs(t));
   };
-  for (int i = -20; i < rounds; ++i) {  // 20 rounds of warm-up
-    over_dds("plain", i, false, false, i >= 0);
-    over_dds("region", i, true, true, i >= 0);
-    over_dds("overlays", i, true, false, i >= 0);
-    anchor(i, i >= 0);
+  const int warm_up = 20;
+  for (int i = 0; i < warm_up + rounds; ++i) {
+    const bool keep = i >= warm_up;
+    over_dds("plain", i, false, false, keep);
+    over_dds("region", i, true, true, keep);
+    over_dds("overlays", i, true, false, keep);
+    anchor(i, keep);
   }
   for (const char* name : {"plain", "region", "overlays", "anchor"}) {
     const auto& v = ms[name];

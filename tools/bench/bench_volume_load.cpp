@@ -5,7 +5,6 @@
 //   bench_volume_load --read-into SERIES_DIR   (the same into one fresh buffer of all the bytes:
 //                                               the I/O and fresh-memory limit of a new process)
 #include <fcntl.h>
-#include <sys/mman.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -14,11 +13,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <memory>
 #include <string>
 #include <vector>
 
 #include "ignav/volume/dicom.hpp"
+#include "ignav/volume/volume.hpp"
 
 namespace {
 
@@ -35,15 +34,10 @@ int readLoop(const std::string& dir, bool into_fresh_memory) {
   for (const auto& f : files)
     all_bytes += std::filesystem::file_size(f);
   const std::size_t chunk = 1 << 20;
-  // Uninitialised, so the pages are first touched by read(2), and in transparent huge pages as the
-  // reader's voxels are (4 KiB pages cost this VM 3-5x more to fault in).
-  const std::size_t huge_page = std::size_t{2} << 20;
-  const std::size_t size =
-      ((into_fresh_memory ? all_bytes + chunk : chunk) + huge_page - 1) / huge_page * huge_page;
-  const std::unique_ptr<char, decltype(&std::free)> buffer(
-      static_cast<char*>(std::aligned_alloc(huge_page, size)), &std::free);
-  if (!buffer) return 1;
-  madvise(buffer.get(), size, MADV_HUGEPAGE);
+  // The reader's own voxel memory: uninitialised, so the pages are first touched by read(2), and
+  // in transparent huge pages (4 KiB pages cost this VM 3-5x more to fault in).
+  std::vector<char, ignav::volume::UninitialisedAllocator<char>> buffer(
+      into_fresh_memory ? all_bytes + chunk : chunk);
   std::uintmax_t total = 0;
   for (const auto& f : files) {
     const int fd = ::open(f.c_str(), O_RDONLY);
@@ -52,7 +46,7 @@ int readLoop(const std::string& dir, bool into_fresh_memory) {
       return 1;
     }
     for (;;) {
-      char* to = buffer.get() + (into_fresh_memory ? total : 0);
+      char* to = buffer.data() + (into_fresh_memory ? total : 0);
       const ssize_t n = ::read(fd, to, chunk);
       if (n < 0) {
         std::perror(f.c_str());

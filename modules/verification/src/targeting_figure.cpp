@@ -1,5 +1,5 @@
 // Planned vs actual targets in the feasible volume (like the paper's Figs. 14-15), drawn with
-// OpenCV's core and imgproc only (imgcodecs links GDAL; volume::encodePngBgr uses libpng).
+// OpenCV's core and imgproc only (imgcodecs links GDAL; volume::encodePngBgr writes the PNG).
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 

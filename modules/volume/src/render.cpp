@@ -6,12 +6,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <fstream>
 #include <memory>
 #include <sstream>
 
 #include "ignav/volume/render.hpp"
+#include "ignav/volume/volume.hpp"
 
 namespace ignav::volume {
 namespace {
@@ -151,8 +151,27 @@ std::uint8_t windowGrey(double value, const WindowLevel& window) {
   return greyOf(value, window.level - 0.5 * window.width, window.width);
 }
 
-Expected<std::vector<std::uint8_t>> renderPng(const Slice& slice, const Overlays& overlays,
-                                              const RenderOptions& options) {
+namespace {
+
+struct CompressorDeleter {
+  void operator()(libdeflate_compressor* c) const { libdeflate_free_compressor(c); }
+};
+
+}  // namespace
+
+// Kept from one slice to the next; std::vector with UninitialisedAllocator grows without zeroing.
+struct SliceRenderer::Buffers {
+  cv::Mat canvas;
+  std::vector<std::uint8_t, UninitialisedAllocator<std::uint8_t>> rows, stream;
+  std::unique_ptr<libdeflate_compressor, CompressorDeleter> compressor;  // level 1, made once
+};
+
+SliceRenderer::SliceRenderer() : buffers_(std::make_unique<Buffers>()) {}
+SliceRenderer::~SliceRenderer() = default;
+
+Expected<std::vector<std::uint8_t>> SliceRenderer::renderPng(const Slice& slice,
+                                                             const Overlays& overlays,
+                                                             const RenderOptions& options) {
   if (slice.width <= 0 || slice.height <= 0 ||
       slice.values.size() != static_cast<std::size_t>(slice.width) * slice.height) {
     return makeError(ErrorCode::kInvalidArgument,
@@ -169,10 +188,8 @@ Expected<std::vector<std::uint8_t>> renderPng(const Slice& slice, const Overlays
   const double tolerance_mm = options.in_plane_tolerance_mm > 0.0 ? options.in_plane_tolerance_mm
                                                                   : 0.5 * slice.thickness_mm;
   try {
-    // This thread's canvas, kept from one slice to the next (see encodePngBgr's buffers).
-    thread_local cv::Mat canvas;
-    canvas.create(slice.height, slice.width, CV_8UC3);
-    cv::Mat& img = canvas;
+    cv::Mat& img = buffers_->canvas;
+    img.create(slice.height, slice.width, CV_8UC3);
     const double lo = window.level - 0.5 * window.width;
     const Rgb out = options.outside;
     for (int v = 0; v < slice.height; ++v) {
@@ -238,21 +255,6 @@ void putChunk(std::vector<std::uint8_t>& out, const char (&type)[5], const std::
   putBigEndian32(out, libdeflate_crc32(0, out.data() + type_at, size + 4));
 }
 
-// Bytes left uninitialised, grown when too small, never shrunk.
-struct Scratch {
-  std::unique_ptr<std::uint8_t[]> data;
-  std::size_t capacity = 0;
-  void reserve(std::size_t bytes) {
-    if (bytes <= capacity) return;
-    data.reset(new std::uint8_t[bytes]);
-    capacity = bytes;
-  }
-};
-
-struct CompressorDeleter {
-  void operator()(libdeflate_compressor* c) const { libdeflate_free_compressor(c); }
-};
-
 }  // namespace
 
 // The PNG container (signature, IHDR, one IDAT, IEND) around a zlib stream from libdeflate's
@@ -260,8 +262,9 @@ struct CompressorDeleter {
 // zlib's level 1 the encode was 90 % of a 512² slice's cost, docs/PERFORMANCE.md). The tests read
 // these back with OpenCV's decoder (libpng underneath, which checks every CRC). Not OpenCV's
 // imgcodecs: on Debian it links GDAL and ~120 libraries, 0.14 s at every program's start.
-Expected<std::vector<std::uint8_t>> encodePngBgr(const std::uint8_t* bgr, int width, int height,
-                                                 std::size_t stride_bytes) {
+Expected<std::vector<std::uint8_t>> SliceRenderer::encodePngBgr(const std::uint8_t* bgr, int width,
+                                                                int height,
+                                                                std::size_t stride_bytes) {
   if (width <= 0 || height <= 0 || width > (1 << 24) || height > (1 << 24) ||
       stride_bytes < 3 * static_cast<std::size_t>(width)) {
     return makeError(ErrorCode::kInvalidArgument, "PNG: bad image size or stride");
@@ -269,13 +272,11 @@ Expected<std::vector<std::uint8_t>> encodePngBgr(const std::uint8_t* bgr, int wi
   const auto w = static_cast<std::size_t>(width), h = static_cast<std::size_t>(height);
   // The rows as PNG filters them (type 0, none: a leading 0 byte), in RGB order.
   const std::size_t row_bytes = 3 * w + 1;
-  // The rows and the zlib stream live in this thread's buffers, kept from one slice to the next:
-  // fresh ones cost a page fault per 4 KiB and zeroing (half the encode on this VM).
-  thread_local Scratch raw, zlib;
-  raw.reserve(row_bytes * h);
+  auto& raw = buffers_->rows;
+  raw.resize(row_bytes * h);
   for (std::size_t y = 0; y < h; ++y) {
     const std::uint8_t* in = bgr + y * stride_bytes;
-    std::uint8_t* out = raw.data.get() + y * row_bytes;
+    std::uint8_t* out = raw.data() + y * row_bytes;
     out[0] = 0;
     for (std::size_t x = 0; x < w; ++x) {
       out[1 + 3 * x] = in[3 * x + 2];
@@ -283,14 +284,13 @@ Expected<std::vector<std::uint8_t>> encodePngBgr(const std::uint8_t* bgr, int wi
       out[3 + 3 * x] = in[3 * x];
     }
   }
-  // Level 1; one compressor per thread, reused (it holds ~700 KB of tables).
-  thread_local std::unique_ptr<libdeflate_compressor, CompressorDeleter> compressor(
-      libdeflate_alloc_compressor(1));
+  auto& compressor = buffers_->compressor;
+  if (!compressor) compressor.reset(libdeflate_alloc_compressor(1));  // ~700 KB of tables
   if (!compressor) return makeError(ErrorCode::kInternal, "PNG: libdeflate has no memory");
-  const std::size_t raw_bytes = row_bytes * h;
-  zlib.reserve(libdeflate_zlib_compress_bound(compressor.get(), raw_bytes));
-  const std::size_t zlib_bytes = libdeflate_zlib_compress(
-      compressor.get(), raw.data.get(), raw_bytes, zlib.data.get(), zlib.capacity);
+  auto& zlib = buffers_->stream;
+  zlib.resize(libdeflate_zlib_compress_bound(compressor.get(), raw.size()));
+  const std::size_t zlib_bytes =
+      libdeflate_zlib_compress(compressor.get(), raw.data(), raw.size(), zlib.data(), zlib.size());
   if (zlib_bytes == 0) return makeError(ErrorCode::kInternal, "PNG: deflate failed (libdeflate)");
 
   std::vector<std::uint8_t> png;
@@ -303,9 +303,19 @@ Expected<std::vector<std::uint8_t>> encodePngBgr(const std::uint8_t* bgr, int wi
   // bit depth 8, colour type 2 (RGB), deflate, adaptive filtering method 0, no interlace
   ihdr.insert(ihdr.end(), {8, 2, 0, 0, 0});
   putChunk(png, "IHDR", ihdr.data(), ihdr.size());
-  putChunk(png, "IDAT", zlib.data.get(), zlib_bytes);
+  putChunk(png, "IDAT", zlib.data(), zlib_bytes);
   putChunk(png, "IEND", nullptr, 0);
   return png;
+}
+
+Expected<std::vector<std::uint8_t>> renderPng(const Slice& slice, const Overlays& overlays,
+                                              const RenderOptions& options) {
+  return SliceRenderer().renderPng(slice, overlays, options);
+}
+
+Expected<std::vector<std::uint8_t>> encodePngBgr(const std::uint8_t* bgr, int width, int height,
+                                                 std::size_t stride_bytes) {
+  return SliceRenderer().encodePngBgr(bgr, width, height, stride_bytes);
 }
 
 Status writePng(const std::vector<std::uint8_t>& png, const std::string& path) {

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -63,6 +64,30 @@ struct RenderOptions {
 // Grey level of a physical value: 255 * (value - (level - width/2)) / width, rounded, clamped.
 std::uint8_t windowGrey(double value, const WindowLevel& window);  // NaN: 0
 
+// Draws a slice with its overlays and encodes it as PNG (libdeflate's fastest level, rows
+// unfiltered), keeping its buffers from one slice to the next: the canvas, the PNG's rows and
+// stream, the compressor. Fresh ones cost a page fault per 4 KiB and zeroing, as much as the
+// encoding itself on a VM (issue 28). One for a thread that draws at every scroll step (the
+// server's slices thread); not to be used by two threads at once.
+class SliceRenderer {
+ public:
+  SliceRenderer();
+  ~SliceRenderer();
+  SliceRenderer(const SliceRenderer&) = delete;
+  SliceRenderer& operator=(const SliceRenderer&) = delete;
+
+  Expected<std::vector<std::uint8_t>> renderPng(const Slice& slice, const Overlays& overlays = {},
+                                                const RenderOptions& options = {});
+  // PNG bytes of an 8-bit BGR image (rows `stride_bytes` apart).
+  Expected<std::vector<std::uint8_t>> encodePngBgr(const std::uint8_t* bgr, int width, int height,
+                                                   std::size_t stride_bytes);
+
+ private:
+  struct Buffers;  // OpenCV and libdeflate stay inside src/
+  std::unique_ptr<Buffers> buffers_;
+};
+
+// The same with buffers of its own, for a picture now and then.
 Expected<std::vector<std::uint8_t>> renderPng(const Slice& slice, const Overlays& overlays = {},
                                               const RenderOptions& options = {});
 Status writePng(const std::vector<std::uint8_t>& png, const std::string& path);
