@@ -75,7 +75,8 @@ on view "$build/tests/net_probe" "${site[@]}" --dds-peer "$robot" --dds-peer "$p
   --identity "$work/pki/viewer" --client-id watcher --out "$work/watch.json" \
   watch --stop-file "$work/stop" >"$work/watch.out" 2>&1 &
 watch_pid=$!
-wait_for "$work/watch.out" "net_probe watch ready" "the viewer's watch" 60
+# Up to 30 s each to find the robot, match the server's topics and the reply topic (net_probe).
+wait_for "$work/watch.out" "net_probe watch ready" "the viewer's watch" 100
 
 start=$(date +%s.%N)
 (cd "$source" && on plan "$build/tools/ignavctl/ignavctl" "${site[@]}" --dds-peer "$robot" \

@@ -85,17 +85,28 @@ void writeFile(const std::string& path, const std::string& text) {
   if (!f) throw std::runtime_error(path + ": cannot write");
 }
 
+// Each step of joining, with the seconds since start, on stderr: a watch that is slow to start on a
+// lossy link says which handshake it is waiting for.
+void progress(const char* step, std::chrono::steady_clock::time_point start) {
+  const std::chrono::duration<double> s = std::chrono::steady_clock::now() - start;
+  std::cerr << "net_probe: " << step << " after " << s.count() << " s" << std::endl;
+}
+
 int watch(const Options& o) {
+  const auto joining = std::chrono::steady_clock::now();
   const Connection c = connect(o);
+  progress("robot chosen", joining);
   Participant participant(o.domain, c.xml, c.secure(), c.robot, "net_probe watch");
   Reader<ignav_msg_Reply> replies(participant, &ignav_msg_Reply_desc,
                                   ignav::protocol::topic::kReply, Qos::kRequest);
   Client client(o.domain, c.xml, o.client_id, c.secure(), c.robot);
   if (!client.waitForServer(30s)) throw std::runtime_error("no server answered");
+  progress("the server's topics matched", joining);
   const auto matched_by = std::chrono::steady_clock::now() + 30s;
   while (replies.matched() == 0 && std::chrono::steady_clock::now() < matched_by)
     std::this_thread::sleep_for(10ms);
   if (replies.matched() == 0) throw std::runtime_error("the reply topic never matched");
+  progress("the reply topic matched", joining);
   std::cout << "net_probe watch ready robot=" << c.robot << std::endl;
 
   json seen = json::array();
