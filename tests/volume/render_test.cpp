@@ -4,6 +4,7 @@
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <cmath>
 #include <cstdlib>
@@ -170,6 +171,59 @@ TEST(Render, PathIsDrawnThroughProjectedPoints) {
   EXPECT_GT(mid[1], 220);
   EXPECT_GT(mid[2], 220);
   EXPECT_EQ(rgbAt(img, 30, 20), cv::Vec3i(128, 128, 128));
+}
+
+// Labels are drawn once and blended from kept coverage masks (render.cpp, LabelCache): the
+// picture must be OpenCV's own putText halo and text drawn on the same image, within 4 grey
+// levels (OpenCV rounds after each of the overlapping strokes, the cache once per pixel),
+// on a background that varies, for a label inside the slice and one cut by its right edge, and
+// again when the labels come from the cache on a second slice.
+TEST(Render, LabelsAreOpenCvsPutTextWithinRounding) {
+  Slice s = flatSlice(0.0f);
+  for (int v = 0; v < s.height; ++v)
+    for (int u = 0; u < s.width; ++u)
+      set(s, u, v, static_cast<float>(-160 + 9 * u + 3 * v % 170));
+  Overlays labelled;
+  PointMarker inside;
+  inside.lps_mm = {-12, -6, 7};  // pixel (8, 12), on the plane
+  inside.colour = {255, 64, 0};
+  inside.label = "T12";
+  PointMarker cut = inside;
+  cut.lps_mm = {12.5, 8, 7};  // pixel (57, 40): its label runs past the right edge
+  cut.colour = {0, 255, 255};
+  cut.label = "F3";
+  labelled.points = {inside, cut};
+  Overlays unlabelled = labelled;
+  for (auto& p : unlabelled.points)
+    p.label.clear();
+
+  // OpenCV clips its strokes at the image's edge, which lightens the halo in the last column; the
+  // reference is drawn on the image with a margin around it, then cut back to the image.
+  constexpr int kMargin = 8;
+  cv::Mat framed;
+  cv::copyMakeBorder(decode(renderPng(s, unlabelled, plain())), framed, kMargin, kMargin, kMargin,
+                     kMargin, cv::BORDER_REPLICATE);
+  for (const auto& [p, at] : {std::pair{inside, cv::Point(8, 12)}, {cut, cv::Point(57, 40)}}) {
+    const cv::Point anchor(at.x + p.radius_px + 3 + kMargin, at.y + 4 + kMargin);
+    const cv::Scalar colour(p.colour.b, p.colour.g, p.colour.r);
+    cv::putText(framed, p.label, anchor, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 3,
+                cv::LINE_AA);
+    cv::putText(framed, p.label, anchor, cv::FONT_HERSHEY_SIMPLEX, 0.4, colour, 1, cv::LINE_AA);
+  }
+  const cv::Mat expected = framed(cv::Rect(kMargin, kMargin, s.width, s.height));
+  SliceRenderer renderer;
+  for (int round = 0; round < 2; ++round) {  // the second from the cache
+    const cv::Mat got = decode(renderer.renderPng(s, labelled, plain()));
+    ASSERT_EQ(got.size(), expected.size());
+    cv::Mat diff;
+    cv::absdiff(got, expected, diff);
+    double worst = 0;
+    cv::minMaxLoc(diff.reshape(1), nullptr, &worst);
+    EXPECT_LE(worst, 4.0) << "round " << round;
+    cv::Mat changed;
+    cv::absdiff(got, decode(renderPng(s, unlabelled, plain())), changed);
+    EXPECT_GT(cv::countNonZero(changed.reshape(1)), 100) << "round " << round;  // labels drawn
+  }
 }
 
 TEST(Render, ScaleBarAndOrientationLabels) {

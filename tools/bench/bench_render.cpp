@@ -5,6 +5,7 @@
 #include <benchmark/benchmark.h>
 
 #include <map>
+#include <string>
 
 #include "ignav/volume/phantom.hpp"
 #include "ignav/volume/render.hpp"
@@ -57,6 +58,29 @@ void BM_RenderPng512(benchmark::State& state) {
   state.counters["png_kB"] = static_cast<double>(bytes) / 1000.0;
 }
 BENCHMARK(BM_RenderPng512)->Args({128, 112})->Args({512, 300})->Unit(benchmark::kMillisecond);
+
+// The load bench's slice (docs/RELIABILITY.md): 128 px across the phantom with the overlays a
+// viewer asks for, here 100 labelled targets (a full insertion's worth) scattered through it,
+// plus the scale bar and orientation labels. The labels were most of the server's allocations.
+void BM_RenderLabelled128(benchmark::State& state) {
+  SliceSpec spec;
+  spec.view = View::kAxial;
+  spec.centre_lps_mm = Eigen::Vector3d(3.0, -2.0, 5.0);
+  spec.width_px = spec.height_px = 128;
+  spec.pixel_size_mm = 0.8;
+  const Slice slice = reslice(phantom(128, 112), spec).value();
+  Overlays overlays;
+  for (int i = 0; i < 100; ++i) {
+    PointMarker target;
+    target.lps_mm = Eigen::Vector3d(-40.0 + 8.0 * (i % 10), -40.0 + 8.0 * (i / 10), 5.0 + i % 7);
+    target.label = "T" + std::to_string(i + 1);
+    overlays.points.push_back(target);
+  }
+  SliceRenderer renderer;
+  for (auto _ : state)
+    benchmark::DoNotOptimize(renderer.renderPng(slice, overlays));
+}
+BENCHMARK(BM_RenderLabelled128)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

@@ -9,6 +9,8 @@
 #include <fstream>
 #include <memory>
 #include <sstream>
+#include <string>
+#include <unordered_map>
 
 #include "ignav/volume/render.hpp"
 #include "ignav/volume/volume.hpp"
@@ -91,18 +93,71 @@ void drawRegion(cv::Mat& img, const Slice& slice, const RegionOverlay& region) {
   }
 }
 
-void drawText(cv::Mat& img, const std::string& text, cv::Point anchor, const cv::Scalar& colour) {
-  cv::putText(img, text, anchor, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 3,
-              cv::LINE_AA);  // dark halo keeps labels readable on bone
-  cv::putText(img, text, anchor, cv::FONT_HERSHEY_SIMPLEX, 0.4, colour, 1, cv::LINE_AA);
-}
-
 cv::Size textSize(const std::string& text) {
   int baseline = 0;
   return cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, 0.4, 1, &baseline);
 }
 
-void drawScaleBar(cv::Mat& img, double pixel_mm) {
+// Labels, each drawn once and kept as coverage masks. cv::putText allocates for every stroke of
+// every glyph: under load with 100 labelled targets, half of the server's allocations were
+// labels (heaptrack), and the same labels come back on every slice. A label is a dark halo (keeps
+// it readable on bone) with the text over it, both antialiased. OpenCV blends each stroke as
+// dst + (colour - dst) * a; drawn on black in 255, the strokes leave the coverage
+// 1 - prod(1 - a), and blending that coverage into the image once gives the same picture up to
+// rounding (within 4 grey levels of putText, tested in render_test).
+class LabelCache {
+ public:
+  void draw(cv::Mat& img, const std::string& text, cv::Point anchor, const cv::Scalar& colour) {
+    const Sprite& sprite = spriteOf(text);
+    const int u0 = anchor.x - kPad_px, v0 = anchor.y - sprite.above_px;
+    const cv::Rect onto =
+        cv::Rect(u0, v0, sprite.halo.cols, sprite.halo.rows) & cv::Rect(0, 0, img.cols, img.rows);
+    for (int v = onto.y; v < onto.y + onto.height; ++v) {
+      const std::uint8_t* halo = sprite.halo.ptr<std::uint8_t>(v - v0);
+      const std::uint8_t* ink = sprite.ink.ptr<std::uint8_t>(v - v0);
+      std::uint8_t* row = img.ptr<std::uint8_t>(v);
+      for (int u = onto.x; u < onto.x + onto.width; ++u) {
+        const int a = halo[u - u0], b = ink[u - u0];
+        if (a == 0 && b == 0) continue;
+        for (int c = 0; c < 3; ++c) {
+          const int dark = row[3 * u + c] * (255 - a);                               // x 255
+          const int lit = dark * (255 - b) + static_cast<int>(colour[c]) * b * 255;  // x 255²
+          row[3 * u + c] = static_cast<std::uint8_t>((lit + 255 * 255 / 2) / (255 * 255));
+        }
+      }
+    }
+  }
+
+ private:
+  static constexpr int kPad_px = 4;  // the halo's 3 px strokes reach past getTextSize's box
+  struct Sprite {
+    cv::Mat halo, ink;  // CV_8UC1 coverage, 0..255
+    int above_px = 0;   // rows above the text's baseline origin
+  };
+
+  const Sprite& spriteOf(const std::string& text) {
+    if (const auto found = sprites_.find(text); found != sprites_.end()) return found->second;
+    if (sprites_.size() >= kMaxSprites) sprites_.clear();  // labels are few; bound them anyway
+    int baseline = 0;
+    const cv::Size size = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, 0.4, 3, &baseline);
+    Sprite sprite;
+    sprite.above_px = size.height + kPad_px;
+    const cv::Size box(size.width + 2 * kPad_px, size.height + baseline + 2 * kPad_px);
+    const cv::Point origin(kPad_px, sprite.above_px);
+    sprite.halo = cv::Mat::zeros(box, CV_8UC1);
+    sprite.ink = cv::Mat::zeros(box, CV_8UC1);
+    cv::putText(sprite.halo, text, origin, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(255), 3,
+                cv::LINE_AA);
+    cv::putText(sprite.ink, text, origin, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(255), 1,
+                cv::LINE_AA);
+    return sprites_.emplace(text, std::move(sprite)).first->second;
+  }
+
+  static constexpr std::size_t kMaxSprites = 256;  // more than one slice shows (100 targets)
+  std::unordered_map<std::string, Sprite> sprites_;
+};
+
+void drawScaleBar(cv::Mat& img, double pixel_mm, LabelCache& labels) {
   // The longest round length that fits in a quarter of the width.
   static const double kLengths_mm[] = {500, 200, 100, 50, 20, 10, 5, 2, 1};
   for (double len_mm : kLengths_mm) {
@@ -115,21 +170,21 @@ void drawScaleBar(cv::Mat& img, double pixel_mm) {
     cv::line(img, {x0 + len_px, y - 3}, {x0 + len_px, y}, white, 1, cv::LINE_8);
     std::ostringstream label;
     label << len_mm << " mm";
-    drawText(img, label.str(), {x0, y - 6}, white);
+    labels.draw(img, label.str(), {x0, y - 6}, white);
     return;
   }
 }
 
-void drawOrientation(cv::Mat& img, const Slice& slice) {
+void drawOrientation(cv::Mat& img, const Slice& slice, LabelCache& cache) {
   const EdgeLabels labels = orientationLabels(slice);
   const cv::Scalar colour(128, 255, 255);  // light yellow
   const int w = img.cols, h = img.rows;
   const cv::Size l = textSize(labels.left), r = textSize(labels.right), t = textSize(labels.top),
                  b = textSize(labels.bottom);
-  drawText(img, labels.left, {3, h / 2 + l.height / 2}, colour);
-  drawText(img, labels.right, {w - r.width - 3, h / 2 + r.height / 2}, colour);
-  drawText(img, labels.top, {w / 2 - t.width / 2, t.height + 3}, colour);
-  drawText(img, labels.bottom, {w / 2 - b.width / 2, h - 4}, colour);
+  cache.draw(img, labels.left, {3, h / 2 + l.height / 2}, colour);
+  cache.draw(img, labels.right, {w - r.width - 3, h / 2 + r.height / 2}, colour);
+  cache.draw(img, labels.top, {w / 2 - t.width / 2, t.height + 3}, colour);
+  cache.draw(img, labels.bottom, {w / 2 - b.width / 2, h - 4}, colour);
 }
 
 }  // namespace
@@ -164,6 +219,7 @@ struct SliceRenderer::Buffers {
   cv::Mat canvas;
   std::vector<std::uint8_t, UninitialisedAllocator<std::uint8_t>> rows, stream;
   std::unique_ptr<libdeflate_compressor, CompressorDeleter> compressor;  // level 1, made once
+  LabelCache labels;
 };
 
 SliceRenderer::SliceRenderer() : buffers_(std::make_unique<Buffers>()) {}
@@ -226,11 +282,11 @@ Expected<std::vector<std::uint8_t>> SliceRenderer::renderPng(const Slice& slice,
       // Filled on the plane; a hollow ring when the point lies in front of or behind it.
       cv::circle(img, c, r, bgr(point.colour), in_plane ? cv::FILLED : 1, cv::LINE_8);
       if (!point.label.empty()) {
-        drawText(img, point.label, {c.x + r + 3, c.y + 4}, bgr(point.colour));
+        buffers_->labels.draw(img, point.label, {c.x + r + 3, c.y + 4}, bgr(point.colour));
       }
     }
-    if (options.scale_bar) drawScaleBar(img, slice.pixel_size_mm);
-    if (options.orientation_labels) drawOrientation(img, slice);
+    if (options.scale_bar) drawScaleBar(img, slice.pixel_size_mm, buffers_->labels);
+    if (options.orientation_labels) drawOrientation(img, slice, buffers_->labels);
 
     return encodePngBgr(img.data, img.cols, img.rows, img.step[0]);
   } catch (const std::exception& e) {  // cv::Exception and bad_alloc must not cross the module
