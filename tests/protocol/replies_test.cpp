@@ -1,5 +1,6 @@
 // The reply topics over real Cyclone DDS on loopback (domain 106): a client keeps its own replies
-// only, and replies are keyed by client, not by request (docs/RELIABILITY.md, L1 and L2).
+// only, and replies are keyed by client, not by request; a removed target's instance leaves the
+// server's writer (docs/RELIABILITY.md, L1 to L3).
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -57,6 +58,67 @@ TEST(Replies, AreKeyedByClientOnly) {
   EXPECT_EQ(std::string(ignav_msg_Reply_desc.m_keys[0].m_name), "client_id");
   EXPECT_EQ(ignav_msg_SliceReply_desc.m_nkeys, 1u);
   EXPECT_EQ(std::string(ignav_msg_SliceReply_desc.m_keys[0].m_name), "client_id");
+}
+
+// A removed target is disposed and unregistered: a viewer present sees it disposed, and the
+// writer forgets it, so a viewer that joins later is sent neither it nor its disposal. Disposed
+// only, every target ever removed stayed in the server's writer for good, and a late joiner was
+// sent the disposal of each (docs/RELIABILITY.md L3).
+TEST(Targets, ARemovedTargetIsDisposedAndForgottenByTheWriter) {
+  const std::string xml = readConfigFile(IGNAV_SOURCE_DIR "/configs/dds/loopback.xml");
+  Participant server(106, xml, nullptr, "robot-1");
+  Participant client(106, xml, nullptr, "robot-1");
+  Writer<ignav_msg_TargetState> targets(server, &ignav_msg_TargetState_desc, topic::kTarget,
+                                        Qos::kState);
+  struct Seen {
+    std::vector<std::uint32_t> alive, disposed;
+  };
+  auto collect = [](const Reader<ignav_msg_TargetState>& reader, Seen& seen) {
+    reader.takeWithState([&](const ignav_msg_TargetState& t, bool alive) {
+      (alive ? seen.alive : seen.disposed).push_back(t.id);
+    });
+  };
+  const std::string text = "x";
+  auto sample = [&](std::uint32_t id) {
+    ignav_msg_TargetState t{};
+    t.id = id;
+    t.reach = t.message = cstr(text);
+    return t;
+  };
+  Seen present;
+  {
+    Reader<ignav_msg_TargetState> viewer(client, &ignav_msg_TargetState_desc, topic::kTarget,
+                                         Qos::kState);
+    for (int i = 0; i < 500 && targets.matched() < 1; ++i)
+      std::this_thread::sleep_for(10ms);
+    ASSERT_EQ(targets.matched(), 1u);
+    for (std::uint32_t id = 1; id <= 3; ++id)
+      targets.write(sample(id));
+    for (int i = 0; i < 200 && present.alive.size() < 3; ++i) {
+      collect(viewer, present);
+      std::this_thread::sleep_for(5ms);
+    }
+    targets.dispose(sample(1));
+    targets.dispose(sample(2));
+    for (int i = 0; i < 200 && present.disposed.size() < 2; ++i) {
+      collect(viewer, present);
+      std::this_thread::sleep_for(5ms);
+    }
+  }
+  EXPECT_EQ(present.alive, (std::vector<std::uint32_t>{1, 2, 3}));
+  EXPECT_EQ(present.disposed, (std::vector<std::uint32_t>{1, 2}));
+
+  Reader<ignav_msg_TargetState> late(client, &ignav_msg_TargetState_desc, topic::kTarget,
+                                     Qos::kState);
+  Seen joined;
+  for (int i = 0; i < 200 && joined.alive.empty(); ++i) {
+    collect(late, joined);
+    std::this_thread::sleep_for(5ms);
+  }
+  std::this_thread::sleep_for(200ms);  // anything more the writer would send has come by now
+  collect(late, joined);
+  EXPECT_EQ(joined.alive, (std::vector<std::uint32_t>{3}));
+  EXPECT_TRUE(joined.disposed.empty());
 }
 
 }  // namespace

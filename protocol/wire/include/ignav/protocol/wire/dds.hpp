@@ -62,7 +62,13 @@ class Writer {
   Writer(const Participant& p, const dds_topic_descriptor_t* desc, const char* name, Qos qos);
   // The sample is serialised during the call: it may point into temporaries.
   void write(const T& sample) const { check(dds_write(writer_, &sample), "dds_write"); }
-  void dispose(const T& sample) const { check(dds_dispose(writer_, &sample), "dds_dispose"); }
+  // Disposes the instance, then unregisters it: a disposed instance that stays registered stays
+  // in the writer (its key, its last sample kept for late joiners) for good, one per target ever
+  // removed (docs/RELIABILITY.md L3). Readers see it disposed either way.
+  void dispose(const T& sample) const {
+    check(dds_dispose(writer_, &sample), "dds_dispose");
+    check(dds_unregister_instance(writer_, &sample), "dds_unregister_instance");
+  }
   // How many readers are matched (for waiting until a server or client is discovered).
   std::size_t matched() const;
   dds_entity_t handle() const { return writer_; }
