@@ -52,25 +52,24 @@ double perTarget(const Options& o, bool unregister) {
     std::this_thread::sleep_for(10ms);
   if (w.matched() < 1) throw std::runtime_error("the viewer never matched");
   const std::string text = "reachable";
-  auto sample = [&](std::uint32_t id) {
+  // A target written, then removed the way this run measures.
+  auto writeAndRemove = [&](std::uint32_t id) {
     ignav_msg_TargetState t{};
     t.id = id;
     t.reach = t.message = cstr(text);
-    return t;
-  };
-  // One target first, so that tables made on first use are in the baseline.
-  w.write(sample(1));
-  w.dispose(sample(1));
-  std::this_thread::sleep_for(500ms);
-  const double before = static_cast<double>(mallinfo2().uordblks);
-  for (int i = 2; i <= o.targets + 1; ++i) {
-    const auto t = sample(static_cast<std::uint32_t>(i));
     w.write(t);
     if (unregister) {
       w.dispose(t);
     } else {
       check(dds_dispose(w.handle(), &t), "dds_dispose");
     }
+  };
+  // One target first, so that tables made on first use are in the baseline.
+  writeAndRemove(1);
+  std::this_thread::sleep_for(500ms);
+  const double before = static_cast<double>(mallinfo2().uordblks);
+  for (int i = 2; i <= o.targets + 1; ++i) {
+    writeAndRemove(static_cast<std::uint32_t>(i));
     if (i % 100 == 0) std::this_thread::sleep_for(1ms);  // a viewer's pace, acks flowing
   }
   std::this_thread::sleep_for(2s);  // acknowledged and collected

@@ -157,7 +157,7 @@ class LabelCache {
   std::unordered_map<std::string, Sprite> sprites_;
 };
 
-void drawScaleBar(cv::Mat& img, double pixel_mm, LabelCache& labels) {
+void drawScaleBar(cv::Mat& img, double pixel_mm, LabelCache& cache) {
   // The longest round length that fits in a quarter of the width.
   static const double kLengths_mm[] = {500, 200, 100, 50, 20, 10, 5, 2, 1};
   for (double len_mm : kLengths_mm) {
@@ -170,7 +170,7 @@ void drawScaleBar(cv::Mat& img, double pixel_mm, LabelCache& labels) {
     cv::line(img, {x0 + len_px, y - 3}, {x0 + len_px, y}, white, 1, cv::LINE_8);
     std::ostringstream label;
     label << len_mm << " mm";
-    labels.draw(img, label.str(), {x0, y - 6}, white);
+    cache.draw(img, label.str(), {x0, y - 6}, white);
     return;
   }
 }
