@@ -166,6 +166,11 @@ TEST(ReportsE2E, QueriesAreAnsweredAtOnceWhileALockRendersTheReportSlicesOfALarg
         server.sessionDir() / "report" / ("T" + std::to_string(ids.back()) + "_" + view + ".png");
     EXPECT_GT(std::filesystem::file_size(png), 1000u) << png;
   }
+  std::ostringstream timeline;  // when each query was sent (ms from the lock) and how long it took
+  for (const auto& q : queries.samples()) {
+    timeline << " " << std::lround(msOf(q.sent - t)) << ":" << std::lround(q.ms);
+  }
+  std::cout << "queries (sent:took ms)" << timeline.str() << std::endl;
   EXPECT_GT(queries.answered(), 10);
   EXPECT_LT(queries.worstMs(), kShareOfRendering * rendering_ms)
       << "a query waited behind the report slices";

@@ -144,8 +144,11 @@ class QueryWatcher {
     bool answered = false;
   };
 
+  // A first query, untimed, before the watch starts: a new client's first exchange waits for DDS
+  // discovery to finish on both sides (~200 ms seen with both cores busy), not for the server.
   QueryWatcher(std::unique_ptr<protocol::Client> client, std::chrono::milliseconds period)
       : client_(std::move(client)) {
+    client_->send("query", {}, std::chrono::seconds(20));
     thread_ = std::thread([this, period] {
       while (!stop_) {
         const auto t = std::chrono::steady_clock::now();
