@@ -451,13 +451,18 @@ void Server::serveReadOnly(Clock::time_point until, const std::atomic<bool>& sto
 }
 
 // Another server's Health in this robot's partition: the later one to start gives way (ties by
-// session id, so exactly one of two gives way). A later one is said once; it will stop.
+// session id, host and folder, so exactly one of two gives way). A later one is said once; it will
+// stop. This server's own Health is the one with its start, session, host and folder: the session
+// id alone (the folder's name) is not, since two servers may be given folders of one name.
 std::optional<std::string> Server::robotIdConflict() {
   std::optional<std::string> conflict;
+  const std::string folder = session_dir_.string();
+  const auto mine = std::tie(started_unix_s_, session_.session_id, host_, folder);
   robot_peers_.take([&](const protocol::Health& h) {
-    if (h.session_id == session_.session_id || h.robot_id != options_.robot_id) return;
-    const bool it_is_older =
-        std::tie(h.started_unix_s, h.session_id) < std::tie(started_unix_s_, session_.session_id);
+    if (h.robot_id != options_.robot_id) return;
+    const auto theirs = std::tie(h.started_unix_s, h.session_id, h.host, h.session_dir);
+    if (theirs == mine) return;
+    const bool it_is_older = theirs < mine;
     const std::string who = fmt::format("session {} on host {}, serving since {:.0f}", h.session_id,
                                         h.host, h.started_unix_s);
     if (it_is_older) {
@@ -466,7 +471,7 @@ std::optional<std::string> Server::robotIdConflict() {
           "two servers must never act on one robot's commands: give each robot its own "
           "server.robot_id",
           options_.robot_id, options_.domain_id, who);
-    } else if (peers_warned_.insert(h.session_id).second) {
+    } else if (peers_warned_.insert(h.session_dir + "@" + h.host).second) {
       spdlog::warn(
           "robot_id '{}': a later ignav-server with this robot id appeared ({}); it "
           "gives way to this one",

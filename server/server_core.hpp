@@ -113,7 +113,7 @@ class Server {
   const Clock::time_point participant_started_;
   const std::string host_;
   const double started_unix_s_;
-  std::set<std::string> peers_warned_;  // sessions of later servers with this id, said once
+  std::set<std::string> peers_warned_;  // later servers with this id (folder@host), said once
   ServiceNotifier notifier_;            // systemd: ready, watchdog, stopping
   StatePublisher state_;
   // The slices clients ask for, drawn on a thread of their own (it writes the replies).

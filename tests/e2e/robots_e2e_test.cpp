@@ -3,7 +3,7 @@
 // one never reaches the other; a client that names no robot among several is told which exist; a
 // second server with a robot id already served stops before it touches the controller; with DDS
 // Security, an approver of one robot cannot publish approvals to another; a site configuration
-// chosen by name carries the workflow; ignavctl doctor. Domains 182-185, 188 and 194 (empty).
+// chosen by name carries the workflow; ignavctl doctor. Domains 182-185, 188, 193 and 194 (empty).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -164,6 +164,30 @@ TEST(RobotsE2E, ASecondServerWithARobotIdAlreadyServedStopsBeforeTouchingTheCont
   const auto again = op->send("ping");
   EXPECT_TRUE(again.accepted);
   EXPECT_EQ(again.revision, revision);
+  EXPECT_TRUE(first.alive());
+}
+
+TEST(RobotsE2E, ASecondServerWhoseSessionFolderHasTheSameNameIsStillASecondServer) {
+  // A session's id is its folder's name. Each server took a Health with its own session id for its
+  // own, so two given folders of one name (in two places on one host, or on two hosts) both
+  // served the robot.
+  ServerProcess first(193, {"--robot-id", "twin"});
+  auto op = clientOf(first, "operator");
+  ASSERT_TRUE(op->send("ping").accepted);
+  const fs::path elsewhere =
+      fs::temp_directory_path() / ("ignav_same_name_" + std::to_string(::getpid()));
+  const fs::path dir = elsewhere / first.sessionDir().filename();
+  ASSERT_NE(dir, first.sessionDir());
+  fs::remove_all(elsewhere);
+  const auto second = runCommand(
+      serverCommand("--domain 193 --robot-id twin --no-igtl --session-dir " + dir.string()));
+  fs::remove_all(elsewhere);
+  EXPECT_EQ(second.exit_code, 4) << second.output;
+  EXPECT_NE(second.output.find("robot_id 'twin': another ignav-server already serves this robot"),
+            std::string::npos)
+      << second.output;
+  EXPECT_EQ(second.output.find("ignav-server ready"), std::string::npos) << second.output;
+  EXPECT_TRUE(op->send("ping").accepted);
   EXPECT_TRUE(first.alive());
 }
 

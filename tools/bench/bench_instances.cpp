@@ -3,8 +3,10 @@
 // server's target topic (transient-local, keep-last 1), with a viewer in another process, and
 // glibc's bytes in use (mallinfo2) compared before and after. Removal as the server does it
 // (dispose, then unregister: Writer::dispose) or as it did before (dispose only).
-//   build/tools/bench/bench_instances [--targets 20000] [--domain 96]
-// runs both, each in a fresh process with a viewer process of its own.
+//   build/tools/bench/bench_instances [--targets 20000] [--ids 0] [--domain 96]
+// runs both, each in a fresh process with a viewer process of its own. With --ids N the targets
+// cycle through N ids, as a topic keyed by a slot would: whether what is kept is per target
+// removed or per id ever used.
 #include <malloc.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -27,6 +29,7 @@ using namespace std::chrono_literals;
 
 struct Options {
   int targets = 20000;
+  int ids = 0;  // distinct ids cycled through; 0: every target a new id
   std::uint32_t domain = 96;
 };
 
@@ -69,7 +72,7 @@ double perTarget(const Options& o, bool unregister) {
   std::this_thread::sleep_for(500ms);
   const double before = static_cast<double>(mallinfo2().uordblks);
   for (int i = 2; i <= o.targets + 1; ++i) {
-    writeAndRemove(static_cast<std::uint32_t>(i));
+    writeAndRemove(static_cast<std::uint32_t>(o.ids > 0 ? 2 + (i - 2) % o.ids : i));
     if (i % 100 == 0) std::this_thread::sleep_for(1ms);  // a viewer's pace, acks flowing
   }
   std::this_thread::sleep_for(2s);  // acknowledged and collected
@@ -83,9 +86,13 @@ int main(int argc, char** argv) {
   CLI::App app("bytes a DDS writer keeps per removed target instance");
   app.add_option("--targets", o.targets, "targets written and removed")
       ->check(CLI::Range(1, 1000000));
+  app.add_option("--ids", o.ids, "distinct ids the targets cycle through (0: a new id each)")
+      ->check(CLI::Range(0, 1000000));
   app.add_option("--domain", o.domain, "DDS domain")->check(CLI::Range(0, 232));
   CLI11_PARSE(app, argc, argv);
-  std::printf("%d targets written and removed, a viewer in another process:\n", o.targets);
+  std::printf(
+      "%d targets written and removed (%s), a viewer in another process:\n", o.targets,
+      o.ids > 0 ? (std::to_string(o.ids) + " ids cycled through").c_str() : "each a new id");
   for (const bool unregister : {false, true}) {
     // Each way in fresh processes: Cyclone's tables and glibc's heap start alike.
     int pipe_fd[2];

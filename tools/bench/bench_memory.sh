@@ -8,6 +8,9 @@
 #     writes it every 10 s from inside the server): the bytes its arenas hold, how many of them
 #     are free, and the rest, in use by the program. In use growing is a leak or a growing cache;
 #     arenas growing while in use stays is the allocator's fragmentation.
+# IGNAV_MALLOC_PROBE_TRIM=1: the probe also calls malloc_trim(0) before each report and the bench
+# prints how long it took (it holds each arena's lock while it runs): what RSS would be if glibc
+# gave its free pages back.
 # `jemalloc` preloads Debian's libjemalloc2 (apt-get install libjemalloc2) into the server instead.
 # IGNAV_BENCH_DOMAIN (default 97): the DDS domain.
 set -euo pipefail
@@ -20,7 +23,7 @@ pid=
 trap 'kill $pid 2>/dev/null || true; rm -rf "$work"' EXIT
 case "$allocator" in
   glibc) preload=(env "LD_PRELOAD=$PWD/build/tools/bench/malloc_probe.so"
-    "IGNAV_MALLOC_PROBE_OUT=$work/info.xml" IGNAV_MALLOC_PROBE_S=10) ;;
+    "IGNAV_MALLOC_PROBE_OUT=$work/info.xml" IGNAV_MALLOC_PROBE_S=10 "IGNAV_MALLOC_PROBE_TRIM=${IGNAV_MALLOC_PROBE_TRIM:-0}") ;;
   jemalloc)
     lib=$(ls /usr/lib/*-linux-gnu/libjemalloc.so.2 2>/dev/null | head -1)
     [ -n "$lib" ] || { echo "bench_memory: libjemalloc2 is not installed" >&2; exit 2; }
@@ -69,6 +72,7 @@ while kill -0 $load 2>/dev/null; do
   t=$((t + 5))
 done
 wait $load || { cat "$work/load.out"; exit 1; }
+{ grep -h "^malloc_trim" "$work/server.log" || true; } | sort -k2 -n | awk '{a[NR]=$2} END{if(NR) printf "malloc_trim: %d calls, median %.3f ms, max %.3f ms\n", NR, a[int((NR+1)/2)], a[NR]}'
 sleep 11  # the probe's next report, taken after the load
 read -r sys free used < <(arenas)
 printf '%6s %10s %12s %14s %18s %16s\n' idle "$(kib VmRSS)" "$(kib RssAnon)" "$sys" "$free" "$used"
