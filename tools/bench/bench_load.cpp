@@ -165,7 +165,12 @@ void runLoadClient(int index, std::uint32_t domain, const std::string& xml,
   std::mt19937 rng(static_cast<unsigned>(1000 + index));
   std::uniform_int_distribution<int> pick(0, 99);
   std::vector<std::uint32_t> mine;
-  std::uint64_t request = (static_cast<std::uint64_t>(index) + 1) << 32;
+  // From the wall clock in µs, as Client does: a later run with these client ids never repeats
+  // this run's request ids, which the server would answer from memory.
+  std::uint64_t request =
+      static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::microseconds>(
+                                     std::chrono::system_clock::now().time_since_epoch())
+                                     .count());
   const auto period =
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / o.rate_hz));
   auto next = Clock::now();
@@ -241,6 +246,17 @@ void runLoadClient(int index, std::uint32_t domain, const std::string& xml,
       problem(command + " " + std::to_string(rid) + " timed out");
     }
     c.poll();  // keep the state mirror (and the registration) current, as a UI would
+  }
+  // The targets this client still has are removed: a next run against the same server starts
+  // from the session this one found (bench_memory.sh's rounds).
+  for (const auto target : mine) {
+    const std::uint64_t rid = ++request;
+    out.sent.push_back({id, rid});
+    try {
+      if (!c.send("remove_target", {"", {}, {target}}, 10s, rid).accepted) ++out.unexpected;
+    } catch (const ignav::protocol::Timeout&) {
+      ++out.timeouts;
+    }
   }
 }
 
