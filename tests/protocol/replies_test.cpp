@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <functional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -78,6 +79,14 @@ TEST(Targets, ARemovedTargetIsDisposedAndForgottenByTheWriter) {
       (alive ? seen.alive : seen.disposed).push_back(t.id);
     });
   };
+  // Collects until `done` holds, for a second at most.
+  auto collectUntil = [&](const Reader<ignav_msg_TargetState>& reader, Seen& seen,
+                          const std::function<bool()>& done) {
+    for (int i = 0; i < 200 && !done(); ++i) {
+      collect(reader, seen);
+      std::this_thread::sleep_for(5ms);
+    }
+  };
   const std::string text = "x";
   auto sample = [&](std::uint32_t id) {
     ignav_msg_TargetState t{};
@@ -94,16 +103,10 @@ TEST(Targets, ARemovedTargetIsDisposedAndForgottenByTheWriter) {
     ASSERT_EQ(targets.matched(), 1u);
     for (std::uint32_t id = 1; id <= 3; ++id)
       targets.write(sample(id));
-    for (int i = 0; i < 200 && present.alive.size() < 3; ++i) {
-      collect(viewer, present);
-      std::this_thread::sleep_for(5ms);
-    }
+    collectUntil(viewer, present, [&] { return present.alive.size() >= 3; });
     targets.dispose(sample(1));
     targets.dispose(sample(2));
-    for (int i = 0; i < 200 && present.disposed.size() < 2; ++i) {
-      collect(viewer, present);
-      std::this_thread::sleep_for(5ms);
-    }
+    collectUntil(viewer, present, [&] { return present.disposed.size() >= 2; });
   }
   EXPECT_EQ(present.alive, (std::vector<std::uint32_t>{1, 2, 3}));
   EXPECT_EQ(present.disposed, (std::vector<std::uint32_t>{1, 2}));
@@ -111,10 +114,7 @@ TEST(Targets, ARemovedTargetIsDisposedAndForgottenByTheWriter) {
   Reader<ignav_msg_TargetState> late(client, &ignav_msg_TargetState_desc, topic::kTarget,
                                      Qos::kState);
   Seen joined;
-  for (int i = 0; i < 200 && joined.alive.empty(); ++i) {
-    collect(late, joined);
-    std::this_thread::sleep_for(5ms);
-  }
+  collectUntil(late, joined, [&] { return !joined.alive.empty(); });
   std::this_thread::sleep_for(200ms);  // anything more the writer would send has come by now
   collect(late, joined);
   EXPECT_EQ(joined.alive, (std::vector<std::uint32_t>{3}));
