@@ -278,6 +278,7 @@ void ControllerComponent::lost(const std::string& why) {
 
 void ControllerComponent::pollOnce(bool force_event) {
   const std::uint64_t after = completed();
+  const auto began = Clock::now();  // what the reading shows was true at or after this
   auto polled = call([&] { return driver_->poll(); });
   if (!polled) {
     if (connectionError(polled.error())) return lost(polled.error().message);
@@ -285,14 +286,14 @@ void ControllerComponent::pollOnce(bool force_event) {
     r.status.state = actuation::ControllerState::kDisconnected;
     r.status.fault = polled.error().message;
     r.after_command = after;
-    r.taken = Clock::now();
+    r.taken = began;
     return publish(std::move(r), force_event);
   }
   moving_ = polled->state == actuation::ControllerState::kMoving;
   ControllerReading r;
   r.status = std::move(polled).value();
   r.after_command = after;
-  r.taken = Clock::now();
+  r.taken = began;
   publish(std::move(r), force_event);
 }
 

@@ -43,6 +43,8 @@ struct ControllerReading {
   // executed (or had failed, or was dropped by a halt) before this reading was taken: a move's
   // arrival, and a position check, are judged only on a reading taken after the commands before.
   std::uint64_t after_command = 0;
+  // When the read began: the reading shows the controller as it was at this moment or later (an
+  // approval is judged only on a reading begun after it arrived: a hand jog just before it).
   std::chrono::steady_clock::time_point taken{};
   // The component's lifecycle as this reading left it: a change of lifecycle alone is an event
   // too, so that MotionState.lifecycle follows reconnection (issue 22).

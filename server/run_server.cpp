@@ -12,6 +12,7 @@
 #include "ignav/igtl/brp.hpp"
 #include "server.hpp"
 #include "server_core.hpp"
+#include "session_lock.hpp"
 
 namespace ignav::server {
 namespace {
@@ -62,6 +63,22 @@ int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
     spdlog::error("{}", e.what());
     return 2;
   }
+  // The identity as Cyclone's plugins will judge it: a wrong one is a configuration error, named
+  // here (exit 2, which systemd does not restart), not a participant that fails after the session
+  // folder was made.
+  if (!options.security.identity.empty()) {
+    try {
+      auto id = protocol::identityFromFolder(options.security.identity);
+      if (!options.security.plugins.empty()) id.plugin_dir = options.security.plugins;
+      if (const std::string bad = protocol::identityProblem(id); !bad.empty()) {
+        spdlog::error("security.identity {}: {}", options.security.identity, bad);
+        return 2;
+      }
+    } catch (const protocol::DdsError& e) {
+      spdlog::error("security.identity: {}", e.what());
+      return 2;
+    }
+  }
   // A site that lets OpenIGTLink release motion makes the bridge an approver (by its reserved id).
   if (options.openigtlink.enabled && options.openigtlink.allow_motion_approval) {
     options.approvers.push_back(igtl::kBridgeClientId);
@@ -111,10 +128,11 @@ int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
   const fs::path root = options.session_root.empty() ? "sessions" : options.session_root;
   const fs::path marker = root / (".unfinished-" + options.robot_id);
   fs::path dir = options.session_dir;
+  bool continuing = false;
   if (dir.empty()) {
     if (auto unfinished = unfinishedSession(marker)) {
-      spdlog::warn("{}: the last session did not end cleanly: continuing it", unfinished->string());
       dir = *unfinished;
+      continuing = true;
     } else {
       dir = root / sessionName();
     }
@@ -124,6 +142,17 @@ int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
   if (ec) {
     spdlog::error("{}: cannot create the session folder: {}", dir.string(), ec.message());
     return 2;
+  }
+  // One process per session folder, for its whole life, before the journal is read (a second
+  // server would cut a "torn" record the first is writing, and append beside it). The marker is
+  // left to its owner: a refused server touches nothing.
+  auto lock = SessionLock::acquire(dir);
+  if (!lock) {
+    spdlog::error("{}", lock.error().message);
+    return lock.error().reason == "in_use" ? 4 : 2;
+  }
+  if (continuing) {
+    spdlog::warn("{}: the last session did not end cleanly: continuing it", dir.string());
   }
   // An existing session is recovered from its journal; a write torn by a crash is cut off.
   const std::string journal_path = (dir / "journal.jsonl").string();

@@ -2,9 +2,11 @@
 // until a fresh controller reading comes. server_core.hpp says where the rest is.
 #include <spdlog/spdlog.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <iostream>
+#include <random>
 #include <thread>
 #include <tuple>
 
@@ -58,6 +60,26 @@ std::optional<SecurityIdentity> serverIdentity(const SecurityOptions& o) {
   spdlog::info("DDS Security on: identity {} ({})", o.identity,
                certificateSubject(readConfigFile(id.certificate)));
   return id;
+}
+
+// A version-4 UUID from the kernel's random source: the session's own identity, which the
+// approval digests cover (a folder's name can repeat across hosts and robots).
+std::string newSessionUuid() {
+  std::random_device random("/dev/urandom");
+  std::array<std::uint8_t, 16> b{};
+  for (std::size_t i = 0; i < b.size(); i += 4) {
+    const std::uint32_t word = random();
+    for (std::size_t k = 0; k < 4; ++k)
+      b[i + k] = static_cast<std::uint8_t>(word >> (8 * k));
+  }
+  b[6] = static_cast<std::uint8_t>((b[6] & 0x0f) | 0x40);  // version 4
+  b[8] = static_cast<std::uint8_t>((b[8] & 0x3f) | 0x80);  // RFC 4122 variant
+  std::string out;
+  for (std::size_t i = 0; i < b.size(); ++i) {
+    if (i == 4 || i == 6 || i == 8 || i == 10) out += '-';
+    out += fmt::format("{:02x}", b[i]);
+  }
+  return out;
 }
 
 std::string hostName() {
@@ -119,6 +141,9 @@ int Server::replay(const std::atomic<bool>& stop, const std::vector<std::string>
             << (igtl_ ? " igtl_port=" + std::to_string(igtl_->port()) : std::string()) << std::endl;
   notifier_.ready(
       fmt::format("replaying {} as robot {}", session_dir_.string(), options_.robot_id));
+  // Every state topic from the start (as a live server): the session before its first record.
+  state_.publishEverything(session_, readings());
+  publishMotion();
   const fs::path journal_path = session_dir_ / "journal.jsonl";
   auto load_ct = [this](const std::string& source) { return reloadCt(source); };
   std::optional<double> previous_t;
@@ -167,10 +192,25 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
     config_loaded.kind = InputKind::kConfigLoaded;
     config_loaded.policy = approvalPolicy(options_);
     config_loaded.tissue = options_.tissue;
+    config_loaded.robot_id = options_.robot_id;
+    config_loaded.session_uuid = newSessionUuid();
     if (!step(config_loaded)) return 3;
+    // Every state topic from the start, empty ones included: a late joiner can then tell "none"
+    // from "not yet heard" (issue 38).
+    state_.publishEverything(session_, readings());
   } else {
     if (auto ok = recover(journal_lines); !ok) {
       spdlog::error("{}", ok.error().message);
+      return 2;
+    }
+    // A session is its robot's: another robot's server must not continue it (its approvals and
+    // positions are the other robot's). Sessions from before issue 38 name no robot.
+    if (!session_.robot_id.empty() && session_.robot_id != options_.robot_id) {
+      spdlog::error(
+          "{}: this session belongs to robot '{}' and this server is robot '{}' "
+          "(server.robot_id): "
+          "start that robot's server on it, or give this one a new session folder",
+          session_dir_.string(), session_.robot_id, options_.robot_id);
       return 2;
     }
     // A real controller kept counting while we were down; the simulation is told where the
@@ -363,29 +403,35 @@ bool Server::step(Input in) {
   // Questions that need no reading (query, ping) never wait behind the held inputs.
   const bool at_once = workflow::isQuestion(in.kind) && !workflow::needsControllerReading(in.kind);
   const bool client = workflow::isCommand(in.kind) && !at_once;
-  if ((client && !held_.empty()) || waitsForReading(in)) {
-    if (held_.empty()) held_since_ = Clock::now();
-    held_.push_back(std::move(in));
+  const auto arrived = Clock::now();
+  if ((client && !held_.empty()) || waitsForReading(in, arrived)) {
+    if (held_.empty()) held_since_ = arrived;
+    held_.push_back({std::move(in), arrived});
     if (component_) component_->pollNow();
     return true;
   }
   return stepNow(std::move(in));
 }
 
-bool Server::waitsForReading(const Input& in) const {
+// An input judged by a reading waits for one taken after every command sent so far; one that
+// releases motion (approve, resume) waits for one begun after it arrived, so that motors moved
+// by hand a moment before are seen (issue 38: an approval accepted on the old position made a
+// move the executor then refused, and a fault).
+bool Server::waitsForReading(const Input& in, Clock::time_point arrived) const {
   if (!component_ || in.controller || !workflow::needsControllerReading(in.kind)) return false;
   const auto r = component_->latest();
-  return r.status.state != actuation::ControllerState::kDisconnected &&
-         r.after_command < last_submitted_;
+  if (r.status.state == actuation::ControllerState::kDisconnected) return false;
+  if (r.after_command < last_submitted_) return true;
+  return workflow::releasesMotion(in.kind) && r.taken < arrived;
 }
 
 // Steps the held inputs whose reading has come; one that waited too long is refused.
 bool Server::releaseHeld() {
   const auto limit = std::chrono::milliseconds(6 * options_.controller.timeout_ms + 1000);
   while (!held_.empty()) {
-    if (waitsForReading(held_.front())) {
+    if (waitsForReading(held_.front().input, held_.front().arrived)) {
       if (Clock::now() - held_since_ < limit) return true;
-      const Input& late = held_.front();
+      const Input& late = held_.front().input;
       sendReply({late.client_id, late.request_id, false,
                  workflow::toString(workflow::ReplyCode::kControllerUnavailable),
                  fmt::format("not done: no reading of the controller came within {} ms after "
@@ -396,7 +442,7 @@ bool Server::releaseHeld() {
       held_since_ = Clock::now();
       continue;
     }
-    Input in = std::move(held_.front());
+    Input in = std::move(held_.front().input);
     held_.pop_front();
     held_since_ = Clock::now();
     if (!stepNow(std::move(in))) return false;
@@ -405,7 +451,8 @@ bool Server::releaseHeld() {
 }
 
 void Server::refuseHeld(const char* code, const std::string& why) {
-  for (const auto& in : held_) {
+  for (const auto& held : held_) {
+    const Input& in = held.input;
     if (!workflow::isCommand(in.kind)) continue;
     sendReply({in.client_id, in.request_id, false, code, why, 0, session_.revision});
   }

@@ -65,7 +65,7 @@ class Server {
   void serveReadOnly(Clock::time_point until, const std::atomic<bool>& stop);
   std::size_t takeCommands(bool& failed);
   bool step(Input in);
-  bool waitsForReading(const Input& in) const;
+  bool waitsForReading(const Input& in, Clock::time_point arrived) const;
   bool releaseHeld();
   void refuseHeld(const char* code, const std::string& why);
   bool reservedClientId(const std::string& client_id, std::uint64_t request_id);
@@ -125,7 +125,11 @@ class Server {
   Lifecycle lifecycle_ = Lifecycle::kUnconfigured;  // the component's, as last taken
   std::uint64_t move_seq_ = 0;                      // the component's number of the last move sent
   std::uint64_t last_submitted_ = 0;                // ... of the last command of any kind
-  std::deque<Input> held_;                          // inputs waiting for a fresh reading (step())
+  struct Held {
+    Input input;
+    Clock::time_point arrived;
+  };
+  std::deque<Held> held_;  // inputs waiting for a fresh reading (step())
   Clock::time_point held_since_;
   std::string last_fault_reported_;
   std::string refused_move_;  // a move runController would not send: a fault, reported next

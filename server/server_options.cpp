@@ -6,6 +6,9 @@
 #include <cmath>
 #include <filesystem>
 #include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <vector>
 
 #include "ignav/igtl/brp.hpp"
 #include "ignav/protocol/topics.hpp"
@@ -19,6 +22,37 @@ namespace fs = std::filesystem;
 struct ConfigError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+// What a setting must be, for the message that names a value of the wrong kind.
+template <typename T>
+const char* expectedKind() {
+  if constexpr (std::is_same_v<T, bool>) return "true or false";
+  if constexpr (std::is_same_v<T, std::string>) return "a text";
+  if constexpr (std::is_same_v<T, std::vector<std::string>>) return "a list of texts";
+  if constexpr (std::is_floating_point_v<T>) return "a number";
+  if constexpr (std::is_integral_v<T> && std::is_unsigned_v<T>) {
+    if constexpr (sizeof(T) == 4) return "a whole number within 0..4294967295";
+    return "a whole number, 0 or more";
+  }
+  return "a whole number";
+}
+
+// A setting's value as T, or a ConfigError naming the file, the key and the value as written
+// (yaml-cpp's own "bad conversion" names neither).
+template <typename T>
+T valueOf(const YAML::Node& node, const std::string& path, const std::string& key) {
+  if (!node.IsDefined()) throw ConfigError(fmt::format("{}: server.{}: is missing", path, key));
+  try {
+    return node.as<T>();
+  } catch (const YAML::Exception&) {
+    const std::string written = node.IsScalar()     ? "'" + node.Scalar() + "'"
+                                : node.IsSequence() ? "a list"
+                                : node.IsMap()      ? "a map"
+                                                    : "nothing";
+    throw ConfigError(
+        fmt::format("{}: server.{}: {} is not {}", path, key, written, expectedKind<T>()));
+  }
+}
 
 std::string resolve(const fs::path& base, const std::string& p) {
   if (p.empty() || fs::path(p).is_absolute()) return p;
@@ -37,6 +71,14 @@ std::optional<std::string> checkServerOptions(const ServerOptions& o) {
         "dds.domain_id: {} is not within 0..{} (RTPS maps the domain to UDP port "
         "7400 + 250 x id)",
         o.domain_id, kMaxDomainId);
+  }
+  // Cyclone's access control cannot parse a governance or permissions document that names a
+  // domain above 230: with an identity, such a domain is refused here, not by the plugin.
+  if (!o.security.identity.empty() && o.domain_id > kMaxSecureDomainId) {
+    return fmt::format(
+        "dds.domain_id: {} is above {}, the highest domain DDS Security's governance can name "
+        "(Cyclone); with security.identity use 0..{}",
+        o.domain_id, kMaxSecureDomainId, kMaxSecureDomainId);
   }
   if (o.robot_id_check_ms < 0 || o.robot_id_check_ms > 60000) {
     return fmt::format("dds.robot_id_check_ms: {} is not within 0..60000", o.robot_id_check_ms);
@@ -111,26 +153,35 @@ ServerOptions loadServerOptions(const std::string& path) {
     }
   }
   try {
-    if (s["robot_id"]) o.robot_id = s["robot_id"].as<std::string>();
-    o.robot_config = resolve(base, s["robot_config"].as<std::string>());
-    if (s["session_root"]) o.session_root = resolve(base, s["session_root"].as<std::string>());
+    if (s["robot_id"]) o.robot_id = valueOf<std::string>(s["robot_id"], path, "robot_id");
+    o.robot_config = resolve(base, valueOf<std::string>(s["robot_config"], path, "robot_config"));
+    if (s["session_root"])
+      o.session_root = resolve(base, valueOf<std::string>(s["session_root"], path, "session_root"));
     if (const YAML::Node d = s["dds"]) {
       for (const auto& kv : d) {
         const std::string key = kv.first.Scalar();
         if (key == "domain_id") {
-          o.domain_id = kv.second.as<std::uint32_t>();
+          // Read wide, so that -1 or 2^32 is named as out of range, not as a bad conversion.
+          const auto id = valueOf<long long>(kv.second, path, "dds." + key);
+          if (id < 0 || id > kMaxDomainId) {
+            throw ConfigError(
+                fmt::format("{}: server.dds.domain_id: {} is not within 0..{} (RTPS "
+                            "maps the domain to UDP port 7400 + 250 x id)",
+                            path, id, kMaxDomainId));
+          }
+          o.domain_id = static_cast<std::uint32_t>(id);
         } else if (key == "config") {
           // A name ("site-multicast") is a file in the dds folder beside this one.
-          const auto value = kv.second.as<std::string>();
+          const auto value = valueOf<std::string>(kv.second, path, "dds." + key);
           o.dds_config = protocol::isDdsConfigName(value)
                              ? (base / "dds" / (value + ".xml")).lexically_normal().string()
                              : resolve(base, value);
         } else if (key == "interface") {
-          o.dds_site.interface = kv.second.as<std::string>();
+          o.dds_site.interface = valueOf<std::string>(kv.second, path, "dds." + key);
         } else if (key == "peers") {
-          o.dds_site.peers = kv.second.as<std::vector<std::string>>();
+          o.dds_site.peers = valueOf<std::vector<std::string>>(kv.second, path, "dds." + key);
         } else if (key == "robot_id_check_ms") {
-          o.robot_id_check_ms = kv.second.as<int>();
+          o.robot_id_check_ms = valueOf<int>(kv.second, path, "dds." + key);
         } else {
           throw ConfigError(path + ": server.dds." + key +
                             ": unknown key; expected domain_id, config, interface, peers, "
@@ -143,19 +194,19 @@ ServerOptions loadServerOptions(const std::string& path) {
       for (const auto& kv : c) {
         const std::string key = kv.first.Scalar();
         if (key == "kind") {
-          co.kind = kv.second.as<std::string>();
+          co.kind = valueOf<std::string>(kv.second, path, "controller." + key);
         } else if (key == "host") {
-          co.host = kv.second.as<std::string>();
+          co.host = valueOf<std::string>(kv.second, path, "controller." + key);
         } else if (key == "port") {
-          co.port = kv.second.as<int>();
+          co.port = valueOf<int>(kv.second, path, "controller." + key);
         } else if (key == "speed_steps_s") {
-          co.speed_steps_s = kv.second.as<double>();
+          co.speed_steps_s = valueOf<double>(kv.second, path, "controller." + key);
         } else if (key == "acceleration_steps_s2") {
-          co.acceleration_steps_s2 = kv.second.as<double>();
+          co.acceleration_steps_s2 = valueOf<double>(kv.second, path, "controller." + key);
         } else if (key == "control_period_ms") {
-          co.control_period_ms = kv.second.as<int>();
+          co.control_period_ms = valueOf<int>(kv.second, path, "controller." + key);
         } else if (key == "timeout_ms") {
-          co.timeout_ms = kv.second.as<int>();
+          co.timeout_ms = valueOf<int>(kv.second, path, "controller." + key);
         } else {
           throw ConfigError(path + ": server.controller." + key +
                             ": unknown key; expected kind, host, port, speed_steps_s, "
@@ -167,9 +218,9 @@ ServerOptions loadServerOptions(const std::string& path) {
       for (const auto& kv : t) {
         const std::string key = kv.first.Scalar();
         if (key == "profiles") {
-          o.tissue_profiles = resolve(base, kv.second.as<std::string>());
+          o.tissue_profiles = resolve(base, valueOf<std::string>(kv.second, path, "tissue." + key));
         } else if (key == "name") {
-          o.tissue_name = kv.second.as<std::string>();
+          o.tissue_name = valueOf<std::string>(kv.second, path, "tissue." + key);
         } else {
           throw ConfigError(path + ": server.tissue." + key +
                             ": unknown key; expected profiles, name");
@@ -180,9 +231,9 @@ ServerOptions loadServerOptions(const std::string& path) {
       for (const auto& kv : pl) {
         const std::string key = kv.first.Scalar();
         if (key == "max_targets") {
-          o.max_targets = kv.second.as<std::size_t>();
+          o.max_targets = valueOf<std::size_t>(kv.second, path, "planning." + key);
         } else if (key == "max_total_rotation_deg") {
-          o.max_total_rotation_deg = kv.second.as<double>();
+          o.max_total_rotation_deg = valueOf<double>(kv.second, path, "planning." + key);
         } else {
           throw ConfigError(path + ": server.planning." + key +
                             ": unknown key; expected max_targets, max_total_rotation_deg");
@@ -193,10 +244,10 @@ ServerOptions loadServerOptions(const std::string& path) {
       for (const auto& kv : sec) {
         const std::string key = kv.first.Scalar();
         if (key == "identity") {
-          const auto folder = kv.second.as<std::string>();
+          const auto folder = valueOf<std::string>(kv.second, path, "security." + key);
           o.security.identity = folder.empty() ? "" : resolve(base, folder);
         } else if (key == "plugins") {
-          o.security.plugins = kv.second.as<std::string>();
+          o.security.plugins = valueOf<std::string>(kv.second, path, "security." + key);
         } else {
           throw ConfigError(path + ": server.security." + key +
                             ": unknown key; expected identity, plugins");
@@ -208,17 +259,17 @@ ServerOptions loadServerOptions(const std::string& path) {
       for (const auto& kv : g) {
         const std::string key = kv.first.Scalar();
         if (key == "enabled") {
-          go.enabled = kv.second.as<bool>();
+          go.enabled = valueOf<bool>(kv.second, path, "openigtlink." + key);
         } else if (key == "address") {
-          go.address = kv.second.as<std::string>();
+          go.address = valueOf<std::string>(kv.second, path, "openigtlink." + key);
         } else if (key == "port") {
-          go.port = kv.second.as<int>();
+          go.port = valueOf<int>(kv.second, path, "openigtlink." + key);
         } else if (key == "timeout_s") {
-          go.timeout_s = kv.second.as<double>();
+          go.timeout_s = valueOf<double>(kv.second, path, "openigtlink." + key);
         } else if (key == "allow_motion_approval") {
-          go.allow_motion_approval = kv.second.as<bool>();
+          go.allow_motion_approval = valueOf<bool>(kv.second, path, "openigtlink." + key);
         } else if (key == "protocol") {
-          go.protocol = kv.second.as<std::string>();
+          go.protocol = valueOf<std::string>(kv.second, path, "openigtlink." + key);
         } else {
           throw ConfigError(path + ": server.openigtlink." + key +
                             ": unknown key; expected enabled, address, port, timeout_s, "
@@ -230,9 +281,9 @@ ServerOptions loadServerOptions(const std::string& path) {
       for (const auto& kv : a) {
         const std::string key = kv.first.Scalar();
         if (key == "approvers") {
-          o.approvers = kv.second.as<std::vector<std::string>>();
+          o.approvers = valueOf<std::vector<std::string>>(kv.second, path, "approval." + key);
         } else if (key == "expiry_s") {
-          o.approval_expiry_s = kv.second.as<double>();
+          o.approval_expiry_s = valueOf<double>(kv.second, path, "approval." + key);
         } else {
           throw ConfigError(path + ": server.approval." + key +
                             ": unknown key; expected approvers, expiry_s");

@@ -47,6 +47,7 @@ struct OpenIgtlinkOptions {
 
 // The largest DDS domain id: RTPS's default port mapping (7400 + 250 x id + 11) stays a UDP port.
 constexpr std::uint32_t kMaxDomainId = 232;
+constexpr std::uint32_t kMaxSecureDomainId = 230;  // Cyclone's governance parser's limit
 
 struct ServerOptions {
   ControllerOptions controller;

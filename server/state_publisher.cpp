@@ -131,6 +131,8 @@ void StatePublisher::publishWorkflow(const Session& s) {
   w.revision = s.revision;
   w.last_event = s.last_event;
   w.safety_notice = safety_notice_;
+  for (const auto& t : s.targets)
+    w.target_ids.push_back(t.id);
   workflow_.write(w);
 }
 

@@ -145,6 +145,10 @@ std::unique_ptr<Impl> makeImpl(std::uint32_t domain_id, const std::string& confi
 Client::Client(std::uint32_t domain_id, const std::string& config_xml, std::string client_id,
                const SecurityIdentity* identity, const std::string& robot_id)
     : impl_(makeImpl<Impl>(domain_id, config_xml, identity, client_id, robot_id)),
+      domain_id_(domain_id),
+      config_xml_(config_xml),
+      identity_(identity ? std::optional<SecurityIdentity>(*identity) : std::nullopt),
+      robot_id_(robot_id),
       client_id_(std::move(client_id)) {
   state_["targets"] = json::object();
   // The server answers a repeated (client_id, request_id) from memory. A client id is often
@@ -158,19 +162,38 @@ Client::Client(std::uint32_t domain_id, const std::string& config_xml, std::stri
 
 Client::~Client() = default;
 
+bool Client::serverMatched() const {
+  // Every writer this identity has must be matched, or its first sample could be lost.
+  bool writers = impl_->approvals.ready();
+  for (const auto& c : impl_->commands)
+    writers = writers && c.ready();
+  return writers && impl_->commands[0].writer && impl_->replies.matched() > 0 &&
+         impl_->slice_requests.matched() > 0 && impl_->slice_replies.matched() > 0 &&
+         impl_->emergency_stops.matched() > 0;
+}
+
 bool Client::waitForServer(std::chrono::milliseconds timeout) {
+  using std::chrono::milliseconds;
   const auto end = Clock::now() + timeout;
+  // Loopback discovery takes ~10 ms and a handshake a few round trips: 3 s is ample on a clean
+  // network, and on one with 50 ms of delay and 5 % loss a handshake that has not ended by then
+  // has usually lost a message. Made anew after 3, 6, 12, 24, 30, 30 ... s.
+  auto attempt = milliseconds(3000);
+  auto attempt_end = Clock::now() + attempt;
   while (Clock::now() < end) {
-    // Every writer this identity has must be matched, or its first sample could be lost.
-    bool writers = impl_->approvals.ready();
-    for (const auto& c : impl_->commands)
-      writers = writers && c.ready();
-    if (writers && impl_->commands[0].writer && impl_->replies.matched() > 0 &&
-        impl_->slice_requests.matched() > 0 && impl_->slice_replies.matched() > 0 &&
-        impl_->emergency_stops.matched() > 0) {
-      return true;
+    if (serverMatched()) return true;
+    const auto now = Clock::now();
+    if (identity_ && now >= attempt_end && end - now > milliseconds(1000)) {
+      impl_.reset();  // the old participant leaves first: its peers forget its handshake
+      impl_ = makeImpl<Impl>(domain_id_, config_xml_, &*identity_, client_id_, robot_id_);
+      ++participants_made_;
+      state_ = json::object();
+      state_["targets"] = json::object();
+      mirror_ = StateMirror{};
+      attempt = std::min(attempt * 2, milliseconds(30000));
+      attempt_end = Clock::now() + attempt;
     }
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    std::this_thread::sleep_for(milliseconds(5));
   }
   return false;
 }
@@ -323,6 +346,32 @@ void Client::waitUntil(const std::function<bool(const StateMirror&)>& done,
   }
 }
 
+std::vector<std::string> Client::missingState() const {
+  const StateMirror& m = mirror_;
+  std::vector<std::string> missing;
+  const std::pair<bool, const char*> topics[] = {
+      {m.workflow.has_value(), "workflow"}, {m.robot.has_value(), "robot"},
+      {m.volume.has_value(), "volume"},     {m.registration.has_value(), "registration"},
+      {m.approval.has_value(), "approval"}, {m.motion.has_value(), "motion"},
+      {m.health.has_value(), "health"},     {m.verification.has_value(), "verification"}};
+  for (const auto& [held, name] : topics)
+    if (!held) missing.emplace_back(name);
+  if (m.workflow) {
+    for (const auto id : m.workflow->target_ids)
+      if (m.targets.count(id) == 0) missing.push_back("target " + std::to_string(id));
+  }
+  return missing;
+}
+
+bool Client::waitForPresent(std::chrono::milliseconds timeout) {
+  try {
+    waitUntil([this](const StateMirror&) { return missingState().empty(); }, timeout);
+    return true;
+  } catch (const Timeout&) {
+    return false;
+  }
+}
+
 bool Client::mayPublish(const std::string& command) const {
   if (command == "approve") return impl_->approvals.writer != nullptr;
   const auto kind = commandKindFromName(command);
@@ -332,19 +381,32 @@ bool Client::mayPublish(const std::string& command) const {
 std::vector<Health> discoverRobots(std::uint32_t domain_id, const std::string& config_xml,
                                    const SecurityIdentity* identity,
                                    std::chrono::milliseconds wait) {
-  const Participant participant(domain_id, config_xml, identity, kAnyRobot,
-                                participantName("robots"));
-  const TopicReader<Health> health(participant, Qos::kStateOfMany);
+  auto participant = std::make_unique<Participant>(domain_id, config_xml, identity, kAnyRobot,
+                                                   participantName("robots"));
+  auto health = std::make_unique<TopicReader<Health>>(*participant, Qos::kStateOfMany);
   // By (robot id, session): two servers with one robot id are both listed.
   std::map<std::pair<std::string, std::string>, Health> seen;
   const auto end = Clock::now() + wait;
   auto last_news = Clock::now();
   std::size_t last_matched = 0;
+  // With DDS Security, a participant that matched nothing in its attempt may have lost a
+  // handshake message, which Cyclone 0.10 never mends: made anew (as Client::waitForServer).
+  auto attempt = std::chrono::milliseconds(3000);
+  auto attempt_end = Clock::now() + attempt;
   while (Clock::now() < end) {
-    health.take([&](const Health& h) {
+    if (identity && last_matched == 0 && Clock::now() >= attempt_end &&
+        end - Clock::now() > std::chrono::milliseconds(1000)) {
+      health.reset();
+      participant = std::make_unique<Participant>(domain_id, config_xml, identity, kAnyRobot,
+                                                  participantName("robots"));
+      health = std::make_unique<TopicReader<Health>>(*participant, Qos::kStateOfMany);
+      attempt = std::min(attempt * 2, std::chrono::milliseconds(30000));
+      attempt_end = Clock::now() + attempt;
+    }
+    health->take([&](const Health& h) {
       if (seen.insert_or_assign({h.robot_id, h.session_id}, h).second) last_news = Clock::now();
     });
-    const std::size_t matched = health.matched();
+    const std::size_t matched = health->matched();
     if (matched != last_matched) {
       last_matched = matched;
       last_news = Clock::now();

@@ -4,11 +4,14 @@
 
 #include <ifaddrs.h>
 #include <net/if.h>
+#include <netdb.h>
+#include <sys/socket.h>
 
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -35,6 +38,35 @@ std::string interfacesOfThisHost() {
   for (const auto& n : names)
     text += (text.empty() ? "" : ", ") + n;
   return text.empty() ? "none found" : text;
+}
+
+// Why an interface of this host cannot carry DDS (down, or no IP address); nothing if it can.
+std::optional<std::string> unusableInterface(const std::string& name) {
+  ifaddrs* list = nullptr;
+  if (::getifaddrs(&list) != 0) return std::nullopt;  // cannot tell: let Cyclone try
+  bool up = false, addressed = false;
+  for (const ifaddrs* a = list; a; a = a->ifa_next) {
+    if (name != a->ifa_name) continue;
+    up = up || (a->ifa_flags & IFF_UP) != 0;
+    const int family = a->ifa_addr ? a->ifa_addr->sa_family : AF_UNSPEC;
+    addressed = addressed || family == AF_INET || family == AF_INET6;
+  }
+  ::freeifaddrs(list);
+  if (!up) return std::string("is down");
+  if (!addressed) return std::string("has no IP address");
+  return std::nullopt;
+}
+
+// Why a peer does not resolve to an address; nothing if it does.
+std::optional<std::string> unresolvable(const std::string& peer) {
+  addrinfo hints{};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_DGRAM;
+  addrinfo* found = nullptr;
+  const int rc = ::getaddrinfo(peer.c_str(), nullptr, &hints, &found);
+  if (rc != 0) return std::string(::gai_strerror(rc));
+  ::freeaddrinfo(found);
+  return std::nullopt;
 }
 
 void replaceAll(std::string& text, const std::string& what, const std::string& with) {
@@ -96,6 +128,13 @@ std::string loadDdsConfig(const std::string& path, const DdsSite& site) {
                      "(server.yaml) or --dds-interface (this host has: " +
                      interfacesOfThisHost() + ")");
     }
+    // A name or an address, nothing that would change the XML around it.
+    static const std::regex interface_text(R"([A-Za-z0-9._:%@-]{1,64})");
+    if (!std::regex_match(site.interface, interface_text)) {
+      throw DdsError(path + ": dds.interface: '" + site.interface +
+                     "' is not a network interface name or address (this host has: " +
+                     interfacesOfThisHost() + ")");
+    }
     replaceAll(xml, kInterfacePlaceholder, site.interface);
   }
   const std::size_t marker = xml.find(kPeersPlaceholder);
@@ -114,6 +153,11 @@ std::string loadDdsConfig(const std::string& path, const DdsSite& site) {
       if (!std::regex_match(peer, plain)) {
         throw DdsError(path + ": dds.peers: '" + peer + "' is not an address or host name");
       }
+      // Cyclone drops a peer it cannot resolve and starts anyway: a server that never finds
+      // its clients. Said here instead.
+      if (auto why = unresolvable(peer)) {
+        throw DdsError(path + ": dds.peers: '" + peer + "' does not resolve: " + *why);
+      }
       std::string one = line;
       replaceAll(one, kPeersPlaceholder, peer);
       lines += one + "\n";
@@ -129,10 +173,15 @@ std::string loadDdsConfig(const std::string& path, const DdsSite& site) {
   static const std::regex named(R"re(<NetworkInterface[^>]*\bname\s*=\s*"([^"]*)")re");
   for (std::sregex_iterator it(xml.begin(), xml.end(), named), end; it != end; ++it) {
     const std::string name = (*it)[1];
+    const std::string setting = wants_interface ? "dds.interface" : "NetworkInterface name";
     if (::if_nametoindex(name.c_str()) == 0) {
-      throw DdsError(path + ": " + (wants_interface ? "dds.interface" : "NetworkInterface name") +
-                     ": '" + name + "' is not a network interface of this host (it has: " +
-                     interfacesOfThisHost() + ")");
+      throw DdsError(
+          path + ": " + setting + ": '" + name +
+          "' is not a network interface of this host (it has: " + interfacesOfThisHost() + ")");
+    }
+    if (auto why = unusableInterface(name)) {
+      throw DdsError(path + ": " + setting + ": '" + name + "' " + *why +
+                     " (DDS needs an interface that is up with an IP address)");
     }
   }
   return xml;

@@ -1,14 +1,18 @@
 #include "ignav/protocol/wire/security.hpp"
 
 #include <openssl/bio.h>
+#include <openssl/err.h>
 #include <openssl/pem.h>
+#include <openssl/pkcs7.h>
 #include <openssl/sha.h>
 #include <openssl/x509.h>
 #include <openssl/x509_vfy.h>
 
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <memory>
+#include <sstream>
 #include <vector>
 
 #include "ignav/protocol/wire/dds.hpp"
@@ -57,6 +61,44 @@ bool prefixMatchesSubject(X509* cert, const dds_guid_t& guid) {
     carry = static_cast<unsigned char>(hash[i] << 7);
   }
   return true;
+}
+
+using KeyPtr = std::unique_ptr<EVP_PKEY, Deleter<EVP_PKEY, EVP_PKEY_free>>;
+using Pkcs7Ptr = std::unique_ptr<PKCS7, Deleter<PKCS7, PKCS7_free>>;
+
+std::string fileText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// OpenSSL's reason for the last failure, and the queue emptied.
+std::string opensslReason() {
+  const unsigned long code = ERR_get_error();
+  ERR_clear_error();
+  if (code == 0) return "not valid";
+  char text[256];
+  ERR_error_string_n(code, text, sizeof text);
+  return text;
+}
+
+// An S/MIME-signed document verified against the CA that must have signed it.
+std::string signedBy(const std::string& path, X509* ca, const char* ca_name) {
+  const std::string text = fileText(path);
+  BioPtr in(BIO_new_mem_buf(text.data(), static_cast<int>(text.size())));
+  BIO* content = nullptr;
+  Pkcs7Ptr p7(in ? SMIME_read_PKCS7(in.get(), &content) : nullptr);
+  BioPtr content_owner(content);
+  if (!p7) return path + ": not an S/MIME signed document (" + opensslReason() + ")";
+  StorePtr store(X509_STORE_new());
+  X509_STORE_add_cert(store.get(), ca);
+  BioPtr out(BIO_new(BIO_s_mem()));
+  if (PKCS7_verify(p7.get(), nullptr, store.get(), content, out.get(), PKCS7_TEXT) != 1) {
+    return path + ": its signature does not verify against " + ca_name + " (" + opensslReason() +
+           ")";
+  }
+  return "";
 }
 
 std::string fileUri(const std::string& path) {
@@ -122,6 +164,54 @@ void addSecurityQos(dds_qos_t* qos, const SecurityIdentity& id) {
   dds_qset_prop(qos, "dds.sec.access.permissions", fileUri(id.permissions).c_str());
   const std::string pem = readConfigFile(id.certificate);
   dds_qset_userdata(qos, pem.data(), pem.size());
+}
+
+std::string identityProblem(const SecurityIdentity& id) {
+  auto cert = parsePem(fileText(id.certificate));
+  if (!cert) return id.certificate + ": not a PEM certificate (" + opensslReason() + ")";
+  auto identity_ca = parsePem(fileText(id.identity_ca));
+  if (!identity_ca) return id.identity_ca + ": not a PEM certificate (" + opensslReason() + ")";
+  auto permissions_ca = parsePem(fileText(id.permissions_ca));
+  if (!permissions_ca) {
+    return id.permissions_ca + ": not a PEM certificate (" + opensslReason() + ")";
+  }
+  const std::string key_text = fileText(id.private_key);
+  BioPtr key_bio(BIO_new_mem_buf(key_text.data(), static_cast<int>(key_text.size())));
+  KeyPtr key(key_bio ? PEM_read_bio_PrivateKey(key_bio.get(), nullptr, nullptr, nullptr) : nullptr);
+  if (!key) return id.private_key + ": not a PEM private key (" + opensslReason() + ")";
+  if (X509_check_private_key(cert.get(), key.get()) != 1) {
+    ERR_clear_error();
+    return id.private_key + ": not the key of " + id.certificate + " (" + subjectOf(cert.get()) +
+           ")";
+  }
+  StorePtr store(X509_STORE_new());
+  StoreCtxPtr ctx(X509_STORE_CTX_new());
+  if (!store || !ctx || X509_STORE_add_cert(store.get(), identity_ca.get()) != 1 ||
+      X509_STORE_CTX_init(ctx.get(), store.get(), cert.get(), nullptr) != 1) {
+    return id.certificate + ": cannot be checked (" + opensslReason() + ")";
+  }
+  if (X509_verify_cert(ctx.get()) != 1) {
+    const int error = X509_STORE_CTX_get_error(ctx.get());
+    ERR_clear_error();
+    return id.certificate + " (" + subjectOf(cert.get()) + "): not accepted by " + id.identity_ca +
+           " (" + subjectOf(identity_ca.get()) + "): " + X509_verify_cert_error_string(error);
+  }
+  for (const auto* doc : {&id.governance, &id.permissions}) {
+    if (auto bad = signedBy(*doc, permissions_ca.get(), id.permissions_ca.c_str()); !bad.empty()) {
+      return bad;
+    }
+  }
+  const std::string dir = id.plugin_dir.empty() ? defaultSecurityPluginDir() : id.plugin_dir;
+  for (const char* plugin :
+       {"libdds_security_auth.so", "libdds_security_ac.so", "libdds_security_crypto.so"}) {
+    std::error_code ec;
+    if (!fs::is_regular_file(fs::path(dir) / plugin, ec)) {
+      return "DDS Security plugin " + (fs::path(dir) / plugin).string() +
+             " is missing (set security.plugins to the folder holding Cyclone's "
+             "libdds_security_*.so)";
+    }
+  }
+  return "";
 }
 
 std::string certificateSubject(const std::string& pem) {

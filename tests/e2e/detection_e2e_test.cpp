@@ -9,10 +9,15 @@
 // detection's cost is set by the bright voxels it clusters, not by the size of the CT (a
 // 410 x 410 x 560 CT with only the markers bright took 18 ms, ARCHITECTURE.md): this one takes
 // seconds here. Before issue 22 the server answered nothing for that long.
+//
+// How long the detection takes is this machine's and this build's business (2.9 s in
+// RelWithDebInfo, 52.6 s once under ASan with both cores busy): the tests wait for its end, not for
+// a time, and bound what they measure against its own duration.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <fstream>
+#include <functional>
 #include <regex>
 #include <sstream>
 #include <thread>
@@ -31,6 +36,11 @@ using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 
 constexpr int kBlockVoxels = 96;  // the metal cube's edge, in voxels
+
+// What a test may take in all: CTest stops it at 300 s (tests/CMakeLists.txt). A detection still
+// running then never ends, as far as the test can tell; the waits for one give up a little before,
+// so that the failure says so rather than CTest's kill.
+constexpr auto kTestBudget = 270s;
 
 const config::Robot& paperRobot() {
   static const config::Robot robot =
@@ -84,6 +94,22 @@ double detectionMsFromLog(const ServerProcess& server, std::uint64_t job) {
   return std::regex_search(log, m, line) ? std::stod(m[1].str()) : -1.0;
 }
 
+// Polls `ended` until it holds; false, with the server's log, once `give_up` has passed. The server
+// is killed then: its shutdown would finish the detection first.
+bool detectionEnded(ServerProcess& server, const std::function<bool()>& ended,
+                    Clock::time_point give_up) {
+  while (!ended()) {
+    if (Clock::now() >= give_up) {
+      ADD_FAILURE() << "the marker detection has not ended within the test's budget\n"
+                    << server.serverLog();
+      server.crash();
+      return false;
+    }
+    std::this_thread::sleep_for(25ms);
+  }
+  return true;
+}
+
 // The registration matches the phantom's true pose (as WorkflowE2E checks it).
 void expectTrueRegistration(const json& state) {
   EXPECT_EQ(stateText(state, "registration", "status"), "registered")
@@ -103,6 +129,7 @@ std::vector<json> journalRecords(const std::filesystem::path& session_dir) {
 }
 
 TEST(DetectionE2E, QueriesAreAnsweredAtOnceWhileTheMarkersAreDetectedOnACostlyCt) {
+  const auto give_up = Clock::now() + kTestBudget;
   const auto folder =
       std::filesystem::temp_directory_path() / ("ignav_e2e_metal_ct_" + std::to_string(::getpid()));
   const std::string nrrd = writeCostlyCt(folder);
@@ -122,15 +149,20 @@ TEST(DetectionE2E, QueriesAreAnsweredAtOnceWhileTheMarkersAreDetectedOnACostlyCt
   EXPECT_NE(accepted.message.find("started"), std::string::npos) << accepted.message;
   // Accepted when the detection starts: the state says so before the outcome.
   bool seen_detecting = false;
-  op->waitFor(
-      [&](const json& s) {
-        seen_detecting |= stateText(s, "registration", "status") == "detecting";
-        return stateText(s, "registration", "status") == "registered";
+  ASSERT_TRUE(detectionEnded(
+      server,
+      [&] {
+        op->poll();
+        const std::string status = stateText(op->state(), "registration", "status");
+        seen_detecting |= status == "detecting";
+        return status == "registered" || status == "rejected";
       },
-      120s);
+      give_up));
   const double registered_ms = msOf(Clock::now() - started);
   std::this_thread::sleep_for(100ms);  // and a few queries after
   queries.stop();
+  ASSERT_EQ(stateText(op->state(), "registration", "status"), "registered")
+      << op->state()["registration"].dump();
   expectTrueRegistration(op->state());
   EXPECT_EQ(stateText(op->state(), "workflow", "phase"), "planning");
 
@@ -161,7 +193,8 @@ TEST(DetectionE2E, QueriesAreAnsweredAtOnceWhileTheMarkersAreDetectedOnACostlyCt
   EXPECT_TRUE(seen_detecting || detection_ms < 50.0);
   EXPECT_LT(reply_ms, detection_ms / 2) << "the reply waited for the detection";
   EXPECT_GE(during.size(), 5u);
-  // Generous bounds: the point is that they do not wait for the detection.
+  // Against the detection's own duration, whatever it is here: the point is that they do not wait
+  // for it.
   EXPECT_LT(median, detection_ms / 10) << "queries waited behind the detection";
   EXPECT_LT(worst, detection_ms / 2) << "a query waited behind the detection";
 
@@ -177,6 +210,7 @@ TEST(DetectionE2E, QueriesAreAnsweredAtOnceWhileTheMarkersAreDetectedOnACostlyCt
 }
 
 TEST(DetectionE2E, AnOutcomeForACtNoLongerLoadedIsIgnoredAndTheNextDetectionRegisters) {
+  const auto give_up = Clock::now() + kTestBudget;
   const auto folder = std::filesystem::temp_directory_path() /
                       ("ignav_e2e_metal_ct_b_" + std::to_string(::getpid()));
   const std::string nrrd = writeCostlyCt(folder);
@@ -198,12 +232,14 @@ TEST(DetectionE2E, AnOutcomeForACtNoLongerLoadedIsIgnoredAndTheNextDetectionRegi
         return stateText(s, "volume", "status") == "loaded" && phaseIs(s, "registration");
       },
       120s);
+  // The first detection runs to its end (it cannot be interrupted), however long that takes.
   const std::string ignored = "marker detection #" + std::to_string(first.revision);
-  for (int i = 0; i < 600 && server.serverLog().find(ignored + " on " + nrrd + " ignored") ==
-                                 std::string::npos;
-       ++i) {
-    std::this_thread::sleep_for(100ms);
-  }
+  ASSERT_TRUE(detectionEnded(
+      server,
+      [&] {
+        return server.serverLog().find(ignored + " on " + nrrd + " ignored") != std::string::npos;
+      },
+      give_up));
   const std::string log = server.serverLog();
   EXPECT_NE(log.find(ignored + " on " + nrrd +
                      " ignored, nothing registered: the CT it ran on "

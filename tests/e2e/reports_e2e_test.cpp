@@ -29,9 +29,10 @@ using protocol::Client;
 using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 
-// Correctness bounds, not goals (ARCHITECTURE.md: 50 ms). Under AddressSanitizer, with other
-// sanitized suites on both cores, the server's own work is several times slower.
-constexpr double kWorstQueryMs = kSanitized ? 800.0 : 300.0;
+// A correctness bound, not a goal (ARCHITECTURE.md: 50 ms): the worst query against the rendering
+// it ran beside, both measured here, so that neither this machine's load nor the build sets it
+// (the server that rendered on its event thread: 829 ms for 847 ms). Under AddressSanitizer, with
+// other sanitized suites on both cores, the server's own work is several times slower.
 constexpr double kShareOfRendering = kSanitized ? 0.5 : 1.0 / 3.0;
 
 const config::Robot& paperRobot() {
@@ -174,7 +175,6 @@ TEST(ReportsE2E, QueriesAreAnsweredAtOnceWhileALockRendersTheReportSlicesOfALarg
   EXPECT_GT(queries.answered(), 10);
   EXPECT_LT(queries.worstMs(), kShareOfRendering * rendering_ms)
       << "a query waited behind the report slices";
-  EXPECT_LT(queries.worstMs(), kWorstQueryMs) << "a query waited behind the report slices";
 }
 
 TEST(ReportsE2E, AServerStoppedRightAfterALockStillWritesEverySliceTheReportAndTheExports) {

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <atomic>
 #include <map>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -35,45 +36,61 @@ TEST(SlicesE2E, CommandsAreAnsweredAtOnceWhileAnotherClientAsksForTheLargestSlic
   auto op = server.client("operator");
   loadPhantom(*op);
   std::atomic<int> drawn{0};
-  std::atomic<double> slowest_slice_ms{0.0};
+  std::mutex slices_mutex;
+  std::vector<double> slice_ms;  // each slice's round trip, as the viewer saw it
   LoopInBackground viewer([&](const std::atomic<bool>& busy) {
     auto v = server.client("viewer");
     protocol::SliceArgs big;
-    big.size_px = 2048;  // the largest allowed: about 0.2 s each here
+    big.size_px = 2048;  // the largest allowed: about 0.2 s each in RelWithDebInfo
     while (busy) {
       const auto t = Clock::now();
       const auto s = v->slice(big, 30s);
       const double ms = msOf(Clock::now() - t);
       if (!s.ok) continue;
+      {
+        std::lock_guard<std::mutex> lock(slices_mutex);
+        slice_ms.push_back(ms);
+      }
       ++drawn;
-      if (ms > slowest_slice_ms) slowest_slice_ms = ms;
     }
   });
   while (drawn == 0)
     std::this_thread::sleep_for(10ms);
-  // Another client's queries, every 20 ms, each timed.
+  // Another client's queries, every 20 ms, each timed: for 3 s, and on until the viewer has drawn
+  // 3 more slices, however long that takes in this build on this machine (beyond 120 s the viewer
+  // has stopped).
   auto watcher = server.client("watcher");
   std::vector<double> query_ms;
-  const auto until = Clock::now() + (kSanitized ? 6s : 3s);
-  while (Clock::now() < until) {
+  const int drawn_before = drawn;
+  const auto start = Clock::now();
+  while (Clock::now() < start + 3s || (drawn < drawn_before + 3 && Clock::now() < start + 120s)) {
     const auto t = Clock::now();
     EXPECT_TRUE(watcher->send("query", {}, 20s).accepted);
     query_ms.push_back(msOf(Clock::now() - t));
     std::this_thread::sleep_for(20ms);
   }
+  const int drawn_meanwhile = drawn - drawn_before;
+  std::vector<double> slices;
+  {
+    std::lock_guard<std::mutex> lock(slices_mutex);
+    slices = slice_ms;
+  }
+  std::sort(slices.begin(), slices.end());
   std::sort(query_ms.begin(), query_ms.end());
+  const double slice_median = slices[slices.size() / 2];
   const double median = query_ms[query_ms.size() / 2];
   const double p90 = query_ms[query_ms.size() * 9 / 10];
-  std::cout << drawn << " slices of 2048² (slowest " << slowest_slice_ms << " ms); "
-            << query_ms.size() << " queries: median " << median << " ms, p90 " << p90
-            << " ms, worst " << query_ms.back() << " ms" << std::endl;
-  EXPECT_GE(drawn, 3);
+  std::cout << slices.size() << " slices of 2048² (median " << slice_median << " ms, slowest "
+            << slices.back() << " ms); " << query_ms.size() << " queries: median " << median
+            << " ms, p90 " << p90 << " ms, worst " << query_ms.back() << " ms" << std::endl;
+  EXPECT_GE(drawn_meanwhile, 3);
   ASSERT_GT(query_ms.size(), 10u);
   // When the event thread drew them, a query waited for the rest of the slice being drawn: half
-  // a slice in the middle, a whole one at worst. (The worst is not bounded here: on two shared
-  // cores the slices thread, the viewer and the watcher compete for them.)
-  EXPECT_LT(median, 0.25 * slowest_slice_ms) << "queries waited behind the slices";
-  EXPECT_LT(median, kSanitized ? 100.0 : 20.0) << "queries waited behind the slices";
+  // a slice in the middle, a whole one at worst. Against the slices' own time, whatever it is on
+  // this machine and build; the typical slice, as one slow one would loosen the bound. (The worst
+  // query is not bounded here: on two shared cores the slices thread, the viewer and the watcher
+  // compete for them.)
+  EXPECT_LT(median, 0.25 * slice_median) << "queries waited behind the slices";
 }
 
 TEST(SlicesE2E, ABurstBeyondTheQueueIsRefusedAtOnceAndEveryRequestIsAnsweredOnce) {

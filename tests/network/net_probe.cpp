@@ -96,22 +96,34 @@ int watch(const Options& o) {
   const auto joining = std::chrono::steady_clock::now();
   const Connection c = connect(o);
   progress("robot chosen", joining);
-  Participant participant(o.domain, c.xml, c.secure(), c.robot, "net_probe watch");
-  Reader<ignav_msg_Reply> replies(participant, &ignav_msg_Reply_desc,
-                                  ignav::protocol::topic::kReply, Qos::kRequest);
   Client client(o.domain, c.xml, o.client_id, c.secure(), c.robot);
-  if (!client.waitForServer(30s)) throw std::runtime_error("no server answered");
+  if (!client.waitForServer(60s)) throw std::runtime_error("no server answered");
   progress("the server's topics matched", joining);
-  const auto matched_by = std::chrono::steady_clock::now() + 30s;
-  while (replies.matched() == 0 && std::chrono::steady_clock::now() < matched_by)
-    std::this_thread::sleep_for(10ms);
-  if (replies.matched() == 0) throw std::runtime_error("the reply topic never matched");
+  // The reply topic on a participant of its own (every client's replies, not only this one's),
+  // made anew as a client's is when its handshake lost a message (Client::waitForServer).
+  std::unique_ptr<Participant> participant;
+  std::unique_ptr<Reader<ignav_msg_Reply>> replies;
+  const auto matched_by = std::chrono::steady_clock::now() + 60s;
+  for (auto attempt = 3s; !replies || replies->matched() == 0;
+       attempt = std::min(attempt * 2, 30s)) {
+    if (std::chrono::steady_clock::now() >= matched_by) {
+      throw std::runtime_error("the reply topic never matched");
+    }
+    replies.reset();
+    participant =
+        std::make_unique<Participant>(o.domain, c.xml, c.secure(), c.robot, "net_probe watch");
+    replies = std::make_unique<Reader<ignav_msg_Reply>>(
+        *participant, &ignav_msg_Reply_desc, ignav::protocol::topic::kReply, Qos::kRequest);
+    const auto give_up = std::min(std::chrono::steady_clock::now() + attempt, matched_by);
+    while (replies->matched() == 0 && std::chrono::steady_clock::now() < give_up)
+      std::this_thread::sleep_for(10ms);
+  }
   progress("the reply topic matched", joining);
   std::cout << "net_probe watch ready robot=" << c.robot << std::endl;
 
   json seen = json::array();
   auto takeReplies = [&] {
-    replies.take([&](const ignav_msg_Reply& r) {
+    replies->take([&](const ignav_msg_Reply& r) {
       seen.push_back({{"client_id", r.client_id ? r.client_id : ""},
                       {"request_id", r.request_id},
                       {"accepted", r.accepted},
@@ -155,18 +167,41 @@ int viewers(const Options& o) {
     std::unique_ptr<Reader<ignav_msg_TargetState>> reader;
     std::unique_ptr<ignav::protocol::WaitSet> waitset;
     std::vector<std::pair<double, std::int64_t>> arrivals;  // (lps x, t_ns)
+    std::chrono::steady_clock::time_point give_up;          // made anew if not matched by then
+    std::chrono::milliseconds attempt{10000};
   };
   std::vector<Viewer> all(static_cast<std::size_t>(o.count));
-  for (std::size_t i = 0; i < all.size(); ++i) {
+  int made_anew = 0;
+  // A viewer as a client makes one (protocol::Client::waitForServer): a secured participant
+  // whose handshake lost a message never matches, so one not matched within its attempt is made
+  // anew, the attempt doubling (30 handshakes at once over a lossy link take a while).
+  auto make = [&](std::size_t i) {
     auto& v = all[i];
+    v.waitset.reset();
+    v.reader.reset();
+    v.participant.reset();
     v.participant = std::make_unique<Participant>(o.domain, c.xml, c.secure(), c.robot,
                                                   "net_probe viewer-" + std::to_string(i));
     v.reader = std::make_unique<Reader<ignav_msg_TargetState>>(
         *v.participant, &ignav_msg_TargetState_desc, ignav::protocol::topic::kTarget, Qos::kState);
     v.waitset = std::make_unique<ignav::protocol::WaitSet>(*v.participant);
     v.waitset->attach(v.reader->handle());
-  }
+    v.give_up = std::chrono::steady_clock::now() + v.attempt;
+  };
+  for (std::size_t i = 0; i < all.size(); ++i)
+    make(i);
   const auto by = std::chrono::steady_clock::now() + 180s;
+  auto remakeStuck = [&] {
+    if (!c.secure()) return;
+    const auto now = std::chrono::steady_clock::now();
+    for (std::size_t i = 0; i < all.size(); ++i) {
+      auto& v = all[i];
+      if (v.reader->matched() > 0 || now < v.give_up) continue;
+      v.attempt = std::min(v.attempt * 2, std::chrono::milliseconds(40000));
+      make(i);
+      ++made_anew;
+    }
+  };
   auto allMatched = [&] {
     for (const auto& v : all)
       if (v.reader->matched() == 0) return false;
@@ -180,12 +215,18 @@ int viewers(const Options& o) {
   };
   for (int tick = 1; !allMatched() && std::chrono::steady_clock::now() < by; ++tick) {
     std::this_thread::sleep_for(20ms);
-    if (tick % 250 == 0) std::cerr << "net_probe viewers: " << matchedCount() << " matched\n";
+    remakeStuck();
+    if (tick % 250 == 0) {
+      std::cerr << "net_probe viewers: " << matchedCount() << " matched, " << made_anew
+                << " made anew\n";
+    }
   }
   if (!allMatched())
     throw std::runtime_error(std::to_string(matchedCount()) + " of " + std::to_string(o.count) +
-                             " viewers matched the server in 180 s");
-  std::cout << "net_probe viewers ready count=" << o.count << std::endl;
+                             " viewers matched the server in 180 s (" + std::to_string(made_anew) +
+                             " made anew)");
+  std::cout << "net_probe viewers ready count=" << o.count << " made_anew=" << made_anew
+            << std::endl;
 
   std::atomic<bool> running{true};
   std::vector<std::thread> threads;

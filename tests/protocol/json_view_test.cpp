@@ -155,8 +155,9 @@ TEST(JsonView, EveryStateTopicHasTheFieldsTheAppNames) {
     return out;
   };
   using Names = std::vector<std::string>;
-  EXPECT_EQ(keys(json(WorkflowState{})), (Names{"allowed_commands", "last_event", "phase",
-                                                "revision", "safety_notice", "session_id"}));
+  EXPECT_EQ(keys(json(WorkflowState{})),
+            (Names{"allowed_commands", "last_event", "phase", "revision", "safety_notice",
+                   "session_id", "target_ids"}));
   // cannula_travel_mm and stylet_travel_mm: on the wire all along, in the view since the field
   // lists (the app does not read them).
   EXPECT_EQ(
@@ -180,6 +181,7 @@ TEST(JsonView, EveryTopicRoundTrips) {
   w.revision = 9;
   w.last_event = "target 7 added";
   w.safety_notice = "approval over OpenIGTLink";
+  w.target_ids = {7, 3, 12};
   expectRoundTrip(w);
   RobotState r;
   r.name = "torabi2014";

@@ -106,6 +106,7 @@ TEST(Wire, EveryTopicRoundTrips) {
   w.phase = "planning";
   w.allowed_commands = {"add_target", "lock_plan"};
   w.revision = 9;
+  w.target_ids = {7, 3, 12};
   expectWireRoundTrip(w);
   RobotState r;
   r.name = "torabi2014";

@@ -309,7 +309,8 @@ TEST(SeedDetection, ReportedErrorsEqualTheGroundTruth) {
 
 TEST(SeedDetection, A512By512By300ScanInOnePass) {
   // A clinical-size grid (150 MB of int16), gel everywhere, 20 seeds copied in from a small
-  // phantom; the scan must stay a single, cheap pass.
+  // phantom. Its time is printed (docs/VERIFICATION.md), not bounded: a speed is a benchmark's to
+  // measure, and a busy machine or a sanitizer build is slow without being wrong.
   PhantomSpec small;
   small.fiducials_lps_mm.clear();
   small.seeds = randomSeeds(20, 99);
@@ -339,7 +340,6 @@ TEST(SeedDetection, A512By512By300ScanInOnePass) {
   ASSERT_EQ(d->rejected.size(), 1u) << d->summary;
   EXPECT_EQ(d->rejected[0].reason, "too_long");
   std::printf("[ 512x512x300 ] findSeeds %.3f s\n", seconds);
-  EXPECT_LT(seconds, 5.0);  // generous: a shared machine, sanitizer builds
 }
 
 }  // namespace

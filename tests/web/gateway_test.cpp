@@ -332,7 +332,8 @@ TEST(Gateway, AKilledServerIsGoneWithinSecondsAndBackWhenRestarted) {
   const auto asked = std::chrono::steady_clock::now();
   const json refused = tab.request(command("query"));
   EXPECT_EQ(refused["code"], "no_server") << refused;
-  EXPECT_LT(std::chrono::steady_clock::now() - asked, 1s);  // not the 10 s reply timeout
+  // Refused at once, not after the reply timeout: bounded by that timeout, not by this machine.
+  EXPECT_LT(std::chrono::steady_clock::now() - asked, GatewayOptions{}.reply_timeout / 2);
   EXPECT_NE(refused["message"].get<std::string>().find("domain 115"), std::string::npos);
   server.start();
   for (json m = tab.next(); !(m["type"] == "connection" && m["server"] == true); m = tab.next()) {

@@ -43,8 +43,11 @@ inline ApprovalPolicy policy() {
 class Bench {
  public:
   // tissue: the session's deflection predictions (server.yaml tissue:), as config_loaded gives it.
+  // robot_id, session_uuid: what the server puts in config_loaded (the digest's scope).
   explicit Bench(std::uint64_t first_request = 0,
-                 std::optional<config::TissueProfile> tissue = std::nullopt)
+                 std::optional<config::TissueProfile> tissue = std::nullopt,
+                 std::string robot_id = "robot-1",
+                 std::string session_uuid = "6f1d2c3b-4a59-4e86-9b7a-0c1d2e3f4a5b")
       : sim_(axes()), request_(first_request) {
     (void)sim_.connect();
     (void)sim_.home();
@@ -52,6 +55,8 @@ class Bench {
     Input config = internal(InputKind::kConfigLoaded);
     config.policy = policy();
     config.tissue = std::move(tissue);
+    config.robot_id = std::move(robot_id);
+    config.session_uuid = std::move(session_uuid);
     feed(config);
     auto load = command(InputKind::kLoadVolume);
     load.path = "phantom:";

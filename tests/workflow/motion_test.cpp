@@ -61,7 +61,7 @@ TEST(Approval, LockOrdersTheTargetsAndRequestsApprovalOfTheFirstMotion) {
   const auto& p = *b.s.pending;
   EXPECT_EQ(p.target_id, order.front());
   EXPECT_EQ(p.from, Steps{});
-  EXPECT_EQ(p.digest, requestDigest(b.s.session_id, p));
+  EXPECT_EQ(p.digest, requestDigest(scopeOf(b.s), p));
   EXPECT_EQ(p.digest.size(), 64u);
   EXPECT_NE(p.summary.find("T" + std::to_string(p.target_id)), std::string::npos) << p.summary;
   EXPECT_NE(reply.message.find("cannula rotation"), std::string::npos) << reply.message;
@@ -74,8 +74,42 @@ TEST(Approval, LockOrdersTheTargetsAndRequestsApprovalOfTheFirstMotion) {
   // Any change to one increment changes the digest.
   MotionRequest changed = p;
   changed.moves.back().steps.motor[2] += 1;
-  EXPECT_NE(requestDigest(b.s.session_id, changed), p.digest);
+  EXPECT_NE(requestDigest(scopeOf(b.s), changed), p.digest);
   EXPECT_EQ(b.sim().movesStarted(), 0u);
+}
+
+// Issue 38: two robots whose session folders have one name and whose plans are alike must not
+// share a digest, or one robot's approval moves the other.
+TEST(Approval, ADigestIsBoundToItsRobotAndItsSession) {
+  Bench cell_c(0, std::nullopt, "cell-c", "1b4e28ba-2fa1-41d2-883f-0016d3cca427");
+  Bench cell_d(0, std::nullopt, "cell-d", "7c9e6679-7425-40de-944b-e07fc1f90ae7");
+  Bench cell_c_again(0, std::nullopt, "cell-c", "f47ac10b-58cc-4372-a567-0e02b2c3d479");
+  for (Bench* b : {&cell_c, &cell_d, &cell_c_again}) {
+    b->addRobotTarget(kJointsA);
+    ASSERT_TRUE(b->send(b->command(InputKind::kLockPlan)).accepted);
+    ASSERT_TRUE(b->s.pending.has_value());
+  }
+  // The same folder name, plan id, start and steps: only the robot and the session differ.
+  ASSERT_EQ(cell_c.s.session_id, cell_d.s.session_id);
+  ASSERT_EQ(cell_c.s.pending->plan_id, cell_d.s.pending->plan_id);
+  ASSERT_EQ(cell_c.s.pending->from, cell_d.s.pending->from);
+  ASSERT_EQ(cell_c.s.pending->moves.size(), cell_d.s.pending->moves.size());
+  for (std::size_t k = 0; k < cell_c.s.pending->moves.size(); ++k)
+    ASSERT_EQ(cell_c.s.pending->moves[k].steps, cell_d.s.pending->moves[k].steps);
+  const std::string c_digest = cell_c.s.pending->digest;
+  EXPECT_NE(c_digest, cell_d.s.pending->digest);
+  EXPECT_NE(c_digest, cell_c_again.s.pending->digest);  // one robot, another session
+
+  for (Bench* other : {&cell_d, &cell_c_again}) {
+    const auto r = other->send(other->approve(other->s.pending->plan_id, c_digest));
+    EXPECT_FALSE(r.accepted);
+    EXPECT_EQ(r.error_code, "wrong_digest") << r.message;
+    EXPECT_EQ(other->s.phase, Phase::kPlanLocked);
+    EXPECT_EQ(other->sim().movesStarted(), 0u);
+  }
+  // Its own digest still moves it.
+  ASSERT_TRUE(cell_d.send(cell_d.approvePending()).accepted);
+  EXPECT_EQ(cell_d.s.phase, Phase::kMoving);
 }
 
 TEST(Approval, ApprovedMotionArrivesAtEveryTargetThenRetracts) {
@@ -601,7 +635,7 @@ TEST(Approval, RandomSequencesNeverMoveWithoutAValidApproval) {
         ASSERT_TRUE(valid_approval) << "seed " << seed << " step " << i;
         ASSERT_TRUE(shown.has_value());
         EXPECT_EQ(revision_before, shown_at_revision) << "seed " << seed << " step " << i;
-        EXPECT_EQ(in.digest, requestDigest(b.s.session_id, *shown));
+        EXPECT_EQ(in.digest, requestDigest(scopeOf(b.s), *shown));
         EXPECT_LE(in.time_s, shown->expires_s);
         EXPECT_EQ(in.client_id, "surgeon");
         EXPECT_TRUE(phase_before == Phase::kPlanLocked || phase_before == Phase::kAtTarget);
@@ -917,7 +951,7 @@ TEST(ApprovedMotionType, EveryMoveSentIsOneMoveOfTheIntactApprovalInOrder) {
     EXPECT_EQ(c.approval()->request().plan_id, shown.plan_id);
     EXPECT_EQ(c.increments(), shown.moves[i].steps) << i;
     // The digest, recomputed independently over what is about to be sent, is the one approved.
-    EXPECT_EQ(requestDigest(b.s.session_id, c.approval()->request()), shown.digest);
+    EXPECT_EQ(requestDigest(scopeOf(b.s), c.approval()->request()), shown.digest);
   }
   // Halts and the rest carry no approval and need none.
   EXPECT_TRUE(ControllerCommand::abort().releasable());

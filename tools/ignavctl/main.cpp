@@ -810,22 +810,26 @@ int main(int argc, char** argv) {
                 << (robot_id.empty() ? "" : " (ignavctl robots lists those there)") << "\n";
       return kExitNoServer;
     }
-    // The state topics are transient-local: a late joiner gets the present at once.
-    client.waitFor([](const json& s) { return s.contains("workflow"); }, 5s);
+    // The state topics are transient-local: a late joiner gets the present, each topic on its
+    // own. What is printed from it waits for all of it; what is still missing then is "not yet
+    // known", never "none" (issue 38: "no motion is waiting" was said while one was).
+    const bool present = client.waitForPresent(5s);
+    if (!client.mirror().workflow) throw ignav::protocol::Timeout("no WorkflowState within 5 s");
+    auto not_yet_known = [&]() {
+      std::string missing;
+      for (const auto& m : client.missingState())
+        missing += (missing.empty() ? "" : ", ") + m;
+      std::cerr << "ignavctl: not yet known: the server's " << missing
+                << " state did not arrive within 5 s\n";
+      return kExitNoServer;
+    };
     auto send = [&](const std::string& command, const CommandArgs& args = {}) {
       const auto r = client.send(command, args);
       printReply(r, as_json);
       return r.accepted ? 0 : kExitRejected;
     };
     if (*status) {
-      // Each state topic's history arrives on its own: show the server's health (its robot id,
-      // host, session) too, which may come a moment after the workflow.
-      try {
-        client.waitFor([](const json& s) { return s.contains("health"); }, 2s);
-      } catch (const ignav::protocol::Timeout&) {
-        // an old server, or a slow network: print what there is
-      }
-      client.poll();
+      if (!present) return not_yet_known();
       if (as_json) {
         std::cout << client.state().dump(2) << "\n";
       } else {
@@ -890,6 +894,7 @@ int main(int argc, char** argv) {
       if (verb == "lock") return send("lock_plan");
       if (verb == "unlock") return send("unlock_plan");
       if (verb == "ls") {
+        if (!present) return not_yet_known();
         client.poll();
         if (as_json) {
           std::cout << client.state()["targets"].dump(2) << "\n";
@@ -1002,7 +1007,7 @@ int main(int argc, char** argv) {
           "NAME|none");
     }
     if (*approval || *motion) {
-      client.poll();
+      if (!present) return not_yet_known();
       const char* topic = *approval ? "approval" : "motion";
       if (as_json) {
         std::cout << client.state().value(topic, json()).dump(2) << "\n";
@@ -1019,14 +1024,8 @@ int main(int argc, char** argv) {
       return r.accepted ? 0 : kExitRejected;
     }
     if (*approve) {
-      // Each state topic's present arrives on its own after discovery: give the approval state
-      // a moment before concluding that nothing is pending.
-      try {
-        client.waitUntil(
-            [](const StateMirror& s) { return s.approval && s.approval->status == "pending"; }, 2s);
-      } catch (const ignav::protocol::Timeout&) {
-      }
       if (approve_plan == 0) {
+        if (!present) return not_yet_known();
         const auto& shown = client.mirror().approval;
         if (!shown || shown->status != "pending") {
           std::cerr << "ignavctl: no motion is waiting for approval\n";

@@ -54,7 +54,8 @@ const std::vector<InputSpec> kInputs = {
      "check the position, clear the fault and go to stopped"},
     {I::kQuery, "query", 14, R::kViewer, kCommand | kQuestion | kEveryPhase, kNone,
      "republish every state topic (a client that lost samples)"},
-    {I::kApprove, "approve", kNoWireKind, R::kApprover, kCommand | kNeedsReading, kNone,
+    {I::kApprove, "approve", kNoWireKind, R::kApprover, kCommand | kNeedsReading | kReleasesMotion,
+     kNone,
      "release the pending motion: plan_id and digest exactly as ApprovalState shows them (the "
      "Approval topic)"},
     {I::kRequestApproval, "request_approval", 15, R::kPlanner, kCommand, kNone,
@@ -183,6 +184,10 @@ bool isQuestion(InputKind kind) {
 
 bool needsControllerReading(InputKind kind) {
   return (specOf(kind).traits & kNeedsReading) != 0;
+}
+
+bool releasesMotion(InputKind kind) {
+  return (specOf(kind).traits & kReleasesMotion) != 0;
 }
 
 std::string usageOf(const InputSpec& spec) {

@@ -76,6 +76,8 @@ json journalRecord(const Input& in, const Session& after) {
                         {"curvature_per_mm", in.tissue->needle.curvature_per_mm},
                         {"wheelbase_mm", in.tissue->needle.wheelbase_mm}};
   }
+  if (!in.robot_id.empty()) record["robot_id"] = in.robot_id;
+  if (!in.session_uuid.empty()) record["session_uuid"] = in.session_uuid;
   if (in.plan_id != 0) record["plan_id"] = in.plan_id;
   if (!in.digest.empty()) record["digest"] = in.digest;
   if (in.matrix) {
@@ -225,6 +227,8 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
     e.input.loaded.description = r.value("description", "");
     e.input.plan_id = integer(r, "plan_id", std::uint64_t{0});
     e.input.digest = r.value("digest", "");
+    e.input.robot_id = r.value("robot_id", "");
+    e.input.session_uuid = r.value("session_uuid", "");
     if (r.contains("matrix")) {
       const json& m = r.at("matrix");
       if (!m.is_array() || m.size() != 16) throw std::invalid_argument("matrix: not 16 numbers");

@@ -68,10 +68,12 @@ Retraction retraction(const config::Robot& robot, const actuation::Steps& positi
 
 }  // namespace
 
-std::string canonicalText(const std::string& session_id, const MotionRequest& r) {
-  std::string text =
-      fmt::format("ignav motion request v1\nsession {}\nplan {}\ntarget {}\nfrom {}\n", session_id,
-                  r.plan_id, r.target_id, stepsText(r.from));
+std::string canonicalText(const MotionScope& scope, const MotionRequest& r) {
+  std::string text = scope.session_uuid.empty()
+                         ? fmt::format("ignav motion request v1\nsession {}\n", scope.session_id)
+                         : fmt::format("ignav motion request v2\nrobot {}\nsession {} {}\n",
+                                       scope.robot_id, scope.session_id, scope.session_uuid);
+  text += fmt::format("plan {}\ntarget {}\nfrom {}\n", r.plan_id, r.target_id, stepsText(r.from));
   for (const auto& m : r.moves) {
     text += fmt::format("move {} {}\n", planning::toString(m.kind), stepsText(m.steps));
   }
@@ -82,8 +84,12 @@ std::string canonicalText(const std::string& session_id, const MotionRequest& r)
 
 namespace ignav::workflow {
 
-std::string requestDigest(const std::string& session_id, const MotionRequest& request) {
-  return sha256Hex(detail::canonicalText(session_id, request));
+std::string requestDigest(const MotionScope& scope, const MotionRequest& request) {
+  return sha256Hex(detail::canonicalText(scope, request));
+}
+
+MotionScope scopeOf(const Session& session) {
+  return {session.robot_id, session.session_id, session.session_uuid};
 }
 
 std::string sha256Hex(const std::string& text) {
@@ -149,7 +155,7 @@ Expected<std::optional<MotionRequest>> nextRequest(const Session& s, double time
   }
   r.issued_s = time_s;
   r.expires_s = time_s + s.policy.expiry_s;
-  r.digest = requestDigest(s.session_id, r);
+  r.digest = requestDigest(scopeOf(s), r);
   r.summary = fmt::format("plan {}: {}; steps per motor {}; about {:.1f} s", r.plan_id, where,
                           moves, r.duration_s);
   return std::optional<MotionRequest>{std::move(r)};
@@ -361,7 +367,7 @@ std::optional<Rejection> checkApproval(const Session& s, const Input& in) {
 
 std::variant<ApprovedMotion, Rejection> ApprovalCheck::approve(const Session& s, const Input& in) {
   if (auto rejected = checkApproval(s, in)) return *rejected;
-  return ApprovedMotion(s.session_id, *s.pending);
+  return ApprovedMotion(scopeOf(s), *s.pending);
 }
 
 }  // namespace ignav::workflow::detail
@@ -385,7 +391,7 @@ const char* toString(ControllerAction action) {
 }
 
 bool ApprovedMotion::intact() const {
-  return requestDigest(session_id_, request_) == request_.digest;
+  return requestDigest(scope_, request_) == request_.digest;
 }
 
 ControllerCommand ControllerCommand::move(const ApprovedMotion& approved, std::size_t segment) {

@@ -80,7 +80,8 @@ std::optional<Rejection> checkPosition(const Session& s, const actuation::Steps&
 // "motor 2 reads 1200 steps, expected 1180 (+20)" for the first motor that differs.
 std::string describeMismatch(const actuation::Steps& reading, const actuation::Steps& expected);
 
-// The text the digest covers: session, plan id, target, start position and every increment.
-std::string canonicalText(const std::string& session_id, const MotionRequest& request);
+// The text the digest covers: robot, session, plan id, target, start position and every
+// increment. A session journaled before issue 38 has no robot id or random id: its text is v1.
+std::string canonicalText(const MotionScope& scope, const MotionRequest& request);
 
 }  // namespace ignav::workflow::detail

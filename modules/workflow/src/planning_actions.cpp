@@ -13,6 +13,8 @@ namespace ignav::workflow::detail {
 Refusal adoptConfig(Session& s, const Input& in, ActionOutput& out) {
   if (in.policy) adoptPolicy(s, *in.policy);
   if (in.tissue) s.tissue = in.tissue;
+  s.robot_id = in.robot_id;
+  s.session_uuid = in.session_uuid;
   out.effects.robot_changed = out.effects.approval_changed = true;
   return std::nullopt;
 }

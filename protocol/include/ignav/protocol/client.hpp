@@ -81,8 +81,12 @@ class Client {
   // set 0, so that their polling does not take the cores the server needs.
   void setReplySpin(std::chrono::microseconds spin) { reply_spin_ = spin; }
 
-  // Until the server's command reader and reply writer are matched.
+  // Until the server's command reader and reply writer are matched. With DDS Security, a
+  // participant whose handshake lost a message never recovers (Cyclone 0.10 resends the same
+  // message): one not matched within a few seconds is made anew, with a doubling wait, until
+  // `timeout` (issue 38).
   bool waitForServer(std::chrono::milliseconds timeout);
+  int participantsMade() const { return participants_made_; }  // 1 + how often made anew
   // Sends one command and waits for its reply (throws Timeout). request_id 0: the next one.
   Reply send(const std::string& command, const CommandArgs& args = {},
              std::chrono::milliseconds timeout = std::chrono::seconds(30),
@@ -109,6 +113,12 @@ class Client {
   // The same on the mirrored values.
   void waitUntil(const std::function<bool(const StateMirror&)>& done,
                  std::chrono::milliseconds timeout);
+  // Until the mirror holds the server's present: a sample of every state topic the server
+  // publishes from its start, and every target WorkflowState lists. False when it did not arrive
+  // within `timeout` (missingState() says what is missing): a one-shot reader must then say "not
+  // yet known", not "none".
+  bool waitForPresent(std::chrono::milliseconds timeout);
+  std::vector<std::string> missingState() const;  // the topics (and targets) not yet heard
   const nlohmann::json& state() const { return state_; }
   const StateMirror& mirror() const { return mirror_; }
   // Whether this identity's DDS Security permissions let it publish what `command` travels on (a
@@ -119,8 +129,15 @@ class Client {
  private:
   Reply awaitReply(std::uint64_t request_id, const std::string& what,
                    std::chrono::milliseconds timeout);
+  bool serverMatched() const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
+  // What the participant was made from, to make it anew (waitForServer).
+  std::uint32_t domain_id_;
+  std::string config_xml_;
+  std::optional<SecurityIdentity> identity_;
+  std::string robot_id_;
+  int participants_made_ = 1;
   std::string client_id_;
   std::uint64_t next_request_ = 0;  // set from the clock (see the constructor)
   std::chrono::microseconds reply_spin_ =

@@ -25,6 +25,12 @@ struct SecurityIdentity {
 // the folder and the missing file.
 SecurityIdentity identityFromFolder(const std::string& folder);
 
+// What is wrong with an identity, checked as Cyclone's plugins will check it, before anything is
+// created: the certificate and key parse and belong together, the certificate is issued by the
+// identity CA and valid now, governance and permissions are signed by the permissions CA, and the
+// plugins are there. "" when nothing is; else the file and what is wrong with it.
+std::string identityProblem(const SecurityIdentity& identity);
+
 // Where Debian's Cyclone keeps its security plugins (found when ignav was configured).
 std::string defaultSecurityPluginDir();
 

@@ -131,7 +131,8 @@ struct WorkflowState {
   std::vector<std::string> allowed_commands;
   std::uint64_t revision = 0;
   std::string last_event;
-  std::string safety_notice;  // "" unless the site has weakened a safeguard
+  std::string safety_notice;              // "" unless the site has weakened a safeguard
+  std::vector<std::uint32_t> target_ids;  // every target there is, in planned order
 };
 
 struct RobotState {
@@ -365,7 +366,8 @@ struct Fields<WorkflowState> {
   using T = WorkflowState;
   static constexpr auto list =
       std::make_tuple(IGNAV_FIELD(session_id), IGNAV_FIELD(phase), IGNAV_FIELD(allowed_commands),
-                      IGNAV_FIELD(revision), IGNAV_FIELD(last_event), IGNAV_FIELD(safety_notice));
+                      IGNAV_FIELD(revision), IGNAV_FIELD(last_event), IGNAV_FIELD(safety_notice),
+                      IGNAV_FIELD(target_ids));
 };
 
 template <>

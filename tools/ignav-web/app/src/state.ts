@@ -11,6 +11,7 @@ export interface WorkflowState {
   revision: number;
   last_event: string;
   safety_notice?: string; // "" unless a safeguard is weakened (docs/OPENIGTLINK.md)
+  target_ids?: number[]; // every target there is, in planned order
 }
 
 export interface RobotState {

@@ -118,6 +118,9 @@ enum InputTraits : unsigned {
   // it sent (docs/ARCHITECTURE.md).
   kNeedsReading = 1u << 2,
   kEveryPhase = 1u << 3,  // allowed in every phase, which it leaves as it is
+  // Releases motion (approve): judged on a reading begun after it arrived, so that motors moved
+  // by hand a moment before are seen before anything is accepted (issue 38).
+  kReleasesMotion = 1u << 4,
 };
 
 // Command.kind for an input that is no Command (approve has a topic of its own; server inputs).
@@ -145,6 +148,7 @@ bool isCommand(InputKind kind);        // issued by clients (the rest come from 
 bool isQuestion(InputKind kind);       // changes nothing (kQuestion)
 // Inputs the reducer judges against the controller: the server stamps them with a fresh reading.
 bool needsControllerReading(InputKind kind);
+bool releasesMotion(InputKind kind);  // kReleasesMotion: a reading begun after it arrived
 
 // The arguments for a person: "PATH (a server-side ...)", "ID X,Y,Z", ... in ignavctl's order
 // (path, ids, points, matrix).

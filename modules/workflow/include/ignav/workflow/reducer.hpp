@@ -58,10 +58,12 @@ Session newSession(std::string session_id, std::shared_ptr<const config::Robot> 
 std::vector<Eigen::Vector3d> needlePathLps(const Session& session,
                                            const kinematics::Joints& joints);
 
-// The digest an approve must echo: SHA-256 (lower-case hex) over a canonical text of the session
-// id, plan id, target, starting motor position and every step increment the controller would
-// receive, so a client approves exactly what it was shown.
-std::string requestDigest(const std::string& session_id, const MotionRequest& request);
+// The digest an approve must echo: SHA-256 (lower-case hex) over a canonical text of the robot id,
+// the session (folder name and random id), plan id, target, starting motor position and every
+// step increment the controller would receive, so a client approves exactly what it was shown,
+// for this robot in this session only.
+std::string requestDigest(const MotionScope& scope, const MotionRequest& request);
+MotionScope scopeOf(const Session& session);
 std::string sha256Hex(const std::string& text);
 
 // The row that fires for `input` in `session`'s phase: the first of the pair's rows whose guard

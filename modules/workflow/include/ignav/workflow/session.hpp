@@ -111,6 +111,10 @@ struct Input {
   std::optional<ApprovalPolicy> policy;
   // kConfigLoaded: the tissue the session's deflection predictions use (none: no prediction).
   std::optional<config::TissueProfile> tissue;
+  // kConfigLoaded: the robot this session drives and the session's own identity, made at random
+  // by the server when the session began (a folder's name is not unique in a department).
+  std::string robot_id;
+  std::string session_uuid;
   // kConfirmationMeasured: the seeds found on the confirmation CT (`points`: the robot's markers
   // there, in the model's order; `path`: the scan; `summary`: what the search found).
   std::vector<FoundSeed> seeds;
@@ -213,22 +217,30 @@ namespace detail {
 struct ApprovalCheck;
 }
 
+// What makes a motion unique in a department, beside its steps: the robot it is for and the
+// session it belongs to. Two robots' digests differ even when their folders and plans are alike.
+struct MotionScope {
+  std::string robot_id;      // "" in a session journaled before issue 38 (digest text v1)
+  std::string session_id;    // the session folder's name
+  std::string session_uuid;  // random, made at the session's start and journaled; "" as robot_id
+};
+
 // A motion an operator approved, exactly as its request showed it (issue 22): only the approval
 // check (detail::ApprovalCheck, motion.cpp) creates one, and a move for the controller can only
 // be built from one (ControllerCommand::move).
 class ApprovedMotion {
  public:
   const MotionRequest& request() const { return request_; }
-  const std::string& sessionId() const { return session_id_; }
+  const MotionScope& scope() const { return scope_; }
   // Does the request still hash to the digest the operator approved? (The executor asks just
   // before a move goes to the controller.)
   bool intact() const;
 
  private:
   friend struct detail::ApprovalCheck;
-  ApprovedMotion(std::string session_id, MotionRequest request)
-      : session_id_(std::move(session_id)), request_(std::move(request)) {}
-  std::string session_id_;
+  ApprovedMotion(MotionScope scope, MotionRequest request)
+      : scope_(std::move(scope)), request_(std::move(request)) {}
+  MotionScope scope_;
   MotionRequest request_;
 };
 
@@ -258,6 +270,8 @@ struct RegistrationStatus {
 
 struct Session {
   std::string session_id;
+  std::string robot_id;      // config_loaded's (journaled); "" before issue 38
+  std::string session_uuid;  // config_loaded's (journaled); "" before issue 38
   Phase phase = Phase::kStartup;
   Phase resume_phase = Phase::kImaging;  // where kResume returns to (one of kResumePhases)
   std::uint64_t revision = 0;
