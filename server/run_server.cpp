@@ -138,6 +138,7 @@ int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
     }
   }
   std::error_code ec;
+  const bool made_here = !fs::exists(dir, ec);
   fs::create_directories(dir, ec);
   if (ec) {
     spdlog::error("{}: cannot create the session folder: {}", dir.string(), ec.message());
@@ -146,10 +147,12 @@ int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
   // One process per session folder, for its whole life, before the journal is read (a second
   // server would cut a "torn" record the first is writing, and append beside it). The marker is
   // left to its owner: a refused server touches nothing.
-  auto lock = SessionLock::acquire(dir);
-  if (!lock) {
-    spdlog::error("{}", lock.error().message);
-    return lock.error().reason == "in_use" ? 4 : 2;
+  std::optional<SessionLock> lock;
+  if (auto locked = SessionLock::acquire(dir); locked) {
+    lock.emplace(std::move(locked).value());
+  } else {
+    spdlog::error("{}", locked.error().message);
+    return locked.error().reason == "in_use" ? 4 : 2;
   }
   if (continuing) {
     spdlog::warn("{}: the last session did not end cleanly: continuing it", dir.string());
@@ -177,17 +180,25 @@ int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
   }
   if (options.session_dir.empty() && !markUnfinished(marker, dir)) return 2;
   int code = 1;
+  bool touched_controller = false;
   try {
     Server server(options, std::make_shared<const config::Robot>(std::move(robot).value()), dir,
                   std::move(journal).value());
     code = server.run(stop, contents->lines);
+    touched_controller = server.touchedController();
   } catch (const protocol::DdsError& e) {
     spdlog::error("DDS: {}", e.what());
   }
-  // Ended cleanly, or never started because another server has this robot (its new session is
-  // empty): nothing to continue.
-  const bool nothing_to_continue = code == 0 || (code == 4 && contents->lines.empty());
-  if (options.session_dir.empty() && nothing_to_continue) fs::remove(marker, ec);
+  // Ended cleanly, or gave way to another server that has this robot before touching the
+  // controller: nothing to continue. A new session that gave way before it touched the controller
+  // is removed with its folder if this process made it (it holds the configuration alone); one
+  // that halted the robot on its way out keeps the record of that halt.
+  const bool gave_way = code == 4 && contents->lines.empty();
+  if (options.session_dir.empty() && (code == 0 || gave_way)) fs::remove(marker, ec);
+  if (gave_way && made_here && !touched_controller) {
+    lock.reset();  // the lock goes before its folder
+    fs::remove_all(dir, ec);
+  }
   return code;
 }
 

@@ -180,14 +180,15 @@ int Server::replay(const std::atomic<bool>& stop, const std::vector<std::string>
 }
 
 int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& journal_lines) {
-  // Before the controller is touched: a robot another server drives is left alone.
-  if (auto conflict = checkRobotIdAtStart()) {
-    spdlog::error("{}; this one did not touch the controller", *conflict);
-    return 4;
-  }
-  if (journal_lines.empty()) {
-    // A new session starts with the robot at its home: that position is zero.
-    startController(true, std::nullopt);
+  // Announced at once; the session is served at once (queries, planning). The controller waits
+  // for the robot-id check (startControllerWhenClear in the loop), and so does every input that
+  // would reach it: a robot another server drives is left alone, and this server is ready in a
+  // fraction of the check (issue 38).
+  publishHealth();
+  controller_pending_ = true;
+  controller_due_ = participant_started_ + std::chrono::milliseconds(options_.robot_id_check_ms);
+  recovering_ = !journal_lines.empty();
+  if (!recovering_) {
     Input config_loaded;
     config_loaded.kind = InputKind::kConfigLoaded;
     config_loaded.policy = approvalPolicy(options_);
@@ -208,19 +209,12 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
     if (!session_.robot_id.empty() && session_.robot_id != options_.robot_id) {
       spdlog::error(
           "{}: this session belongs to robot '{}' and this server is robot '{}' "
-          "(server.robot_id): "
-          "start that robot's server on it, or give this one a new session folder",
+          "(server.robot_id): start that robot's server on it, or give this one a new session "
+          "folder",
           session_dir_.string(), session_.robot_id, options_.robot_id);
       return 2;
     }
-    // A real controller kept counting while we were down; the simulation is told where the
-    // journal last verified the motors (a move in flight at the crash stops where it began).
-    startController(false, session_.position);
     publishEverything();
-    // Approvals die here, and the position is checked against the controller's.
-    Input restarted;
-    restarted.kind = InputKind::kServerRestarted;
-    if (!step(restarted)) return 3;
   }
   publishMotion();
   publishHealth();  // then once a second
@@ -233,11 +227,22 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
   auto last_event = Clock::now() - kBusyPoll;
   while (!stop.load()) {
     notifier_.alive();
+    if (controller_pending_) {
+      // (robot_id_check_ms 0: no check at start; the one below, once a second, still runs.)
+      if (options_.robot_id_check_ms > 0) {
+        if (auto conflict = robotIdConflict()) {
+          spdlog::error("{}; this one did not touch the controller", *conflict);
+          notifier_.stopping();
+          return 4;
+        }
+      }
+      if (Clock::now() >= controller_due_ && !startControllerWhenClear()) return 3;
+    }
     // While commands keep coming, poll instead of sleeping: waking a sleeping thread costs
     // ~150 µs on this kind of VM, more than the command itself (docs/PERFORMANCE.md).
     // The controller component wakes the waitset when it has something: no polling here.
     if (Clock::now() - last_event >= kBusyPoll) {
-      waitset_.wait(std::chrono::milliseconds(200));
+      waitset_.wait(std::chrono::milliseconds(controller_pending_ ? 20 : 200));
     } else {
       std::this_thread::yield();
     }
@@ -264,11 +269,14 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
           if (!step(withSender(toInput(a), "approver", approvals_.handle(), from))) failed = true;
         });
     if (failed) return 3;
-    for (auto& in : loader_.finished()) {
+    // A recovered session's first new record is its restart (a load or a detection the crash
+    // interrupted, started again, ends after it).
+    const bool restart_first = controller_pending_ && recovering_;
+    for (auto& in : restart_first ? std::vector<Input>{} : loader_.finished()) {
       ++handled;
       if (!step(in)) return 3;
     }
-    for (auto& in : analysis_.finished()) {
+    for (auto& in : restart_first ? std::vector<Input>{} : analysis_.finished()) {
       ++handled;
       if (!step(std::move(in))) return 3;
     }
@@ -398,6 +406,13 @@ bool Server::step(Input in) {
     refuseHeld(workflow::toString(workflow::ReplyCode::kSuperseded),
                "not done: an emergency stop came while this waited for a reading of the "
                "controller");
+    // Before the robot-id check lets this server touch the controller, its halt goes out the
+    // moment the controller starts (at once after the others' if another server has the robot).
+    if (controller_pending_) {
+      held_since_ = Clock::now();
+      held_.push_back({std::move(in), held_since_});
+      return true;
+    }
     return stepNow(std::move(in));
   }
   // Questions that need no reading (query, ping) never wait behind the held inputs.
@@ -418,7 +433,13 @@ bool Server::step(Input in) {
 // by hand a moment before are seen (issue 38: an approval accepted on the old position made a
 // move the executor then refused, and a fault).
 bool Server::waitsForReading(const Input& in, Clock::time_point arrived) const {
-  if (!component_ || in.controller || !workflow::needsControllerReading(in.kind)) return false;
+  if (in.controller) return false;
+  // The controller not yet started (the robot-id check): what reads or halts it waits.
+  if (controller_pending_) {
+    return workflow::needsControllerReading(in.kind) || in.kind == InputKind::kStop ||
+           in.kind == InputKind::kEmergencyStop;
+  }
+  if (!component_ || !workflow::needsControllerReading(in.kind)) return false;
   const auto r = component_->latest();
   if (r.status.state == actuation::ControllerState::kDisconnected) return false;
   if (r.after_command < last_submitted_) return true;
@@ -430,7 +451,7 @@ bool Server::releaseHeld() {
   const auto limit = std::chrono::milliseconds(6 * options_.controller.timeout_ms + 1000);
   while (!held_.empty()) {
     if (waitsForReading(held_.front().input, held_.front().arrived)) {
-      if (Clock::now() - held_since_ < limit) return true;
+      if (controller_pending_ || Clock::now() - held_since_ < limit) return true;
       const Input& late = held_.front().input;
       sendReply({late.client_id, late.request_id, false,
                  workflow::toString(workflow::ReplyCode::kControllerUnavailable),
@@ -526,6 +547,25 @@ std::optional<std::string> Server::robotIdConflict() {
     }
   });
   return conflict;
+}
+
+// No other server with this robot id was heard for robot_id_check_ms: the controller starts
+// (a new session's robot is at its home, where its position is zero; a recovered one's
+// simulation is placed where the journal last verified the motors, a real controller kept
+// counting), a recovered session is judged on its first reading, and what waited is released.
+bool Server::startControllerWhenClear() {
+  controller_pending_ = false;
+  startController(!recovering_,
+                  recovering_ ? std::optional<actuation::Steps>(session_.position) : std::nullopt);
+  if (recovering_) {
+    // Approvals die here, and the position is checked against the controller's.
+    Input restarted;
+    restarted.kind = InputKind::kServerRestarted;
+    if (!stepNow(std::move(restarted))) return false;
+  }
+  publishMotion();
+  waitset_.trigger();  // what finished meanwhile (a load, a detection) is taken at once
+  return true;
 }
 
 // Announces this server, then listens for robot_id_check_ms (from the start of the process's

@@ -55,6 +55,8 @@ class Server {
   // the speed (0: at once), then keeps serving them (and slices) until stopped. It drives no
   // controller and takes no commands.
   int replay(const std::atomic<bool>& stop, const std::vector<std::string>& lines);
+  // Whether run() started the controller (a server that gave way before did not).
+  bool touchedController() const { return component_ != nullptr; }
 
  private:
   using Input = workflow::Input;
@@ -76,7 +78,8 @@ class Server {
   // Another server with this robot id (robot_peers_): an error when this one is the later to
   // start (it must stop), nothing when none is there or this one is older (the other stops).
   std::optional<std::string> robotIdConflict();
-  std::optional<std::string> checkRobotIdAtStart();
+  std::optional<std::string> checkRobotIdAtStart();  // replay: listens, then serves
+  bool startControllerWhenClear();                   // run: once the check has passed
 
   // step.cpp
   bool stepNow(Input in);
@@ -130,6 +133,12 @@ class Server {
     Clock::time_point arrived;
   };
   std::deque<Held> held_;  // inputs waiting for a fresh reading (step())
+  // run(): the controller is not touched until no other server with this robot id has been heard
+  // for robot_id_check_ms from the participant's start (controller_due_); meanwhile the inputs
+  // that read or halt it are held.
+  bool controller_pending_ = false;
+  Clock::time_point controller_due_{};
+  bool recovering_ = false;  // run() continues a session from its journal
   Clock::time_point held_since_;
   std::string last_fault_reported_;
   std::string refused_move_;  // a move runController would not send: a fault, reported next

@@ -172,6 +172,16 @@ bool Client::serverMatched() const {
          impl_->emergency_stops.matched() > 0;
 }
 
+void Client::makeParticipantAnew() {
+  impl_.reset();  // the old participant leaves first: its peers forget its handshake
+  impl_ = makeImpl<Impl>(domain_id_, config_xml_, identity_ ? &*identity_ : nullptr, client_id_,
+                         robot_id_);
+  ++participants_made_;
+  state_ = json::object();
+  state_["targets"] = json::object();
+  mirror_ = StateMirror{};
+}
+
 bool Client::waitForServer(std::chrono::milliseconds timeout) {
   using std::chrono::milliseconds;
   const auto end = Clock::now() + timeout;
@@ -184,12 +194,7 @@ bool Client::waitForServer(std::chrono::milliseconds timeout) {
     if (serverMatched()) return true;
     const auto now = Clock::now();
     if (identity_ && now >= attempt_end && end - now > milliseconds(1000)) {
-      impl_.reset();  // the old participant leaves first: its peers forget its handshake
-      impl_ = makeImpl<Impl>(domain_id_, config_xml_, &*identity_, client_id_, robot_id_);
-      ++participants_made_;
-      state_ = json::object();
-      state_["targets"] = json::object();
-      mirror_ = StateMirror{};
+      makeParticipantAnew();
       attempt = std::min(attempt * 2, milliseconds(30000));
       attempt_end = Clock::now() + attempt;
     }
@@ -397,6 +402,7 @@ std::vector<Health> discoverRobots(std::uint32_t domain_id, const std::string& c
     if (identity && last_matched == 0 && Clock::now() >= attempt_end &&
         end - Clock::now() > std::chrono::milliseconds(1000)) {
       health.reset();
+      participant.reset();  // first: its peers forget its handshake
       participant = std::make_unique<Participant>(domain_id, config_xml, identity, kAnyRobot,
                                                   participantName("robots"));
       health = std::make_unique<TopicReader<Health>>(*participant, Qos::kStateOfMany);

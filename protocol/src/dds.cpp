@@ -55,9 +55,12 @@ std::size_t matchedOf(dds_entity_t entity, bool writer) {
 // Cyclone 0.10 authenticates one identity per process and domain: a second participant with
 // another certificate is created but never matches anyone (found by the security e2e tests).
 // The identities in use, so that this is an error instead of silence.
+// The domain entity a configuration made is the process's, not one participant's: it goes with the
+// last participant on it (a participant made anew beside others must not take their domain along).
 struct DomainIdentity {
   std::string certificate;  // "" = security off
   int participants = 0;
+  dds_entity_t domain = 0;  // made by dds_create_domain for these participants; 0 = none
 };
 std::mutex g_identities_mutex;
 std::map<std::uint32_t, DomainIdentity> g_identities;
@@ -76,10 +79,18 @@ void claimIdentity(std::uint32_t domain, const std::string& certificate) {
   ++d.participants;
 }
 
+void adoptDomain(std::uint32_t domain, dds_entity_t entity) {
+  std::lock_guard<std::mutex> lock(g_identities_mutex);
+  g_identities[domain].domain = entity;
+}
+
 void releaseIdentity(std::uint32_t domain) {
   std::lock_guard<std::mutex> lock(g_identities_mutex);
   auto it = g_identities.find(domain);
-  if (it != g_identities.end() && --it->second.participants <= 0) g_identities.erase(it);
+  if (it != g_identities.end() && --it->second.participants <= 0) {
+    if (it->second.domain > 0) dds_delete(it->second.domain);
+    g_identities.erase(it);
+  }
 }
 
 }  // namespace
@@ -108,7 +119,6 @@ Participant::Participant(std::uint32_t domain_id, const std::string& config_xml,
   } catch (...) {
     // No destructor runs: what create() made goes here.
     if (participant_ > 0) dds_delete(participant_);
-    if (domain_ > 0) dds_delete(domain_);
     releaseIdentity(domain_id);
     throw;
   }
@@ -118,13 +128,13 @@ void Participant::create(std::uint32_t domain_id, const std::string& config_xml,
                          const SecurityIdentity* identity, const std::string& robot_id,
                          const std::string& name) {
   if (!config_xml.empty()) {
-    domain_ = dds_create_domain(domain_id, config_xml.c_str());
-    if (domain_ < 0 && domain_ != DDS_RETCODE_PRECONDITION_NOT_MET) {
+    const dds_entity_t domain = dds_create_domain(domain_id, config_xml.c_str());
+    if (domain < 0 && domain != DDS_RETCODE_PRECONDITION_NOT_MET) {
       // PRECONDITION_NOT_MET: this process already created the domain (tests with two
       // participants); the existing configuration is used.
-      check(domain_, "dds_create_domain");
+      check(domain, "dds_create_domain");
     }
-    if (domain_ < 0) domain_ = 0;
+    if (domain > 0) adoptDomain(domain_id, domain);
   }
   dds_qos_t* qos = dds_create_qos();
   if (!name.empty()) dds_qset_entity_name(qos, name.c_str());
@@ -158,7 +168,6 @@ void Participant::create(std::uint32_t domain_id, const std::string& config_xml,
 
 Participant::~Participant() {
   dds_delete(participant_);
-  if (domain_ > 0) dds_delete(domain_);
   releaseIdentity(domain_id_);
 }
 

@@ -155,9 +155,13 @@ TEST(RobotsE2E, ASecondServerWithARobotIdAlreadyServedStopsBeforeTouchingTheCont
       << second.output;
   EXPECT_NE(second.output.find(op->mirror().health->session_id), std::string::npos)
       << second.output;
-  EXPECT_EQ(second.output.find("ignav-server ready"), std::string::npos) << second.output;
-  // It journaled nothing (not even its configuration) and started no controller.
-  EXPECT_TRUE(!fs::exists(dir / "journal.jsonl") || fs::file_size(dir / "journal.jsonl") == 0);
+  // It answered queries at once (issue 38: ready before the check ends) but never started its
+  // controller, and the new session it gave up is gone with its folder.
+  EXPECT_NE(second.output.find("this one did not touch the controller"), std::string::npos)
+      << second.output;
+  EXPECT_EQ(second.output.find("controller simulated: connecting"), std::string::npos)
+      << second.output;
+  EXPECT_FALSE(fs::exists(dir)) << second.output;
   fs::remove_all(dir);
 
   // The first serves on, unchanged.
@@ -186,7 +190,8 @@ TEST(RobotsE2E, ASecondServerWhoseSessionFolderHasTheSameNameIsStillASecondServe
   EXPECT_NE(second.output.find("robot_id 'twin': another ignav-server already serves this robot"),
             std::string::npos)
       << second.output;
-  EXPECT_EQ(second.output.find("ignav-server ready"), std::string::npos) << second.output;
+  EXPECT_EQ(second.output.find("controller simulated: connecting"), std::string::npos)
+      << second.output;
   EXPECT_TRUE(op->send("ping").accepted);
   EXPECT_TRUE(first.alive());
 }

@@ -160,7 +160,9 @@ TEST(SafetyE2E, ASecondServerOnALiveSessionIsRefusedAndACrashedOnesSessionStillR
   op = clientOf(*live, "operator");
   op->poll();
   EXPECT_EQ(op->state()["health"]["session_dir"].get<std::string>(), session.string());
-  EXPECT_GE(stateCount(op->state(), "workflow", "revision").value_or(0), 2u);
+  // Continued: its journal's record, then server_restarted once the controller is read.
+  op->waitFor([](const json& s) { return stateCount(s, "workflow", "revision").value_or(0) >= 2; },
+              10s);
   EXPECT_EQ(live->stop(), 0);
   EXPECT_FALSE(fs::exists(marker));  // a clean stop ends the session
   const auto [code, out] = replayVerified(session);

@@ -87,6 +87,9 @@ class Client {
   // `timeout` (issue 38).
   bool waitForServer(std::chrono::milliseconds timeout);
   int participantsMade() const { return participants_made_; }  // 1 + how often made anew
+  // Makes the participant anew (its state mirror starts empty): a long-running client (the web
+  // gateway) that stays unmatched under DDS Security calls it with its own backoff.
+  void makeParticipantAnew();
   // Sends one command and waits for its reply (throws Timeout). request_id 0: the next one.
   Reply send(const std::string& command, const CommandArgs& args = {},
              std::chrono::milliseconds timeout = std::chrono::seconds(30),

@@ -52,7 +52,6 @@ class Participant {
   dds_entity_t publisher_ = 0;
   dds_entity_t subscriber_ = 0;
   bool secure_ = false;
-  dds_entity_t domain_ = 0;
   dds_entity_t participant_ = 0;
 };
 
