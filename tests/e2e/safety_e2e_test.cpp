@@ -25,7 +25,7 @@ using namespace std::chrono_literals;
 // A server on `domain` as the given robot, in the given session folder (whose name two servers may
 // share), with everything else as ServerProcess starts it.
 ServerProcess::Program serverIn(std::uint32_t domain, const std::string& robot_id,
-                                const fs::path& session_dir, std::vector<std::string> extra = {}) {
+                                const fs::path& session_dir) {
   std::vector<std::string> argv{IGNAV_SERVER_EXE,
                                 "--config",
                                 IGNAV_SOURCE_DIR "/configs/server.yaml",
@@ -37,14 +37,13 @@ ServerProcess::Program serverIn(std::uint32_t domain, const std::string& robot_i
                                 "150",
                                 "--no-igtl"};
   if (!session_dir.empty()) argv.insert(argv.end(), {"--session-dir", session_dir.string()});
-  argv.insert(argv.end(), extra.begin(), extra.end());
   return {argv, "ignav-server ready"};
 }
 
+// A client of `server` once it holds the server's present (every state topic).
 std::unique_ptr<Client> clientOf(const ServerProcess& server, const std::string& id) {
-  auto c = std::make_unique<Client>(server.domain(), loopbackXml(), id, nullptr, server.robotId());
-  EXPECT_TRUE(c->waitForServer(15s)) << server.robotId();
-  c->waitFor([](const json& s) { return s.contains("workflow") && s.contains("approval"); }, 10s);
+  auto c = server.client(id);
+  EXPECT_TRUE(c->waitForPresent(10s)) << server.robotId();
   return c;
 }
 
@@ -332,6 +331,22 @@ TEST(SafetyE2E, EveryBadSettingOrIdentityExitsTwoNamingItAndCreatesNothing) {
     EXPECT_NE(run.output.find(c.expected), std::string::npos)
         << c.yaml << c.args << ": " << run.output;
     EXPECT_FALSE(fs::exists(sessions)) << c.yaml << c.args << ": a session folder was made";
+    fs::remove_all(sessions);
+  }
+  // An interface that is down: `lo` of a network namespace of our own, where it starts down
+  // (Cyclone said only "dds_create_domain: Error"). Needs root, as the network tests do.
+  const std::string netns = "ignav_safety_" + std::to_string(::getpid());
+  if (::geteuid() == 0 && runCommand("ip netns add " + netns).exit_code == 0) {
+    writeConfig(scratch.root / "server.yaml", sessions);
+    const auto down =
+        runCommand("ip netns exec " + netns + " timeout 30 " IGNAV_SERVER_EXE " --config " +
+                   (scratch.root / "server.yaml").string() +
+                   " --domain 215 --no-igtl --dds-config site-unicast "
+                   "--dds-interface lo --dds-peer 127.0.0.1");
+    runCommand("ip netns del " + netns);
+    EXPECT_EQ(down.exit_code, 2) << down.output;
+    EXPECT_NE(down.output.find("dds.interface: 'lo' is down"), std::string::npos) << down.output;
+    EXPECT_FALSE(fs::exists(sessions)) << down.output;
     fs::remove_all(sessions);
   }
   // The identity that is right starts (the checks do not refuse a good one).

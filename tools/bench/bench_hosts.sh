@@ -69,7 +69,10 @@ on view "$build/tests/net_probe" "${site[@]}" --dds-peer "$robot" --dds-peer "$p
   "${viewer_id[@]}" --out "$work/viewers.jsonl" \
   viewers --count "$viewers" --stop-file "$work/stop" >"$work/viewers.out" 2>&1 &
 viewers_pid=$!
+viewers_started=$(date +%s.%N)
 wait_for "$work/viewers.out" "net_probe viewers ready" "the viewers" 240
+# How long they took to match, and how many participants were made anew on the way (issue 38).
+echo "viewers matched after $(python3 -c "print('%.1f' % ($(date +%s.%N) - $viewers_started))") s: $(grep -o 'made_anew=[0-9]*' "$work/viewers.out")"
 on plan "$build/tests/net_probe" "${site[@]}" --dds-peer "$robot" --dds-peer "$view" \
   "${planner_id[@]}" --client-id operator --out "$work/commander.json" \
   commander --rounds "$rounds" --interval-ms "$interval_ms" >"$work/commander.out" 2>&1 ||
