@@ -5,6 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh
+bash tools/check_format.sh
 bash tools/build.sh
 ctest --test-dir build -j "$(nproc)" --output-on-failure --timeout 600
 if [ "${IGNAV_SANITIZE:-1}" != 0 ]; then

@@ -130,7 +130,8 @@ Expected<Registration> registrationFromMatrix(const Eigen::Matrix4d& m,
   }
   const Eigen::Vector3d t = m.topRightCorner<3, 1>();
   if (t.cwiseAbs().maxCoeff() > 1e6) {
-    return reject("out_of_range", fmt::format("a translation of {:.4g} mm", t.cwiseAbs().maxCoeff()));
+    return reject("out_of_range",
+                  fmt::format("a translation of {:.4g} mm", t.cwiseAbs().maxCoeff()));
   }
   Registration r;
   r.scale = sv.mean();
