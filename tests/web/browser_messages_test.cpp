@@ -36,6 +36,29 @@ TEST(BrowserMessages, CommandCarriesKindPointsIdsAndPath) {
   EXPECT_EQ(std::get<CommandRequest>(load.body).args.path, "phantom:");
 }
 
+// The gateway offered set_registration to browsers but dropped its matrix (issue 39.7).
+TEST(BrowserMessages, ARegistrationMatrixIsCarriedRowByRow) {
+  const auto r = parsed(R"({"op":"command","seq":3,"kind":"set_registration",)"
+                        R"("matrix":[0,-1,0,10, 1,0,0,-20.5, 0,0,1,300, 0,0,0,1]})");
+  const auto& c = std::get<CommandRequest>(r.body);
+  ASSERT_TRUE(c.args.matrix.has_value());
+  Eigen::Matrix4d expected;
+  expected << 0, -1, 0, 10, 1, 0, 0, -20.5, 0, 0, 1, 300, 0, 0, 0, 1;
+  EXPECT_EQ(*c.args.matrix, expected);
+  // A point through it as the server will take it: row by row, not column by column.
+  EXPECT_EQ((*c.args.matrix * Eigen::Vector4d(1, 2, 3, 1)).head<3>(),
+            Eigen::Vector3d(8, -19.5, 303));
+  EXPECT_FALSE(std::get<CommandRequest>(parsed(R"({"op":"command","seq":4,"kind":"query"})").body)
+                   .args.matrix.has_value());
+  EXPECT_NE(refused(R"({"op":"command","seq":1,"kind":"set_registration","matrix":[1,2,3]})")
+                .message.find("'matrix' must be 16 numbers"),
+            std::string::npos);
+  EXPECT_NE(refused(R"({"op":"command","seq":1,"kind":"set_registration",)"
+                    R"("matrix":[1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,"1"]})")
+                .message.find("matrix[15] must be a finite number"),
+            std::string::npos);
+}
+
 TEST(BrowserMessages, ApproveEmergencyStopAndSlice) {
   const auto a = parsed(R"({"op":"approve","seq":1,"plan_id":18446744073709551615,"digest":"ab"})");
   EXPECT_EQ(std::get<ApproveRequest>(a.body).plan_id, 18446744073709551615ull);

@@ -99,6 +99,22 @@ CommandRequest commandFrom(const json& msg) {
       out.args.ids.push_back(id.get<std::uint32_t>());
     }
   }
+  // set_registration (and load_confirmation's optional one): 16 numbers, row by row,
+  // p_robot = matrix * p_lps. The server judges what they mean; here only that they are numbers.
+  if (const json* m = field(msg, "matrix", false)) {
+    if (!m->is_array() || m->size() != 16) {
+      throw BadField("'matrix' must be 16 numbers, row by row (p_robot = matrix * p_lps)");
+    }
+    Eigen::Matrix4d matrix;
+    for (std::size_t k = 0; k < 16; ++k) {
+      const json& v = (*m)[k];
+      if (!v.is_number() || !std::isfinite(v.get<double>())) {
+        throw BadField("matrix[" + std::to_string(k) + "] must be a finite number");
+      }
+      matrix(static_cast<Eigen::Index>(k / 4), static_cast<Eigen::Index>(k % 4)) = v.get<double>();
+    }
+    out.args.matrix = matrix;
+  }
   return out;
 }
 
