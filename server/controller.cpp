@@ -92,15 +92,15 @@ void Server::runController(const workflow::ControllerCommand& c,
 
 // What the controller component reported since last time: readings are published (and shown to
 // Slicer), a finished move or a fault becomes the reducer's input.
-bool Server::takeControllerEvents() {
-  if (!component_) return true;
+void Server::takeControllerEvents() {
+  if (!component_) return;
   if (!refused_move_.empty()) {
     Input fault;
     fault.kind = InputKind::kControllerFault;
     fault.controller = component_->latest().status;
     fault.controller->state = actuation::ControllerState::kFault;
     fault.controller->fault = std::exchange(refused_move_, std::string());
-    if (!step(fault)) return false;
+    step(fault);
   }
   for (auto& ev : component_->take()) {
     if (ev.kind == ControllerEvent::Kind::kCommandFailed) {
@@ -117,15 +117,14 @@ bool Server::takeControllerEvents() {
       }
       if (fault.controller->fault == last_fault_reported_) continue;
       last_fault_reported_ = fault.controller->fault;
-      if (!step(std::move(fault))) return false;
+      step(std::move(fault));
       continue;
     }
-    if (!onReading(ev.reading)) return false;
+    onReading(ev.reading);
   }
-  return true;
 }
 
-bool Server::onReading(const ControllerReading& reading) {
+void Server::onReading(const ControllerReading& reading) {
   const auto before = last_reading_;
   const auto& r = reading.status;
   last_reading_ = r;
@@ -144,18 +143,19 @@ bool Server::onReading(const ControllerReading& reading) {
     Input done;
     done.kind = InputKind::kSegmentDone;
     done.controller = r;
-    return step(std::move(done));
+    step(std::move(done));
+    return;
   }
   if (!bad) {
     last_fault_reported_.clear();
-    return true;
+    return;
   }
-  if (r.fault == last_fault_reported_) return true;
+  if (r.fault == last_fault_reported_) return;
   last_fault_reported_ = r.fault;
   Input fault;
   fault.kind = InputKind::kControllerFault;
   fault.controller = r;
-  return step(std::move(fault));
+  step(std::move(fault));
 }
 
 }  // namespace ignav::server

@@ -43,8 +43,8 @@ IgtlBridge::IgtlBridge(const OpenIgtlinkOptions& g, std::unique_ptr<IgtlListener
   }
 }
 
-bool IgtlBridge::serve(const workflow::Session& session, const actuation::Steps& position,
-                       const std::function<bool(Input)>& run,
+void IgtlBridge::serve(const workflow::Session& session, const actuation::Steps& position,
+                       const std::function<void(Input)>& run,
                        const std::function<void()>& clients_changed, std::size_t& handled) {
   for (auto& ev : listener_->take()) {
     ++handled;
@@ -77,10 +77,9 @@ bool IgtlBridge::serve(const workflow::Session& session, const actuation::Steps&
     while (!inputs_.empty()) {
       Input in = std::move(inputs_.front());
       inputs_.pop_front();
-      if (!run(std::move(in))) return false;
+      run(std::move(in));
     }
   }
-  return true;
 }
 
 void IgtlBridge::onState(const workflow::Session& session) {

@@ -33,10 +33,10 @@ class IgtlBridge {
 
   // What the clients sent, answered from `session` (read again after each input: it is the
   // event thread's, which `run` changes) and `position` (the motors' latest). The inputs a
-  // message makes go to `run` before the next message is looked at; false from `run` stops
-  // everything and is returned. `clients_changed` when a client came or went. Counts the events.
-  bool serve(const workflow::Session& session, const actuation::Steps& position,
-             const std::function<bool(workflow::Input)>& run,
+  // message makes go to `run` before the next message is looked at. `clients_changed` when a
+  // client came or went. Counts the events.
+  void serve(const workflow::Session& session, const actuation::Steps& position,
+             const std::function<void(workflow::Input)>& run,
              const std::function<void()>& clients_changed, std::size_t& handled);
 
   // After every step (and every replayed record).

@@ -195,7 +195,7 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
     config_loaded.tissue = options_.tissue;
     config_loaded.robot_id = options_.robot_id;
     config_loaded.session_uuid = newSessionUuid();
-    if (!step(config_loaded)) return 3;
+    step(config_loaded);
     // Every state topic from the start, empty ones included: a late joiner can then tell "none"
     // from "not yet heard" (issue 38).
     state_.publishEverything(session_, readings());
@@ -236,7 +236,7 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
           return 4;
         }
       }
-      if (Clock::now() >= controller_due_ && !startControllerWhenClear()) return 3;
+      if (Clock::now() >= controller_due_) startControllerWhenClear();
     }
     // While commands keep coming, poll instead of sleeping: waking a sleeping thread costs
     // ~150 µs on this kind of VM, more than the command itself (docs/PERFORMANCE.md).
@@ -247,46 +247,40 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
       std::this_thread::yield();
     }
     std::size_t handled = 0;
-    bool failed = false;
     // Emergency stops first: the robot halts before anything else is looked at.
-    handled += emergency_stops_.takeFrom([&](const ignav_msg_EmergencyStop& e,
-                                             dds_instance_handle_t from) {
-      if (!failed && !step(withSender(toInput(fromMsg(e)), "any", emergency_stops_.handle(), from)))
-        failed = true;
-    });
+    handled += emergency_stops_.takeFrom(
+        [&](const ignav_msg_EmergencyStop& e, dds_instance_handle_t from) {
+          step(withSender(toInput(fromMsg(e)), "any", emergency_stops_.handle(), from));
+        });
     // OpenIGTLink next: its EMERGENCY is an emergency stop too.
-    if (!failed && igtl_ &&
-        !igtl_->serve(
-            session_, last_reading_.position, [this](Input in) { return step(std::move(in)); },
-            [this] { publishHealth(); }, handled)) {
-      failed = true;
+    if (igtl_) {
+      igtl_->serve(
+          session_, last_reading_.position, [this](Input in) { step(std::move(in)); },
+          [this] { publishHealth(); }, handled);
     }
     handled +=
         approvals_.takeFrom([&](const ignav_msg_Approval& sample, dds_instance_handle_t from) {
-          if (failed) return;
           const protocol::Approval a = fromMsg(sample);
           if (reservedClientId(a.client_id, a.request_id)) return;
-          if (!step(withSender(toInput(a), "approver", approvals_.handle(), from))) failed = true;
+          step(withSender(toInput(a), "approver", approvals_.handle(), from));
         });
-    if (failed) return 3;
     // A recovered session's first new record is its restart (a load or a detection the crash
     // interrupted, started again, ends after it).
     const bool restart_first = controller_pending_ && recovering_;
     for (auto& in : restart_first ? std::vector<Input>{} : loader_.finished()) {
       ++handled;
-      if (!step(in)) return 3;
+      step(in);
     }
     for (auto& in : restart_first ? std::vector<Input>{} : analysis_.finished()) {
       ++handled;
-      if (!step(std::move(in))) return 3;
+      step(std::move(in));
     }
-    handled += takeCommands(failed);
-    if (failed) return 3;
+    handled += takeCommands();
     // Slices are drawn on the slices thread, from the session as it is now.
     handled += slice_requests_.take(
         [&](const protocol::SliceRequest& r) { slices_.request(r, snapshot()); });
-    if (!takeControllerEvents()) return 3;
-    if (!releaseHeld()) return 3;
+    takeControllerEvents();
+    releaseHeld();
     if (handled > 0) last_event = Clock::now();
     if (session_.volume_status.status == "loading" && loader_.progress() != last_progress_) {
       last_progress_ = loader_.progress();
@@ -315,13 +309,12 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
   return 0;
 }
 
-// The client commands on the three role topics; `failed` when a step failed fatally.
-std::size_t Server::takeCommands(bool& failed) {
+// The client commands on the three role topics.
+std::size_t Server::takeCommands() {
   std::size_t handled = 0;
   for (const Role role : kRoles) {
     const auto& reader = commands_[static_cast<int>(role)];
     handled += reader.takeFrom([&](const ignav_msg_Command& sample, dds_instance_handle_t from) {
-      if (failed) return;
       const protocol::Command c = commandOf(sample);
       if (reservedClientId(c.client_id, c.request_id)) return;
       auto in = toInput(c);
@@ -350,7 +343,7 @@ std::size_t Server::takeCommands(bool& failed) {
         sendReply(*bad);
         return;
       }
-      if (!step(withSender(std::move(*in), toString(role), reader.handle(), from))) failed = true;
+      step(withSender(std::move(*in), toString(role), reader.handle(), from));
     });
   }
   return handled;
@@ -401,7 +394,7 @@ void Server::publishEverything() {
 // controller: the latest one may predate a move or a halt, and a slow controller takes seconds
 // per reading. The event loop goes on meanwhile. Emergency stops, queries and pings never wait; an
 // emergency stop refuses what was held (it came after them and must not be undone by them).
-bool Server::step(Input in) {
+void Server::step(Input in) {
   if (in.kind == InputKind::kEmergencyStop) {
     refuseHeld(workflow::toString(workflow::ReplyCode::kSuperseded),
                "not done: an emergency stop came while this waited for a reading of the "
@@ -411,9 +404,10 @@ bool Server::step(Input in) {
     if (controller_pending_) {
       held_since_ = Clock::now();
       held_.push_back({std::move(in), held_since_});
-      return true;
+      return;
     }
-    return stepNow(std::move(in));
+    stepNow(std::move(in));
+    return;
   }
   // Questions that need no reading (query, ping) never wait behind the held inputs.
   const bool at_once = workflow::isQuestion(in.kind) && !workflow::needsControllerReading(in.kind);
@@ -423,13 +417,13 @@ bool Server::step(Input in) {
     if (held_.empty()) held_since_ = arrived;
     held_.push_back({std::move(in), arrived});
     if (component_) component_->pollNow();
-    return true;
+    return;
   }
-  return stepNow(std::move(in));
+  stepNow(std::move(in));
 }
 
 // An input judged by a reading waits for one taken after every command sent so far; one that
-// releases motion (approve, resume) waits for one begun after it arrived, so that motors moved
+// releases motion (approve) waits for one begun after it arrived, so that motors moved
 // by hand a moment before are seen (issue 38: an approval accepted on the old position made a
 // move the executor then refused, and a fault).
 bool Server::waitsForReading(const Input& in, Clock::time_point arrived) const {
@@ -447,11 +441,11 @@ bool Server::waitsForReading(const Input& in, Clock::time_point arrived) const {
 }
 
 // Steps the held inputs whose reading has come; one that waited too long is refused.
-bool Server::releaseHeld() {
+void Server::releaseHeld() {
   const auto limit = std::chrono::milliseconds(6 * options_.controller.timeout_ms + 1000);
   while (!held_.empty()) {
     if (waitsForReading(held_.front().input, held_.front().arrived)) {
-      if (controller_pending_ || Clock::now() - held_since_ < limit) return true;
+      if (controller_pending_ || Clock::now() - held_since_ < limit) return;
       const Input& late = held_.front().input;
       sendReply({late.client_id, late.request_id, false,
                  workflow::toString(workflow::ReplyCode::kControllerUnavailable),
@@ -466,9 +460,8 @@ bool Server::releaseHeld() {
     Input in = std::move(held_.front().input);
     held_.pop_front();
     held_since_ = Clock::now();
-    if (!stepNow(std::move(in))) return false;
+    stepNow(std::move(in));
   }
-  return true;
 }
 
 void Server::refuseHeld(const char* code, const std::string& why) {
@@ -505,10 +498,7 @@ void Server::serveReadOnly(Clock::time_point until, const std::atomic<bool>& sto
       // The bridge answers; every input it makes is refused.
       igtl_->serve(
           session_, last_reading_.position,
-          [&](Input in) {
-            refuse(in.client_id.c_str(), in.request_id);
-            return true;
-          },
+          [&](Input in) { refuse(in.client_id.c_str(), in.request_id); },
           [this] { publishHealth(); }, handled);
     }
     if (Clock::now() - last_health > std::chrono::seconds(1)) {
@@ -553,7 +543,7 @@ std::optional<std::string> Server::robotIdConflict() {
 // (a new session's robot is at its home, where its position is zero; a recovered one's
 // simulation is placed where the journal last verified the motors, a real controller kept
 // counting), a recovered session is judged on its first reading, and what waited is released.
-bool Server::startControllerWhenClear() {
+void Server::startControllerWhenClear() {
   controller_pending_ = false;
   startController(!recovering_,
                   recovering_ ? std::optional<actuation::Steps>(session_.position) : std::nullopt);
@@ -561,11 +551,10 @@ bool Server::startControllerWhenClear() {
     // Approvals die here, and the position is checked against the controller's.
     Input restarted;
     restarted.kind = InputKind::kServerRestarted;
-    if (!stepNow(std::move(restarted))) return false;
+    stepNow(std::move(restarted));
   }
   publishMotion();
   waitset_.trigger();  // what finished meanwhile (a load, a detection) is taken at once
-  return true;
 }
 
 // Announces this server, then listens for robot_id_check_ms (from the start of the process's

@@ -49,7 +49,9 @@ class Server {
   Server& operator=(const Server&) = delete;
 
   // Serves: a new session from its start, or the one `journal_lines` recover. Returns the exit
-  // code once `stop` is true (0), or at once when a step failed fatally (3) or recovery did (2).
+  // code once `stop` is true (0), or at once when recovery failed (2) or another server has this
+  // robot id (4). (A step never fails the server: a journal that cannot be written refuses every
+  // change instead, step.cpp.)
   int run(const std::atomic<bool>& stop, const std::vector<std::string>& journal_lines);
   // Publishes a recorded session's states one record at a time, at the recorded pace divided by
   // the speed (0: at once), then keeps serving them (and slices) until stopped. It drives no
@@ -65,10 +67,10 @@ class Server {
   // server.cpp
   Status recover(const std::vector<std::string>& lines);
   void serveReadOnly(Clock::time_point until, const std::atomic<bool>& stop);
-  std::size_t takeCommands(bool& failed);
-  bool step(Input in);
+  std::size_t takeCommands();
+  void step(Input in);
   bool waitsForReading(const Input& in, Clock::time_point arrived) const;
-  bool releaseHeld();
+  void releaseHeld();
   void refuseHeld(const char* code, const std::string& why);
   bool reservedClientId(const std::string& client_id, std::uint64_t request_id);
   std::optional<workflow::Reply> checkPath(const Input& in) const;
@@ -79,10 +81,10 @@ class Server {
   // start (it must stop), nothing when none is there or this one is older (the other stops).
   std::optional<std::string> robotIdConflict();
   std::optional<std::string> checkRobotIdAtStart();  // replay: listens, then serves
-  bool startControllerWhenClear();                   // run: once the check has passed
+  void startControllerWhenClear();                   // run: once the check has passed
 
   // step.cpp
-  bool stepNow(Input in);
+  void stepNow(Input in);
   void replaceSession(workflow::Session&& session);
   const Reports::Snapshot& snapshot();  // the session as it is now, shared read only
   void sendReply(const workflow::Reply& r);
@@ -97,8 +99,8 @@ class Server {
   ControllerReading latestReading() const;
   void runController(const workflow::ControllerCommand& c,
                      const std::optional<actuation::Steps>& expect_from);
-  bool takeControllerEvents();
-  bool onReading(const ControllerReading& reading);
+  void takeControllerEvents();
+  void onReading(const ControllerReading& reading);
 
   ServerOptions options_;
   const std::filesystem::path session_dir_;

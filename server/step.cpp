@@ -116,7 +116,7 @@ class Server::Sink final : public workflow::EffectSink {
   const workflow::Phase phase_before_;
 };
 
-bool Server::stepNow(Input in) {
+void Server::stepNow(Input in) {
   in.time_s = wallS();
   if (workflow::needsControllerReading(in.kind) && !in.controller) {
     // The component's latest reading: taken after every command sent so far (step() held the
@@ -132,7 +132,6 @@ bool Server::stepNow(Input in) {
   workflow::Step s = workflow::reduce(session_, in);
   Sink sink(*this, in, s);
   workflow::executeStep(s, sink);
-  return true;
 }
 
 void Server::replaceSession(Session&& session) {
