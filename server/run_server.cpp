@@ -68,8 +68,7 @@ int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
   // folder was made.
   if (!options.security.identity.empty()) {
     try {
-      auto id = protocol::identityFromFolder(options.security.identity);
-      if (!options.security.plugins.empty()) id.plugin_dir = options.security.plugins;
+      const auto id = securityIdentity(options.security);
       if (const std::string bad = protocol::identityProblem(id); !bad.empty()) {
         spdlog::error("security.identity {}: {}", options.security.identity, bad);
         return 2;

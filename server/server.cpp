@@ -55,8 +55,7 @@ std::optional<SecurityIdentity> serverIdentity(const SecurityOptions& o) {
         "approvals included. Use this for local development only (docs/SECURITY.md).");
     return std::nullopt;
   }
-  SecurityIdentity id = identityFromFolder(o.identity);
-  if (!o.plugins.empty()) id.plugin_dir = o.plugins;
+  SecurityIdentity id = securityIdentity(o);
   spdlog::info("DDS Security on: identity {} ({})", o.identity,
                certificateSubject(readConfigFile(id.certificate)));
   return id;
@@ -185,7 +184,6 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
   // would reach it: a robot another server drives is left alone, and this server is ready in a
   // fraction of the check (issue 38).
   publishHealth();
-  controller_pending_ = true;
   controller_due_ = participant_started_ + std::chrono::milliseconds(options_.robot_id_check_ms);
   recovering_ = !journal_lines.empty();
   if (!recovering_) {
@@ -227,7 +225,7 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
   auto last_event = Clock::now() - kBusyPoll;
   while (!stop.load()) {
     notifier_.alive();
-    if (controller_pending_) {
+    if (controllerPending()) {
       // (robot_id_check_ms 0: no check at start; the one below, once a second, still runs.)
       if (options_.robot_id_check_ms > 0) {
         if (auto conflict = robotIdConflict()) {
@@ -242,7 +240,7 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
     // ~150 µs on this kind of VM, more than the command itself (docs/PERFORMANCE.md).
     // The controller component wakes the waitset when it has something: no polling here.
     if (Clock::now() - last_event >= kBusyPoll) {
-      waitset_.wait(std::chrono::milliseconds(controller_pending_ ? 20 : 200));
+      waitset_.wait(std::chrono::milliseconds(controllerPending() ? 20 : 200));
     } else {
       std::this_thread::yield();
     }
@@ -266,14 +264,15 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
         });
     // A recovered session's first new record is its restart (a load or a detection the crash
     // interrupted, started again, ends after it).
-    const bool restart_first = controller_pending_ && recovering_;
-    for (auto& in : restart_first ? std::vector<Input>{} : loader_.finished()) {
-      ++handled;
-      step(in);
-    }
-    for (auto& in : restart_first ? std::vector<Input>{} : analysis_.finished()) {
-      ++handled;
-      step(std::move(in));
+    if (!(controllerPending() && recovering_)) {
+      for (auto& in : loader_.finished()) {
+        ++handled;
+        step(in);
+      }
+      for (auto& in : analysis_.finished()) {
+        ++handled;
+        step(std::move(in));
+      }
     }
     handled += takeCommands();
     // Slices are drawn on the slices thread, from the session as it is now.
@@ -401,12 +400,9 @@ void Server::step(Input in) {
                "controller");
     // Before the robot-id check lets this server touch the controller, its halt goes out the
     // moment the controller starts (at once after the others' if another server has the robot).
-    if (controller_pending_) {
-      held_since_ = Clock::now();
-      held_.push_back({std::move(in), held_since_});
-      return;
-    }
-    stepNow(std::move(in));
+    if (!controllerPending()) return stepNow(std::move(in));
+    held_since_ = Clock::now();
+    held_.push_back({std::move(in), held_since_});
     return;
   }
   // Questions that need no reading (query, ping) never wait behind the held inputs.
@@ -429,11 +425,11 @@ void Server::step(Input in) {
 bool Server::waitsForReading(const Input& in, Clock::time_point arrived) const {
   if (in.controller) return false;
   // The controller not yet started (the robot-id check): what reads or halts it waits.
-  if (controller_pending_) {
+  if (controllerPending()) {
     return workflow::needsControllerReading(in.kind) || in.kind == InputKind::kStop ||
            in.kind == InputKind::kEmergencyStop;
   }
-  if (!component_ || !workflow::needsControllerReading(in.kind)) return false;
+  if (!workflow::needsControllerReading(in.kind)) return false;
   const auto r = component_->latest();
   if (r.status.state == actuation::ControllerState::kDisconnected) return false;
   if (r.after_command < last_submitted_) return true;
@@ -445,7 +441,7 @@ void Server::releaseHeld() {
   const auto limit = std::chrono::milliseconds(6 * options_.controller.timeout_ms + 1000);
   while (!held_.empty()) {
     if (waitsForReading(held_.front().input, held_.front().arrived)) {
-      if (controller_pending_ || Clock::now() - held_since_ < limit) return;
+      if (controllerPending() || Clock::now() - held_since_ < limit) return;
       const Input& late = held_.front().input;
       sendReply({late.client_id, late.request_id, false,
                  workflow::toString(workflow::ReplyCode::kControllerUnavailable),
@@ -544,7 +540,6 @@ std::optional<std::string> Server::robotIdConflict() {
 // simulation is placed where the journal last verified the motors, a real controller kept
 // counting), a recovered session is judged on its first reading, and what waited is released.
 void Server::startControllerWhenClear() {
-  controller_pending_ = false;
   startController(!recovering_,
                   recovering_ ? std::optional<actuation::Steps>(session_.position) : std::nullopt);
   if (recovering_) {

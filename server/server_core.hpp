@@ -137,8 +137,8 @@ class Server {
   std::deque<Held> held_;  // inputs waiting for a fresh reading (step())
   // run(): the controller is not touched until no other server with this robot id has been heard
   // for robot_id_check_ms from the participant's start (controller_due_); meanwhile the inputs
-  // that read or halt it are held.
-  bool controller_pending_ = false;
+  // that read or halt it are held. (Replay has no controller and steps nothing.)
+  bool controllerPending() const { return !component_; }
   Clock::time_point controller_due_{};
   bool recovering_ = false;  // run() continues a session from its journal
   Clock::time_point held_since_;

@@ -61,6 +61,12 @@ std::string resolve(const fs::path& base, const std::string& p) {
 
 }  // namespace
 
+protocol::SecurityIdentity securityIdentity(const SecurityOptions& o) {
+  protocol::SecurityIdentity id = protocol::identityFromFolder(o.identity);
+  if (!o.plugins.empty()) id.plugin_dir = o.plugins;
+  return id;
+}
+
 std::optional<std::string> checkServerOptions(const ServerOptions& o) {
   if (const std::string problem = protocol::robotIdProblem(o.robot_id); !problem.empty()) {
     return "robot_id: '" + o.robot_id + "' " + problem;

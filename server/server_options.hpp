@@ -10,6 +10,7 @@
 
 #include "ignav/config/tissue_profiles.hpp"
 #include "ignav/protocol/config.hpp"
+#include "ignav/protocol/security.hpp"
 
 namespace ignav::server {
 
@@ -30,6 +31,10 @@ struct SecurityOptions {
   std::string identity;  // an identity folder (configs/security/make-test-pki.sh writes them)
   std::string plugins;   // folder of Cyclone's libdds_security_*.so ("" = Debian's)
 };
+
+// The identity `o.identity` names, with `o.plugins` applied (the identity must be set). Throws
+// protocol::DdsError naming a missing file.
+protocol::SecurityIdentity securityIdentity(const SecurityOptions& o);
 
 // The OpenIGTLink bridge for 3D Slicer (server.yaml `openigtlink:`, docs/OPENIGTLINK.md).
 struct OpenIgtlinkOptions {

@@ -188,15 +188,12 @@ bool Client::waitForServer(std::chrono::milliseconds timeout) {
   // Loopback discovery takes ~10 ms and a handshake a few round trips: 3 s is ample on a clean
   // network, and on one with 50 ms of delay and 5 % loss a handshake that has not ended by then
   // has usually lost a message. Made anew after 3, 6, 12, 24, 30, 30 ... s.
-  auto attempt = milliseconds(3000);
-  auto attempt_end = Clock::now() + attempt;
+  RemakeSchedule schedule(milliseconds(3000), milliseconds(30000));
   while (Clock::now() < end) {
     if (serverMatched()) return true;
-    const auto now = Clock::now();
-    if (identity_ && now >= attempt_end && end - now > milliseconds(1000)) {
+    if (identity_ && schedule.due() && end - Clock::now() > milliseconds(1000)) {
       makeParticipantAnew();
-      attempt = std::min(attempt * 2, milliseconds(30000));
-      attempt_end = Clock::now() + attempt;
+      schedule.remade();
     }
     std::this_thread::sleep_for(milliseconds(5));
   }
@@ -395,19 +392,17 @@ std::vector<Health> discoverRobots(std::uint32_t domain_id, const std::string& c
   auto last_news = Clock::now();
   std::size_t last_matched = 0;
   // With DDS Security, a participant that matched nothing in its attempt may have lost a
-  // handshake message, which Cyclone 0.10 never mends: made anew (as Client::waitForServer).
-  auto attempt = std::chrono::milliseconds(3000);
-  auto attempt_end = Clock::now() + attempt;
+  // handshake message: made anew (as Client::waitForServer).
+  RemakeSchedule schedule(std::chrono::milliseconds(3000), std::chrono::milliseconds(30000));
   while (Clock::now() < end) {
-    if (identity && last_matched == 0 && Clock::now() >= attempt_end &&
+    if (identity && last_matched == 0 && schedule.due() &&
         end - Clock::now() > std::chrono::milliseconds(1000)) {
       health.reset();
       participant.reset();  // first: its peers forget its handshake
       participant = std::make_unique<Participant>(domain_id, config_xml, identity, kAnyRobot,
                                                   participantName("robots"));
       health = std::make_unique<TopicReader<Health>>(*participant, Qos::kStateOfMany);
-      attempt = std::min(attempt * 2, std::chrono::milliseconds(30000));
-      attempt_end = Clock::now() + attempt;
+      schedule.remade();
     }
     health->take([&](const Health& h) {
       if (seen.insert_or_assign({h.robot_id, h.session_id}, h).second) last_news = Clock::now();

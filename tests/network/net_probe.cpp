@@ -104,19 +104,25 @@ int watch(const Options& o) {
   std::unique_ptr<Participant> participant;
   std::unique_ptr<Reader<ignav_msg_Reply>> replies;
   const auto matched_by = std::chrono::steady_clock::now() + 60s;
-  for (auto attempt = 3s; !replies || replies->matched() == 0;
-       attempt = std::min(attempt * 2, 30s)) {
-    if (std::chrono::steady_clock::now() >= matched_by) {
-      throw std::runtime_error("the reply topic never matched");
-    }
+  ignav::protocol::RemakeSchedule schedule(3s, 30s);
+  auto make = [&] {
     replies.reset();
+    participant.reset();  // first: its peers forget its handshake
     participant =
         std::make_unique<Participant>(o.domain, c.xml, c.secure(), c.robot, "net_probe watch");
     replies = std::make_unique<Reader<ignav_msg_Reply>>(
         *participant, &ignav_msg_Reply_desc, ignav::protocol::topic::kReply, Qos::kRequest);
-    const auto give_up = std::min(std::chrono::steady_clock::now() + attempt, matched_by);
-    while (replies->matched() == 0 && std::chrono::steady_clock::now() < give_up)
-      std::this_thread::sleep_for(10ms);
+  };
+  make();
+  while (replies->matched() == 0) {
+    if (std::chrono::steady_clock::now() >= matched_by) {
+      throw std::runtime_error("the reply topic never matched");
+    }
+    if (c.secure() && schedule.due()) {
+      make();
+      schedule.remade();
+    }
+    std::this_thread::sleep_for(10ms);
   }
   progress("the reply topic matched", joining);
   std::cout << "net_probe watch ready robot=" << c.robot << std::endl;
@@ -167,8 +173,8 @@ int viewers(const Options& o) {
     std::unique_ptr<Reader<ignav_msg_TargetState>> reader;
     std::unique_ptr<ignav::protocol::WaitSet> waitset;
     std::vector<std::pair<double, std::int64_t>> arrivals;  // (lps x, t_ns)
-    std::chrono::steady_clock::time_point give_up;          // made anew if not matched by then
-    std::chrono::milliseconds attempt{10000};
+    // Made anew when not matched within its attempt (10 s, doubling up to 40 s).
+    ignav::protocol::RemakeSchedule schedule{10s, 40s};
   };
   std::vector<Viewer> all(static_cast<std::size_t>(o.count));
   int made_anew = 0;
@@ -186,19 +192,17 @@ int viewers(const Options& o) {
         *v.participant, &ignav_msg_TargetState_desc, ignav::protocol::topic::kTarget, Qos::kState);
     v.waitset = std::make_unique<ignav::protocol::WaitSet>(*v.participant);
     v.waitset->attach(v.reader->handle());
-    v.give_up = std::chrono::steady_clock::now() + v.attempt;
   };
   for (std::size_t i = 0; i < all.size(); ++i)
     make(i);
   const auto by = std::chrono::steady_clock::now() + 180s;
   auto remakeStuck = [&] {
     if (!c.secure()) return;
-    const auto now = std::chrono::steady_clock::now();
     for (std::size_t i = 0; i < all.size(); ++i) {
       auto& v = all[i];
-      if (v.reader->matched() > 0 || now < v.give_up) continue;
-      v.attempt = std::min(v.attempt * 2, std::chrono::milliseconds(40000));
+      if (v.reader->matched() > 0 || !v.schedule.due()) continue;
       make(i);
+      v.schedule.remade();
       ++made_anew;
     }
   };

@@ -39,7 +39,6 @@ constexpr std::size_t kMaxHttpRequestBytes = 64u << 10;
 // How often the gateway looks whether the server is (still) there; a browser hears of a change
 // this much later at most (a restarted gateway's pages wait for it before asking for slices).
 constexpr auto kServerCheckPeriod = std::chrono::milliseconds(100);
-constexpr auto kFirstRemake = std::chrono::milliseconds(5000);  // unmatched this long: made anew
 // The server publishes Health once a second. Silent this long, it is gone even while DDS still
 // lists it as matched: a killed server's endpoints stay matched until its lease runs out (10 s
 // by default), and one whose loop is stuck answers nothing either.
@@ -103,8 +102,9 @@ struct Gateway::Impl {
   // ---- the DDS thread's ----
   bool server_alive = false;                     // matched, and not silent (what browsers are told)
   std::optional<Clock::time_point> last_health;  // when a Health sample last arrived
-  std::optional<Clock::time_point> unmatched_since;  // the server not matched since
-  std::chrono::milliseconds remake_after = kFirstRemake;
+  // Unmatched for 5 s under DDS Security: the client's participant is made anew (doubling).
+  protocol::RemakeSchedule remake{std::chrono::milliseconds(5000),
+                                  std::chrono::milliseconds(60000)};
 
   Impl(GatewayOptions o)
       : options(std::move(o)),
@@ -466,16 +466,12 @@ void Gateway::Impl::ddsLoop() {
       // With DDS Security, a handshake that lost a message never ends (Cyclone 0.10): a client
       // unmatched for a while is made anew, waiting twice as long each time (up to a minute).
       if (matched) {
-        unmatched_since.reset();
-        remake_after = kFirstRemake;
-      } else if (!unmatched_since) {
-        unmatched_since = Clock::now();
-      } else if (options.identity && Clock::now() - *unmatched_since > remake_after) {
+        remake.matched();
+      } else if (options.identity && remake.due()) {
         spdlog::warn("ignav-server unmatched for {} s: making the DDS participant anew",
-                     std::chrono::duration_cast<std::chrono::seconds>(remake_after).count());
+                     std::chrono::duration_cast<std::chrono::seconds>(remake.attempt()).count());
         client.makeParticipantAnew();
-        unmatched_since = Clock::now();
-        remake_after = std::min(remake_after * 2, std::chrono::milliseconds(60000));
+        remake.remade();
       }
       const bool silent = serverSilent();
       if ((matched && !silent) != server_alive) {

@@ -4,6 +4,7 @@
 // protocol/src.
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -55,6 +56,32 @@ struct SliceResult {
 
 // The state topics as their values: what poll() took last of each (absent: nothing yet), and
 // the targets by id (a disposed one removed). state() is the same, as JSON views.
+// When to make anew a DDS Security participant that has not matched its server: Cyclone 0.10
+// never mends a handshake that lost a message (it resends the same one), while a new participant
+// starts a new handshake. The first attempt lasts `first`, each next one twice as long, up to
+// `most`. One schedule for every client (Client::waitForServer, discoverRobots, the web gateway,
+// net_probe).
+class RemakeSchedule {
+ public:
+  using Clock = std::chrono::steady_clock;
+  RemakeSchedule(std::chrono::milliseconds first, std::chrono::milliseconds most)
+      : first_(first), most_(most), attempt_(first), end_(Clock::now() + first) {}
+  bool due() const { return Clock::now() >= end_; }  // the attempt is over, unmatched
+  std::chrono::milliseconds attempt() const { return attempt_; }
+  void remade() {  // a new participant: the next attempt, twice as long
+    attempt_ = std::min(attempt_ * 2, most_);
+    end_ = Clock::now() + attempt_;
+  }
+  void matched() {  // matched now: a later loss starts again from the first attempt
+    attempt_ = first_;
+    end_ = Clock::now() + first_;
+  }
+
+ private:
+  std::chrono::milliseconds first_, most_, attempt_;
+  Clock::time_point end_;
+};
+
 struct StateMirror {
   std::optional<WorkflowState> workflow;
   std::optional<RobotState> robot;
