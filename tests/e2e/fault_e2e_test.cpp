@@ -259,6 +259,7 @@ TEST(FaultE2E, KilledUnderLoadLosesNoAcknowledgedChange) {
   constexpr int kClients = 4;
   std::vector<std::map<std::uint32_t, Track>> tracks(kClients);
   std::atomic<int> acknowledged{0};
+  std::atomic<int> added{0};  // targets the clients made (each makes two before it moves them)
   std::vector<std::thread> clients;
   for (int i = 0; i < kClients; ++i) {
     clients.emplace_back([&, i] {
@@ -278,6 +279,7 @@ TEST(FaultE2E, KilledUnderLoadLosesNoAcknowledgedChange) {
           if (!r.accepted) return;
           tracks[i][r.target_id] = {p, std::nullopt};
           mine.push_back(r.target_id);
+          ++added;
         }
         for (int n = 0;; ++n) {
           const std::uint32_t id = mine[n % mine.size()];
@@ -292,11 +294,17 @@ TEST(FaultE2E, KilledUnderLoadLosesNoAcknowledgedChange) {
       }
     });
   }
-  while (acknowledged < 200)
+  // The kill comes once every client has made its targets (a client slow to join on a busy
+  // machine made none before the others' 200 moves, and the recovered count fell short) and 200
+  // moves were acknowledged.
+  const auto give_up = std::chrono::steady_clock::now() + 120s;
+  while ((acknowledged < 200 || added < 2 * kClients) && std::chrono::steady_clock::now() < give_up)
     std::this_thread::sleep_for(10ms);
+  const int made = added;
   server.crash();
   for (auto& t : clients)
     t.join();
+  ASSERT_EQ(made, 2 * kClients) << "not every client made its targets within 120 s";
 
   server.start();
   auto check = server.client("check");
