@@ -580,10 +580,8 @@ bool Server::reservedClientId(const std::string& client_id, std::uint64_t reques
 
 // A path the server cannot read is refused before acknowledging (the reducer does no I/O).
 std::optional<workflow::Reply> Server::checkPath(const Input& in) const {
-  const bool names_a_file =
-      in.kind == InputKind::kLoadVolume || in.kind == InputKind::kLoadConfirmation;
-  if (!names_a_file || in.path == kPhantomSource || in.path.empty() ||
-      in.path.size() > workflow::kMaxPathLength) {
+  if (!workflow::specOf(in.kind).args.path_is_server_file || in.path == kPhantomSource ||
+      in.path.empty() || in.path.size() > workflow::kMaxPathLength) {
     return std::nullopt;
   }
   std::error_code ec;

@@ -32,6 +32,7 @@
 #include "igtl_bridge.hpp"
 #include "image_analysis.hpp"
 #include "reports.hpp"
+#include "requests.hpp"
 #include "server_options.hpp"
 #include "service_notify.hpp"
 #include "slices.hpp"

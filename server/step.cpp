@@ -22,11 +22,7 @@ using workflow::Session;
 class Server::Sink final : public workflow::EffectSink {
  public:
   Sink(Server& server, const Input& in, const workflow::Step& step)
-      : s_(server),
-        in_(in),
-        effects_(step.effects),
-        revision_(step.session.revision),
-        phase_before_(server.session_.phase) {}
+      : s_(server), in_(in), effects_(step.effects), revision_(step.session.revision) {}
 
   // Handed to the component's halt thread, which sends them at once (queued moves are dropped).
   void halt(const workflow::ControllerCommand& c) override { s_.runController(c, std::nullopt); }
@@ -85,21 +81,12 @@ class Server::Sink final : public workflow::EffectSink {
   void finish(const workflow::Effects& e) override {
     const Session& now = s_.session_;
     auto& reports = s_.reports_;
-    if (in_.kind != InputKind::kQuery &&
+    if (!workflow::isQuestion(in_.kind) &&
         (e.registration_changed || !e.targets_changed.empty() || !e.targets_removed.empty())) {
       reports.exports(s_.snapshot());
     }
-    if (now.phase != phase_before_) {
-      if (now.phase == workflow::Phase::kPlanLocked && in_.kind == InputKind::kLockPlan) {
-        reports.slices(s_.snapshot(), true, 0);
-      } else if (now.phase == workflow::Phase::kAtTarget) {
-        const workflow::Target* last = nullptr;  // the target just reached
-        for (const auto& t : now.targets) {
-          if (t.reached && (!last || t.reached_s > last->reached_s)) last = &t;
-        }
-        if (last) reports.slices(s_.snapshot(), false, last->id);
-      }
-    }
+    if (e.plan_slices) reports.slices(s_.snapshot(), true, 0);
+    if (e.reached_target_slices) reports.slices(s_.snapshot(), false, *e.reached_target_slices);
     if (e.confirmation_changed || e.tissue_fitted) reports.verification(s_.snapshot());
     if (!e.journal.empty()) reports.report(s_.snapshot());
     if (e.load_volume) s_.loader_.start(*e.load_volume, *now.robot, s_.session_dir_);
@@ -113,7 +100,6 @@ class Server::Sink final : public workflow::EffectSink {
   const Input& in_;
   const workflow::Effects& effects_;
   const std::uint64_t revision_;  // the step's
-  const workflow::Phase phase_before_;
 };
 
 void Server::stepNow(Input in) {
@@ -146,7 +132,7 @@ const Reports::Snapshot& Server::snapshot() {
 
 void Server::sendReply(const workflow::Reply& r) {
   if (igtl_ && igtl_->reply(r, session_)) return;
-  replies_.write(protocol::toWire(r));
+  replies_.write(toWire(r));
   if (!r.accepted) spdlog::warn("rejected: {}", r.message);
 }
 

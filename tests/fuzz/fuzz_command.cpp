@@ -1,6 +1,6 @@
 // The command decoder and the workflow behind it: a stream of DDS Command and Approval samples
 // with fuzzed fields (unknown kinds, NaN/inf/huge coordinates, empty and oversized strings and
-// sequences, stale or forged plan ids) goes through protocol::toInput and workflow::reduce, as
+// sequences, stale or forged plan ids) goes through ignav::server::toInput and workflow::reduce, as
 // the server does, from a session that is registered and planning. Checked on every step:
 // exactly one reply per command; a rejection changes nothing; nothing moves unless an approval
 // of the pending plan was accepted (DESIGN.md safety invariants 1 and 5).
@@ -15,6 +15,7 @@
 #include "fuzz_session.hpp"
 #include "ignav/protocol/wire/messages.hpp"
 #include "ignav/workflow/reducer.hpp"
+#include "requests.hpp"
 
 namespace {
 
@@ -70,7 +71,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       a.plan_id = session.pending && in.ConsumeBool() ? session.pending->plan_id
                                                       : in.ConsumeIntegral<std::uint64_t>();
       a.digest = protocol::cstr(digest);
-      input = protocol::toInput(protocol::fromMsg(a));
+      input = ignav::server::toInput(protocol::fromMsg(a));
     } else {
       ignav_msg_Command c{};
       std::string path = in.ConsumeBool() ? "phantom:" : fuzzedString(in);
@@ -90,7 +91,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       c.path = protocol::cstr(path);
       protocol::viewSequence(c.points, points);
       protocol::viewSequence(c.ids, ids);
-      input = protocol::toInput(protocol::commandOf(c));
+      input = ignav::server::toInput(protocol::commandOf(c));
     }
     if (!input) continue;  // an unknown kind: the server answers "unknown_command"
     t += in.ConsumeFloatingPointInRange<double>(0.0, 200.0);

@@ -8,10 +8,10 @@
 #include <set>
 #include <sstream>
 
+#include "ignav/commands/command_table.hpp"
 #include "ignav/protocol/commands.hpp"
 #include "ignav/protocol/config.hpp"
 #include "ignav/protocol/security.hpp"
-#include "ignav/workflow/inputs.hpp"
 
 namespace ignav::protocol {
 namespace {
@@ -34,8 +34,8 @@ std::map<std::string, std::set<std::string>> publishedByRole() {
 // Every command on the Command topics, from the one table that declares them.
 std::vector<std::int32_t> allKinds() {
   std::vector<std::int32_t> kinds;
-  for (const auto& spec : workflow::inputTable())
-    if (spec.wire_kind != workflow::kNoWireKind) kinds.push_back(spec.wire_kind);
+  for (const auto& spec : ignav::commands::inputTable())
+    if (spec.wire_kind != ignav::commands::kNoWireKind) kinds.push_back(spec.wire_kind);
   return kinds;
 }
 

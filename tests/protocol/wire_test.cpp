@@ -8,10 +8,12 @@
 
 #include "ignav/protocol/json_view.hpp"
 #include "ignav/protocol/wire/messages.hpp"
+#include "requests.hpp"  // server/: what the workflow takes of a request
 
 namespace {
 
 using namespace ignav::protocol;
+using ignav::server::toInput;
 using nlohmann::json;
 
 template <typename T>

@@ -13,7 +13,6 @@
 
 #include "ignav/protocol/client.hpp"
 #include "ignav/protocol/commands.hpp"
-#include "ignav/workflow/session.hpp"
 
 namespace ignav::web {
 

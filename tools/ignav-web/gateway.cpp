@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "browser_messages.hpp"
+#include "ignav/commands/command_table.hpp"
 #include "ignav/protocol/client.hpp"
 
 namespace ignav::web {
@@ -115,8 +116,8 @@ struct Gateway::Impl {
       subject = protocol::certificateSubject(
           std::string(std::istreambuf_iterator<char>(pem), std::istreambuf_iterator<char>()));
     }
-    for (const auto& spec : workflow::inputTable()) {
-      if ((spec.traits & workflow::kFromClients) && client.mayPublish(spec.name))
+    for (const auto& spec : commands::inputTable()) {
+      if ((spec.traits & commands::kFromClients) && client.mayPublish(spec.name))
         permitted.push_back(spec.name);
     }
     // Browsers never wait for a reply by polling; the DDS thread sleeps on the waitset.

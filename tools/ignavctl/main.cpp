@@ -29,7 +29,7 @@
 #include <thread>
 
 #include "ignav/protocol/client.hpp"
-#include "ignav/workflow/inputs.hpp"
+#include "ignav/commands/command_table.hpp"
 #include "verification_view.hpp"
 
 namespace {
@@ -103,10 +103,10 @@ void printReply(const ignav::protocol::Reply& r, bool as_json, double round_trip
 
 // A derived subcommand's words as its command's arguments, in usageOf()'s order: the path,
 // then the ids, the points, the matrix.
-CommandArgs commandArgs(const ignav::workflow::InputSpec& spec,
+CommandArgs commandArgs(const ignav::commands::InputSpec& spec,
                         const std::vector<std::string>& words) {
   const auto& a = spec.args;
-  const std::string usage = std::string(spec.name) + " " + ignav::workflow::usageOf(spec);
+  const std::string usage = std::string(spec.name) + " " + ignav::commands::usageOf(spec);
   CommandArgs out;
   std::size_t next = 0;
   auto take = [&]() -> const std::string& {
@@ -116,12 +116,12 @@ CommandArgs commandArgs(const ignav::workflow::InputSpec& spec,
   if (a.path_is) out.path = take();
   auto count = [&](std::size_t n, std::size_t others) {
     // "Any number" takes what the fields after it leave.
-    return n == ignav::workflow::kAnyCount ? words.size() - std::min(words.size(), next + others)
+    return n == ignav::commands::kAnyCount ? words.size() - std::min(words.size(), next + others)
                                            : n;
   };
   const std::size_t matrix_words = a.matrix_is && !a.matrix_optional ? 1 : 0;
   const std::size_t after_ids =
-      (a.points == ignav::workflow::kAnyCount ? 0 : a.points) + matrix_words;
+      (a.points == ignav::commands::kAnyCount ? 0 : a.points) + matrix_words;
   for (std::size_t i = 0, n = count(a.ids, after_ids); i < n; ++i) {
     const std::string& word = take();
     try {
@@ -697,12 +697,12 @@ int main(int argc, char** argv) {
   std::string ready_what;
   auto* ready = app.add_subcommand("ready", "is the robot (or the plan) ready? changes nothing");
   ready->add_option("what", ready_what, "robot | targeting")->required();
-  // Every other command, from the table that declares them (workflow/inputs.hpp): "add-target
+  // Every other command, from the table that declares them (commands/command_table.hpp): "add-target
   // X,Y,Z", "ping", ... with the arguments its row names.
-  const ignav::workflow::InputSpec* derived = nullptr;
+  const ignav::commands::InputSpec* derived = nullptr;
   std::vector<std::string> derived_words;
-  for (const auto& spec : ignav::workflow::inputTable()) {
-    if (spec.wire_kind == ignav::workflow::kNoWireKind) continue;
+  for (const auto& spec : ignav::commands::inputTable()) {
+    if (spec.wire_kind == ignav::commands::kNoWireKind) continue;
     std::string name = spec.name;
     std::replace(name.begin(), name.end(), '_', '-');
     const auto given =
@@ -710,7 +710,7 @@ int main(int argc, char** argv) {
     if (!given.empty()) continue;  // given a friendlier form above
     auto* sub = app.add_subcommand(name, spec.help);
     sub->callback([&derived, &spec] { derived = &spec; });
-    const std::string usage = ignav::workflow::usageOf(spec);
+    const std::string usage = ignav::commands::usageOf(spec);
     if (!usage.empty()) sub->add_option("args", derived_words, usage)->required();
   }
   std::vector<std::string> verify_args;

@@ -133,6 +133,7 @@ Refusal arriveAtTarget(Session& s, const Input& in, ActionOutput& out) {
     t->reached_s = in.time_s;
     t->reached_joints = t->commandedJoints();
     out.effects.targets_changed.push_back(target);
+    out.effects.reached_target_slices = target;
   }
   return issueRequest(s, in, out.effects);
 }

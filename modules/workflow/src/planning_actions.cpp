@@ -270,6 +270,7 @@ Refusal lockPlan(Session& s, const Input& in, ActionOutput& out) {
     return Rejection{ReplyCode::kNothingToDo, "every target was reached and the stylet is home"};
   }
   out.note = order + "; waiting for approval of " + s.pending->summary;
+  out.effects.plan_slices = true;
   return std::nullopt;
 }
 

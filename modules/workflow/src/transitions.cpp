@@ -54,7 +54,7 @@ constexpr std::array<Guard, sizeof...(i)> resumeGuards(std::index_sequence<i...>
 }
 constexpr auto kResumeGuards = resumeGuards(std::make_index_sequence<std::size(kResumePhases)>());
 
-// The actions of the inputs allowed in every phase (kEveryPhase in inputs.cpp).
+// The actions of the inputs allowed in every phase (kEveryPhase in the command table).
 struct EveryPhaseAction {
   InputKind input;
   Action action;
@@ -63,22 +63,6 @@ constexpr EveryPhaseAction kEveryPhaseActions[] = {
     {I::kQuery, republishEverything},
     {I::kPing, answerPing},
 };
-
-// The closed loop's inputs leave every phase as it is: noted once on the diagram, not drawn.
-bool isClosedLoop(InputKind kind) {
-  switch (kind) {
-    case I::kLoadConfirmation:
-    case I::kPlaceSeed:
-    case I::kAcceptSeed:
-    case I::kRejectSeed:
-    case I::kFitTissue:
-    case I::kConfirmationMeasured:
-    case I::kConfirmationFailed:
-      return true;
-    default:
-      return false;
-  }
-}
 
 Action everyPhaseAction(InputKind kind) {
   for (const auto& a : kEveryPhaseActions) {
@@ -278,26 +262,47 @@ std::vector<InputKind> allowedCommands(Phase phase) {
   return out;
 }
 
+namespace {
+
+// "every phase", "every phase but moving and fault", or "planning, plan_locked and done".
+std::string phasesInWords(const std::vector<Phase>& phases) {
+  auto list = [](const std::vector<Phase>& ps) {
+    std::string out;
+    for (std::size_t i = 0; i < ps.size(); ++i) {
+      out += (i == 0 ? "" : i + 1 == ps.size() ? " and " : ", ") + std::string(toString(ps[i]));
+    }
+    return out;
+  };
+  std::vector<Phase> missing;
+  for (Phase p : kAllPhases) {
+    if (std::find(phases.begin(), phases.end(), p) == phases.end()) missing.push_back(p);
+  }
+  if (missing.empty()) return "every phase";
+  if (missing.size() < phases.size()) return "every phase but " + list(missing);
+  return list(phases);
+}
+
+}  // namespace
+
+// Derived from the table alone, so that a new input is drawn or noted without a list to keep:
+// a row that changes the phase is drawn; an input that leaves at most kDrawnSelfLoops phases as
+// they are has those loops drawn, one that leaves more is noted once with its phases (inputs
+// with the same phases share a note). resume's destinations are drawn once, as the phase the
+// interruption left.
 std::string mermaidDiagram() {
-  std::string everywhere;
-  for (const auto& spec : inputTable()) {
-    if (spec.traits & kEveryPhase)
-      everywhere += (everywhere.empty() ? "" : ", ") + std::string(spec.name);
+  constexpr std::size_t kDrawnSelfLoops = 2;
+  std::vector<std::vector<Phase>> stays(inputTable().size());
+  for (const auto& t : transitionTable()) {
+    auto& phases = stays[static_cast<std::size_t>(t.input)];
+    if (t.from == t.to && std::find(phases.begin(), phases.end(), t.from) == phases.end()) {
+      phases.push_back(t.from);
+    }
   }
   std::string out = "stateDiagram-v2\n  [*] --> startup\n";
   std::set<std::string> seen;
   for (const auto& t : transitionTable()) {
-    // Self-loops on (almost) every phase, noted once.
-    if ((specOf(t.input).traits & kEveryPhase) || t.input == InputKind::kCheckReady) continue;
-    // The server's own inputs that leave a phase as it is: noted once, not drawn per phase.
-    const bool detection_result =
-        t.input == InputKind::kFiducialsDetected || t.input == InputKind::kFiducialDetectionFailed;
-    const bool server_self_loop =
-        (t.input == InputKind::kControllerFault || t.input == InputKind::kServerRestarted ||
-         (detection_result && isInterruption(t.from))) &&
-        t.from == t.to;
-    if (server_self_loop || isClosedLoop(t.input)) continue;
-    // resume's destinations are drawn once, as the phase the interruption left.
+    const auto& phases = stays[static_cast<std::size_t>(t.input)];
+    if (t.from == t.to && phases.size() > kDrawnSelfLoops) continue;
     const bool resume_back = t.input == InputKind::kResume;
     std::string line = std::string("  ") + toString(t.from) + " --> " +
                        (resume_back ? "resume_target" : toString(t.to)) + ": " + toString(t.input) +
@@ -308,17 +313,26 @@ std::string mermaidDiagram() {
   for (Phase p : kResumePhases)
     destinations += (destinations.empty() ? "" : ", ") + std::string(toString(p));
   out += "  resume_target: the phase the interruption left (" + destinations + ")\n";
-  out += "  note right of stopped: accepted in every phase: " + everywhere +
-         "; check_ready in every phase but moving, emergency, fault and manual\n";
-  out +=
-      "  note left of done: the closed loop (load_confirmation, place_seed, accept_seed, "
-      "reject_seed, fit_tissue) leaves planning, plan_locked, at_target, done, stopped and "
-      "manual as they are; a measurement's outcome (confirmation_measured, confirmation_failed) "
-      "every phase but startup\n";
-  out +=
-      "  note right of fault: controller_fault and server_restarted leave the other phases "
-      "as they are; a marker detection's outcome (fiducials_detected, "
-      "fiducial_detection_failed) is kept in stopped, emergency, fault and manual\n";
+  // One note per set of phases, in the table's order of inputs.
+  std::vector<std::pair<std::vector<Phase>, std::string>> notes;
+  for (const auto& spec : inputTable()) {
+    auto phases = stays[static_cast<std::size_t>(spec.kind)];
+    if (phases.size() <= kDrawnSelfLoops) continue;
+    std::sort(phases.begin(), phases.end());
+    auto same =
+        std::find_if(notes.begin(), notes.end(), [&](const auto& n) { return n.first == phases; });
+    if (same == notes.end()) {
+      notes.push_back({phases, spec.name});
+    } else {
+      same->second += std::string(" / ") + spec.name;
+    }
+  }
+  for (const auto& [phases, inputs] : notes) {
+    const bool several = inputs.find('/') != std::string::npos;
+    out += std::string("  note right of ") + toString(phases.front()) + ": " + inputs +
+           (several ? " leave" : " leaves") + " the phase as it is in " + phasesInWords(phases) +
+           "\n";
+  }
   return out;
 }
 

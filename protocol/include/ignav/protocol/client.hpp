@@ -27,7 +27,7 @@
 
 namespace ignav::protocol {
 
-// What a command carries (workflow/inputs.hpp says which fields each command takes).
+// What a command carries (commands/command_table.hpp says which fields each command takes).
 struct CommandArgs {
   std::string path;
   std::vector<Eigen::Vector3d> points;

@@ -57,11 +57,10 @@ constexpr Phase kResumePhases[] = {Phase::kStartup,  Phase::kImaging,    Phase::
                                    Phase::kPlanning, Phase::kPlanLocked, Phase::kAtTarget,
                                    Phase::kDone};
 
-// Limits on what one command may carry (oversized sequences are rejected, not truncated).
-// Points or ids in one command (a plan's own limit, planning.max_targets, may be lower).
-constexpr std::size_t kMaxTargets = 100;  // per insertion (paper §V)
-constexpr std::size_t kMaxIdLength = 128;
-constexpr std::size_t kMaxPathLength = 4096;
+// Limits on what one command may carry: the command table's (ignav/commands/command_table.hpp).
+using commands::kMaxIdLength;
+using commands::kMaxPathLength;
+using commands::kMaxTargets;
 
 // Who may release motion and for how long a request stays valid (server.yaml `approval:`).
 struct ApprovalPolicy {
@@ -368,6 +367,10 @@ struct Effects {
   std::optional<FiducialDetectionJob> detect_fiducials;
   // A confirmation CT to load and search, then feed kConfirmationMeasured/Failed.
   std::optional<ConfirmationJob> measure_confirmation;
+  // The report's slices to render (server/reports.hpp): every target's when the plan is locked, the
+  // one just reached when the needle arrives.
+  bool plan_slices = false;
+  std::optional<std::uint32_t> reached_target_slices;
   bool confirmation_changed = false;  // VerificationState
   bool tissue_fitted = false;         // write the fitted profiles to the session folder
   bool approval_changed = false;

@@ -5,7 +5,7 @@
 //   Owned<ignav_msg_TargetState> owned;  writer.write(toMsg(target, owned));
 //   TargetState t = fromMsg(sample);
 // and TopicWriter<T> / TopicReader<T> do that around a Writer / Reader of T's topic. Commands and
-// replies too; below, what the workflow takes of a request (toInput) and gives as a reply.
+// replies too (what the workflow takes of them is the server's: server/requests.hpp).
 #pragma once
 
 #include <array>
@@ -20,7 +20,6 @@
 #include "ignav/protocol/commands.hpp"
 #include "ignav/protocol/types.hpp"
 #include "ignav/protocol/wire/dds.hpp"
-#include "ignav/workflow/session.hpp"
 
 namespace ignav::protocol {
 
@@ -299,13 +298,5 @@ class TopicReader {
 // The command of a taken sample by its field list, with at most kMaxCommandItemsRead points and
 // ids copied out (the workflow judges the rest: an oversized command is refused by name).
 Command commandOf(const ignav_msg_Command& sample);
-
-// What the workflow takes from each request; nullopt for a command kind that is not one of ours.
-std::optional<workflow::Input> toInput(const Command& command);
-workflow::Input toInput(const Approval& approval);
-workflow::Input toInput(const EmergencyStop& stop);
-
-// The reducer's reply (workflow/session.hpp) as it travels.
-Reply toWire(const workflow::Reply& reply);
 
 }  // namespace ignav::protocol

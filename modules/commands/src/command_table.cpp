@@ -1,8 +1,8 @@
-#include "ignav/workflow/inputs.hpp"
+#include "ignav/commands/command_table.hpp"
 
 #include <stdexcept>
 
-namespace ignav::workflow {
+namespace ignav::commands {
 namespace {
 
 using I = InputKind;
@@ -16,8 +16,9 @@ constexpr unsigned kServer = kPlain;
 const std::vector<InputSpec> kInputs = {
     // kind, name, wire kind, least role, traits, arguments, what it does
     {I::kLoadVolume, "load_volume", 0, R::kPlanner, kCommand,
-     kNone.path("a server-side DICOM folder or file, .nrrd/.nhdr, .mha/.mhd, or phantom: (the "
-                "built-in phantom)"),
+     kNone.serverFile(
+         "a server-side DICOM folder or file, .nrrd/.nhdr, .mha/.mhd, or phantom: (the "
+         "built-in phantom)"),
      "load the CT; VolumeState goes loading -> loaded or failed, with progress"},
     {I::kSetFiducials, "set_fiducials", 1, R::kPlanner, kCommand,
      kNone.withPoints(3, "the image points (LPS) of cannula base, cannula tip, stylet tip"),
@@ -77,7 +78,7 @@ const std::vector<InputSpec> kInputs = {
      "the server's clock (Unix s) and the session revision, answered at once: for clients "
      "measuring their clock offset and round trip"},
     {I::kLoadConfirmation, "load_confirmation", 21, R::kPlanner, kCommand,
-     kNone.path("a server-side confirmation CT: DICOM folder or file, .nrrd/.nhdr, .mha/.mhd")
+     kNone.serverFile("a server-side confirmation CT: DICOM folder or file, .nrrd/.nhdr, .mha/.mhd")
          .optionalMatrix("the scan's image -> robot transform (row-major 4x4, p_robot = M * "
                          "p_lps) where its markers cannot serve: a needle left in touches those on "
                          "its axis, or the scan leaves the robot out (the session's own "
@@ -209,4 +210,4 @@ std::string usageOf(const InputSpec& spec) {
   return out;
 }
 
-}  // namespace ignav::workflow
+}  // namespace ignav::commands
