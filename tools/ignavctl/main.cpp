@@ -28,8 +28,8 @@
 #include <sstream>
 #include <thread>
 
-#include "ignav/protocol/client.hpp"
 #include "ignav/commands/command_table.hpp"
+#include "ignav/protocol/client.hpp"
 #include "verification_view.hpp"
 
 namespace {
@@ -697,8 +697,8 @@ int main(int argc, char** argv) {
   std::string ready_what;
   auto* ready = app.add_subcommand("ready", "is the robot (or the plan) ready? changes nothing");
   ready->add_option("what", ready_what, "robot | targeting")->required();
-  // Every other command, from the table that declares them (commands/command_table.hpp): "add-target
-  // X,Y,Z", "ping", ... with the arguments its row names.
+  // Every other command, from the table that declares them (commands/command_table.hpp):
+  // "add-target X,Y,Z", "ping", ... with the arguments its row names.
   const ignav::commands::InputSpec* derived = nullptr;
   std::vector<std::string> derived_words;
   for (const auto& spec : ignav::commands::inputTable()) {

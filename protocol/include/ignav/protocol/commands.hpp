@@ -1,5 +1,5 @@
-// Commands on the wire by name (commands/command_table.hpp declares them): the number a command travels
-// as (Command.kind) and the role whose topic it travels on. No DDS here.
+// Commands on the wire by name (commands/command_table.hpp declares them): the number a command
+// travels as (Command.kind) and the role whose topic it travels on. No DDS here.
 #pragma once
 
 #include <cstdint>

@@ -60,8 +60,9 @@ using JointValues = std::array<double, 3>;       // θc rad, zc mm, zs mm
 
 // ---- requests and replies ----------------------------------------------------------------
 
-// One command. `kind` is its number in docs/PROTOCOL.md's table of commands (commands/command_table.hpp,
-// protocol/commands.hpp); it travels on the command topic of its least role.
+// One command. `kind` is its number in docs/PROTOCOL.md's table of commands
+// (commands/command_table.hpp, protocol/commands.hpp); it travels on the command topic of its least
+// role.
 struct Command {
   std::string client_id;
   std::uint64_t request_id = 0;

@@ -43,8 +43,8 @@ std::vector<InputKind> allowedCommands(Phase phase);
 std::string mermaidDiagram();
 // docs/WORKFLOW.md: the diagram and the table of (phase, allowed commands).
 std::string workflowMarkdown();
-// docs/PROTOCOL.md's table of commands, from the command table (ignav/commands/command_table.hpp) and the transitions:
-// wire kind, name, least role, arguments, what it does, where it is allowed.
+// docs/PROTOCOL.md's table of commands, from the command table (ignav/commands/command_table.hpp)
+// and the transitions: wire kind, name, least role, arguments, what it does, where it is allowed.
 std::string commandsMarkdown();
 
 // A fresh session for this robot (phase startup, no volume). The approval policy arrives with
