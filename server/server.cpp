@@ -112,7 +112,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
       slices_(participant_),
       waitset_(participant_),
       loader_(waitset_),
-      analysis_(waitset_),
+      jobs_(waitset_),
       reports_(session_dir_),
       journal_(std::move(journal)),
       crash_at_(std::getenv("IGNAV_CRASH_AT") ? std::getenv("IGNAV_CRASH_AT") : "") {
@@ -269,7 +269,7 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
         ++handled;
         step(in);
       }
-      for (auto& in : analysis_.finished()) {
+      for (auto& in : jobs_.finished()) {
         ++handled;
         step(std::move(in));
       }
@@ -368,13 +368,10 @@ Status Server::recover(const std::vector<std::string>& lines) {
   if (session_.volume_status.status == "loading") {
     loader_.start(session_.volume_status.source, *session_.robot, session_dir_);
   }
-  if (auto job = workflow::pendingDetection(session_)) {
-    spdlog::info("marker detection #{} was under way: started again", job->job);
-    analysis_.start(std::move(*job));
-  }
-  if (auto job = workflow::pendingConfirmation(session_)) {
-    spdlog::info("confirmation CT measurement #{} was under way: started again", job->job);
-    analysis_.start(std::move(*job));
+  for (auto& job : workflow::pendingJobs(session_)) {
+    spdlog::info("{} #{} was under way: started again", workflow::jobKindSpec(job.kind).name,
+                 job.id);
+    jobs_.start(std::move(job));
   }
   spdlog::info("recovered {} journal records: revision {}, phase {}, {} targets", lines.size(),
                session_.revision, workflow::toString(session_.phase), session_.targets.size());

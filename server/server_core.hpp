@@ -5,7 +5,7 @@
 //   step.cpp        one input through the reducer and its effects (workflow::executeStep's
 //                   order: halts, journal, session, moves, state, replies, the rest);
 //   controller.cpp  the controller component: started, sent commands, its events as inputs.
-// What it hands to other threads: volume_loader.hpp, image_analysis.hpp, slices.hpp,
+// What it hands to other threads: volume_loader.hpp, job_runner.hpp, slices.hpp,
 // reports.hpp, controller_component.hpp, igtl_bridge.hpp. docs/ARCHITECTURE.md has the picture.
 #pragma once
 
@@ -30,7 +30,7 @@
 #include "ignav/protocol/wire/security.hpp"
 #include "ignav/workflow/session.hpp"
 #include "igtl_bridge.hpp"
-#include "image_analysis.hpp"
+#include "job_runner.hpp"
 #include "reports.hpp"
 #include "requests.hpp"
 #include "server_options.hpp"
@@ -148,7 +148,7 @@ class Server {
   protocol::WaitSet waitset_;
   VolumeLoader loader_;
   // auto_fiducials' marker detections, on a thread of their own (it wakes the waitset).
-  ImageAnalysis analysis_;
+  JobRunner jobs_;
   // The controller component (run() only; its threads wake the waitset, so it goes first).
   std::unique_ptr<ControllerComponent> component_;
   // The report and the Slicer files, on a thread of their own; drained when the server goes.

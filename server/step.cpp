@@ -8,6 +8,7 @@
 
 #include <csignal>
 
+#include "ignav/workflow/background_jobs.hpp"
 #include "ignav/workflow/effect_order.hpp"
 #include "ignav/workflow/reducer.hpp"
 #include "server_core.hpp"
@@ -90,8 +91,9 @@ class Server::Sink final : public workflow::EffectSink {
     if (e.confirmation_changed || e.tissue_fitted) reports.verification(s_.snapshot());
     if (!e.journal.empty()) reports.report(s_.snapshot());
     if (e.load_volume) s_.loader_.start(*e.load_volume, *now.robot, s_.session_dir_);
-    if (e.detect_fiducials) s_.analysis_.start(*e.detect_fiducials);
-    if (e.measure_confirmation) s_.analysis_.start(*e.measure_confirmation);
+    for (const auto kind : e.start_jobs) {
+      if (auto job = workflow::jobKindSpec(kind).pending(now)) s_.jobs_.start(std::move(*job));
+    }
     if (s_.igtl_) s_.igtl_->onState(now);
   }
 

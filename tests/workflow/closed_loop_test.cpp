@@ -11,6 +11,7 @@
 
 #include "ignav/compensation/compensation.hpp"
 #include "ignav/config/tissue_profiles.hpp"
+#include "ignav/workflow/background_jobs.hpp"
 #include "ignav/workflow/reducer.hpp"
 #include "workflow/bench.hpp"
 
@@ -86,7 +87,7 @@ std::uint64_t startMeasuring(Bench& b) {
   load.path = "/scans/confirmation";
   const Step step = b.feed(load);
   EXPECT_TRUE(step.effects.replies.at(0).accepted) << step.effects.replies.at(0).message;
-  EXPECT_TRUE(step.effects.measure_confirmation.has_value());
+  EXPECT_EQ(step.effects.start_jobs, std::vector<JobKind>{JobKind::kConfirmationMeasurement});
   return b.s.confirmation.measuring;
 }
 

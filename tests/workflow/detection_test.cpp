@@ -11,6 +11,7 @@
 #include "ignav/config/robot_config.hpp"
 #include "ignav/registration/robot_phantom.hpp"
 #include "ignav/volume/phantom.hpp"
+#include "ignav/workflow/background_jobs.hpp"
 #include "ignav/workflow/reducer.hpp"
 #include "support/phantom_ct.hpp"
 
@@ -18,6 +19,19 @@ namespace ignav::workflow {
 namespace {
 
 using test::paperRobot;
+
+// The server's job thread, played here: the job a step asked for, made from its session as the
+// server makes it (background_jobs.hpp), and run.
+Input runStartedJob(const Step& step) {
+  EXPECT_EQ(step.effects.start_jobs, std::vector<JobKind>{JobKind::kMarkerDetection});
+  auto job = jobKindSpec(JobKind::kMarkerDetection).pending(step.session);
+  if (!job) {
+    ADD_FAILURE() << "the session awaits no marker detection";
+    return {};
+  }
+  EXPECT_EQ(job->id, step.session.detecting);
+  return job->run();
+}
 
 const registration::RobotPhantom& truth() {
   static const registration::RobotPhantom phantom =
@@ -99,8 +113,8 @@ TEST(Detection, AutoFiducialsStartsADetectionAndItsOutcomeRegisters) {
   EXPECT_FALSE(step.session.registration.has_value());
   EXPECT_EQ(step.session.registration_status.status, "detecting");
   EXPECT_TRUE(step.effects.registration_changed);
-  ASSERT_TRUE(step.effects.detect_fiducials.has_value());
-  const FiducialDetectionJob job = *step.effects.detect_fiducials;
+  ASSERT_EQ(step.effects.start_jobs, std::vector<JobKind>{JobKind::kMarkerDetection});
+  const FiducialDetectionJob job = *pendingDetection(step.session);
   EXPECT_EQ(job.job, step.session.revision);
   EXPECT_EQ(job.volume, phantomCt().volume);  // the loaded CT, shared, not copied
   EXPECT_EQ(job.model_mm.size(), 3u);
@@ -147,8 +161,7 @@ TEST(Detection, AutoFiducialsStartsADetectionAndItsOutcomeRegisters) {
 TEST(Detection, AnOutcomeForACtNoLongerLoadedOrARegistrationGivenMeanwhileIsIgnored) {
   Session s = registrationSession(phantomCt());
   auto started = reduce(s, command(InputKind::kAutoFiducials, 2));
-  const FiducialDetectionJob job = *started.effects.detect_fiducials;
-  const Input found = detectFiducials(job);
+  const Input found = runStartedJob(started);
   ASSERT_EQ(found.kind, InputKind::kFiducialsDetected);
 
   // Another CT asked for while the detection ran: whenever the outcome comes, it is refused with
@@ -160,7 +173,8 @@ TEST(Detection, AnOutcomeForACtNoLongerLoadedOrARegistrationGivenMeanwhileIsIgno
     const auto step = reduce(now, found);
     EXPECT_EQ(step.effects.replies.at(0).error_code, "stale_detection");
     const std::string& note = step.effects.replies.at(0).message;
-    EXPECT_NE(note.find(fmt::format("marker detection #{} on phantom: ignored", job.job)),
+    EXPECT_NE(note.find(fmt::format("marker detection #{} on phantom: ignored",
+                                    started.session.detecting)),
               std::string::npos)
         << note;
     EXPECT_NE(note.find("the CT it ran on is no longer loaded"), std::string::npos) << note;
@@ -185,7 +199,7 @@ TEST(Detection, AnOutcomeForACtNoLongerLoadedOrARegistrationGivenMeanwhileIsIgno
 TEST(Detection, AnOutcomeThatComesWhileStoppedIsKeptAndResumeGoesOnToPlanning) {
   Session s = registrationSession(phantomCt());
   auto step = reduce(s, command(InputKind::kAutoFiducials, 2));
-  const Input found = detectFiducials(*step.effects.detect_fiducials);
+  const Input found = runStartedJob(step);
   step = reduce(step.session, command(InputKind::kStop, 3));
   ASSERT_EQ(step.session.phase, Phase::kStopped);
   step = reduce(step.session, found);
@@ -199,7 +213,7 @@ TEST(Detection, AFailedDetectionSaysWhyAndAnEarlierRegistrationStays) {
   // No markers on the CT, no registration before: rejected, with the reason.
   Session s = registrationSession(emptyCt());
   auto step = reduce(s, command(InputKind::kAutoFiducials, 2));
-  const Input failed = detectFiducials(*step.effects.detect_fiducials);
+  const Input failed = runStartedJob(step);
   ASSERT_EQ(failed.kind, InputKind::kFiducialDetectionFailed);
   EXPECT_FALSE(failed.error.empty());
   step = reduce(step.session, failed);
@@ -220,7 +234,7 @@ TEST(Detection, AFailedDetectionSaysWhyAndAnEarlierRegistrationStays) {
   step = reduce(step.session, command(InputKind::kAutoFiducials, 5));
   EXPECT_EQ(step.session.registration_status.status, "detecting");
   EXPECT_TRUE(step.session.registration.has_value());
-  const Input failed_again = detectFiducials(*step.effects.detect_fiducials);
+  const Input failed_again = runStartedJob(step);
   const auto lock = reduce(step.session, command(InputKind::kLockPlan, 6));
   EXPECT_EQ(lock.effects.replies.at(0).error_code, "busy");
   step = reduce(step.session, failed_again);
@@ -277,7 +291,11 @@ TEST(Detection, AJournalOfFormat1WhoseAutoFiducialsRegisteredAtOnceStillReplays)
   auto replayed = replayJournal(start, continued, phantom, "journal");
   ASSERT_TRUE(replayed.ok()) << replayed.error().message;
   EXPECT_EQ(replayed->registration_status.status, "detecting");
-  EXPECT_EQ(pendingDetection(*replayed)->job, 28u);  // what a restarted server runs again
+  // What a restarted server runs again.
+  const auto pending = pendingJobs(*replayed);
+  ASSERT_EQ(pending.size(), 1u);
+  EXPECT_EQ(pending[0].kind, JobKind::kMarkerDetection);
+  EXPECT_EQ(pending[0].id, 28u);
   EXPECT_FALSE(
       parseJournalRecord(R"({"v":3,"input":"query","t":0,"revision":1,"phase":"x"})").ok());
 }

@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 
+#include "ignav/workflow/background_jobs.hpp"
 #include "ignav/workflow/reducer.hpp"
 #include "motion.hpp"
 

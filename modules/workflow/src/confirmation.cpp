@@ -1,6 +1,6 @@
 // load_confirmation's measuring job (issue 23): the scan loaded, the robot's markers found (as
 // auto_fiducials finds them) and the seeds found clear of them. Pure but slow (I/O, a threshold
-// scan of the whole volume): the server runs it on its analysis thread; the reducer gets the
+// scan of the whole volume): the server runs it on its job thread; the reducer gets the
 // outcome as confirmation_measured (markers, seeds and any needle's tip) or confirmation_failed
 // (why).
 #include <fmt/format.h>

@@ -71,14 +71,14 @@ Refusal startMarkerDetection(Session& s, const Input&, ActionOutput& out) {
                                  "detection #{}): wait for RegistrationState to show the outcome",
                                  s.ct.source, s.detecting)};
   }
-  // The detection runs on the server's detector thread; its outcome comes back as
+  // The detection runs on the server's job thread; its outcome comes back as
   // fiducials_detected or fiducial_detection_failed, naming this step's revision.
   s.detecting = s.revision + 1;
   s.registration_status.status = "detecting";
   s.registration_status.message =
       fmt::format("detecting the robot's markers on the CT ({}){}", s.ct.source,
                   s.registration ? "; the registration from before stays in use until then" : "");
-  out.effects.detect_fiducials = pendingDetection(s);
+  out.effects.start_jobs.push_back(JobKind::kMarkerDetection);
   out.effects.registration_changed = true;
   out.note = fmt::format(
       "marker detection #{} started on the CT ({}): RegistrationState shows detecting, then the "

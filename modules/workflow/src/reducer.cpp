@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "actions.hpp"
+#include "ignav/workflow/background_jobs.hpp"
 #include "journal_records.hpp"
 #include "session_rules.hpp"
 
@@ -135,10 +136,6 @@ std::optional<Rejection> checkShape(const Input& in) {
   return std::nullopt;
 }
 
-bool isDetectionResult(InputKind kind) {
-  return kind == InputKind::kFiducialsDetected || kind == InputKind::kFiducialDetectionFailed;
-}
-
 void remember(Session& s, const Reply& reply) {
   auto& kept = s.replies[reply.client_id];
   kept[reply.request_id] = reply;
@@ -230,17 +227,14 @@ Step reduce(const Session& session, const Input& in) {
       }
     }
   }
-  // A detection's outcome counts only if it is the one awaited: not one on a CT replaced since,
-  // nor one a registration given by hand made moot. Wherever it arrives, it changes nothing then.
-  if (isDetectionResult(in.kind) && (session.detecting == 0 || in.job != session.detecting)) {
-    return reject({ReplyCode::kStaleDetection, detail::staleDetection(session, in)});
-  }
-  if ((in.kind == InputKind::kConfirmationMeasured || in.kind == InputKind::kConfirmationFailed) &&
-      (session.confirmation.measuring == 0 || in.job != session.confirmation.measuring)) {
-    return reject({ReplyCode::kStaleDetection,
-                   fmt::format("confirmation CT measurement #{} ({}) is not the one awaited (#{}): "
-                               "ignored",
-                               in.job, in.path, session.confirmation.measuring)});
+  // A background job's outcome counts only if it is the one awaited: not one on a CT replaced
+  // since, nor one a registration given by hand made moot. Wherever it arrives, it changes nothing
+  // then.
+  if (const JobKindSpec* job = jobOfOutcome(in.kind)) {
+    const std::uint64_t awaited = job->awaited(session);
+    if (awaited == 0 || in.job != awaited) {
+      return reject({ReplyCode::kStaleDetection, job->stale(session, in)});
+    }
   }
   const auto& table = transitionTable();
   const bool allowed = std::any_of(table.begin(), table.end(), [&](const Transition& t) {

@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "actions.hpp"
+#include "ignav/workflow/background_jobs.hpp"
 #include "ignav/workflow/reducer.hpp"
 
 namespace ignav::workflow {
@@ -84,7 +85,7 @@ std::vector<Transition> buildTable() {
       {P::kRegistration, I::kLoadVolume, always, P::kImaging, startVolumeLoad, "another CT"},
       {P::kRegistration, I::kSetFiducials, always, P::kPlanning, registerClickedFiducials,
        "3 points registered"},
-      // auto_fiducials starts a marker detection on the server's detector thread; its outcome
+      // auto_fiducials starts a marker detection on the server's job thread; its outcome
       // comes back as fiducials_detected or fiducial_detection_failed. (A format-1 journal's
       // auto_fiducials detected and registered within its step: replay only.)
       {P::kRegistration, I::kAutoFiducials, isFormatOneRecord, P::kPlanning,
@@ -353,29 +354,30 @@ std::string workflowMarkdown() {
     }
     out += std::string("| ") + toString(p) + " | " + allowed + " |\n";
   }
+  out +=
+      "\n## Background jobs\n\nFrom modules/workflow/src/background_jobs.cpp. Each runs on the "
+      "server's job thread and\ncomes back as one of its outcome inputs; an outcome the session "
+      "no longer awaits is refused\n(`stale_detection`) and changes nothing; after a crash the "
+      "awaited ones run again.\n\n| job | outcomes |\n|---|---|\n";
+  for (const auto& job : jobKinds()) {
+    out += std::string("| ") + job.name + " | `" + toString(job.succeeded) + "`, `" +
+           toString(job.failed) + "` |\n";
+  }
   return out;
 }
 
 namespace {
 
-// "every phase", "every phase but a, b" or "a, b, c": where the table allows `kind`.
+// "every phase", "every phase but a and b" or "a, b and c": where the table allows `kind`.
 std::string allowedIn(InputKind kind) {
-  std::vector<std::string> in, out;
+  std::vector<Phase> in;
   for (Phase p : kAllPhases) {
     const bool allowed =
         std::any_of(transitionTable().begin(), transitionTable().end(),
                     [&](const Transition& t) { return t.from == p && t.input == kind; });
-    (allowed ? in : out).push_back(toString(p));
+    if (allowed) in.push_back(p);
   }
-  auto join = [](const std::vector<std::string>& words) {
-    std::string text;
-    for (const auto& w : words)
-      text += (text.empty() ? "" : ", ") + w;
-    return text;
-  };
-  if (out.empty()) return "every phase";
-  if (out.size() < in.size()) return "every phase but " + join(out);
-  return join(in);
+  return phasesInWords(in);
 }
 
 std::string argumentsText(const InputSpec& spec) {

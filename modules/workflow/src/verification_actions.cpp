@@ -216,7 +216,7 @@ Refusal startConfirmation(Session& s, const Input& in, ActionOutput& out) {
   c.measuring = s.revision + 1;  // this step's
   c.measuring_source = in.path;
   c.measuring_matrix = in.matrix;
-  out.effects.measure_confirmation = pendingConfirmation(s);
+  out.effects.start_jobs.push_back(JobKind::kConfirmationMeasurement);
   out.effects.confirmation_changed = true;
   out.note = fmt::format(
       "measuring the confirmation CT {} (#{}): VerificationState shows measuring, then the "

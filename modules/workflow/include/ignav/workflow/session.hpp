@@ -351,6 +351,9 @@ struct FiducialDetectionJob {
   std::vector<Eigen::Vector3d> model_mm;  // the robot's feature points, in their order
 };
 
+// The kinds of background work (background_jobs.hpp).
+enum class JobKind;
+
 // What the server must do after a step, in this order: append the journal records (durably),
 // publish the changed state, send the replies, start the volume load or the marker detection.
 struct Effects {
@@ -363,10 +366,8 @@ struct Effects {
   std::vector<std::uint32_t> targets_removed;
   std::vector<Reply> replies;
   std::optional<std::string> load_volume;  // path to load, then feed kVolumeLoaded/Failed
-  // A marker detection to run, then feed kFiducialsDetected/kFiducialDetectionFailed.
-  std::optional<FiducialDetectionJob> detect_fiducials;
-  // A confirmation CT to load and search, then feed kConfirmationMeasured/Failed.
-  std::optional<ConfirmationJob> measure_confirmation;
+  // Background jobs to start, made from the new session (background_jobs.hpp: pending).
+  std::vector<JobKind> start_jobs;
   // The report's slices to render (server/reports.hpp): every target's when the plan is locked, the
   // one just reached when the needle arrives.
   bool plan_slices = false;

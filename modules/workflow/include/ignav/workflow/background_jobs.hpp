@@ -1,0 +1,60 @@
+// Background work the workflow asks for, each kind declared once (issue 39): what runs, on what
+// snapshot, which inputs its outcome becomes, how a stale outcome is recognised. The server's job
+// thread (server/job_runner.hpp), the reducer's staleness check, crash recovery and
+// docs/WORKFLOW.md's table of jobs all come from kJobKinds (src/background_jobs.cpp).
+//
+// The life of a job: an action marks the session as awaiting it (a field holding the revision of
+// the step that asked) and names its kind in Effects::start_jobs; after the step the server makes
+// the job from the new session (pending) and hands it to the job thread; its outcome comes back
+// as an input naming the job. An outcome the session no longer awaits (a new CT, a registration
+// given by hand meanwhile) is refused as stale and changes nothing. Outcomes are journaled like
+// any input, so replay never runs a job; after a crash, the jobs the recovered session awaits are
+// started again (pendingJobs).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "ignav/workflow/session.hpp"
+
+namespace ignav::workflow {
+
+// In the order the job thread prefers them when several are queued.
+enum class JobKind { kMarkerDetection, kConfirmationMeasurement };
+
+// One job, ready to run off the event thread: `run` holds an immutable snapshot of what it needs
+// (shared_ptr<const ...>, copies) and touches no session.
+struct BackgroundJob {
+  JobKind kind = JobKind::kMarkerDetection;
+  std::uint64_t id = 0;  // the revision of the step that asked for it: its outcome names it
+  std::string source;    // what it runs on, for the log and a failure's input
+  std::function<Input()> run;
+};
+
+struct JobKindSpec {
+  JobKind kind;
+  const char* name;     // "marker detection"
+  InputKind succeeded;  // the outcome inputs; `failed` also when the run throws
+  InputKind failed;
+  // The job of this kind the session awaits (0: none); an outcome naming another is stale.
+  std::uint64_t (*awaited)(const Session& session);
+  // The awaited job, from the session (none when none is awaited): started after the step that
+  // asked for it, and again after a crash.
+  std::optional<BackgroundJob> (*pending)(const Session& session);
+  // Why an outcome is not the awaited one, for its rejection.
+  std::string (*stale)(const Session& session, const Input& outcome);
+};
+
+const std::vector<JobKindSpec>& jobKinds();  // in JobKind order
+const JobKindSpec& jobKindSpec(JobKind kind);
+// The kind whose outcome `kind` is; nullptr for any other input.
+const JobKindSpec* jobOfOutcome(InputKind kind);
+// Every job the session awaits (what a recovered server starts again), in JobKind order.
+std::vector<BackgroundJob> pendingJobs(const Session& session);
+// The outcome of a run that could not finish (it threw): its kind's failure, naming the job.
+Input failedOutcome(const BackgroundJob& job, const std::string& why);
+
+}  // namespace ignav::workflow

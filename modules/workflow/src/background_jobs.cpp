@@ -1,0 +1,87 @@
+// The kinds of background work (background_jobs.hpp). Adding one: its JobKind, its row here, its
+// run (a pure function of a snapshot, in a file of its own), the session field that says it is
+// awaited, and its outcome inputs with their transitions (docs/ARCHITECTURE.md, "Adding a
+// background job").
+#include "ignav/workflow/background_jobs.hpp"
+
+#include <fmt/format.h>
+
+#include <stdexcept>
+
+#include "ignav/workflow/reducer.hpp"
+#include "session_rules.hpp"
+
+namespace ignav::workflow {
+namespace {
+
+std::optional<BackgroundJob> markerDetection(const Session& s) {
+  auto job = pendingDetection(s);
+  if (!job) return std::nullopt;
+  return BackgroundJob{JobKind::kMarkerDetection, job->job, job->ct_source,
+                       [job = std::move(*job)] { return detectFiducials(job); }};
+}
+
+std::optional<BackgroundJob> confirmationMeasurement(const Session& s) {
+  auto job = pendingConfirmation(s);
+  if (!job) return std::nullopt;
+  return BackgroundJob{JobKind::kConfirmationMeasurement, job->job, job->source,
+                       [job = std::move(*job)] { return measureConfirmation(job); }};
+}
+
+std::string staleMeasurement(const Session& s, const Input& in) {
+  return fmt::format("confirmation CT measurement #{} ({}) is not the one awaited (#{}): ignored",
+                     in.job, in.path, s.confirmation.measuring);
+}
+
+const std::vector<JobKindSpec> kJobKinds = {
+    // kind, name, outcome inputs (succeeded, failed), awaited, pending, stale
+    {JobKind::kMarkerDetection, "marker detection", InputKind::kFiducialsDetected,
+     InputKind::kFiducialDetectionFailed, [](const Session& s) { return s.detecting; },
+     markerDetection, detail::staleDetection},
+    {JobKind::kConfirmationMeasurement, "confirmation CT measurement",
+     InputKind::kConfirmationMeasured, InputKind::kConfirmationFailed,
+     [](const Session& s) { return s.confirmation.measuring; }, confirmationMeasurement,
+     staleMeasurement},
+};
+
+bool inOrder() {
+  for (std::size_t i = 0; i < kJobKinds.size(); ++i)
+    if (static_cast<std::size_t>(kJobKinds[i].kind) != i) return false;
+  return true;
+}
+
+}  // namespace
+
+const std::vector<JobKindSpec>& jobKinds() {
+  static const bool ok = inOrder();
+  if (!ok) throw std::logic_error("background job table is not in JobKind order");
+  return kJobKinds;
+}
+
+const JobKindSpec& jobKindSpec(JobKind kind) {
+  return jobKinds().at(static_cast<std::size_t>(kind));
+}
+
+const JobKindSpec* jobOfOutcome(InputKind kind) {
+  for (const auto& spec : jobKinds())
+    if (spec.succeeded == kind || spec.failed == kind) return &spec;
+  return nullptr;
+}
+
+std::vector<BackgroundJob> pendingJobs(const Session& session) {
+  std::vector<BackgroundJob> out;
+  for (const auto& spec : jobKinds())
+    if (auto job = spec.pending(session)) out.push_back(std::move(*job));
+  return out;
+}
+
+Input failedOutcome(const BackgroundJob& job, const std::string& why) {
+  Input in;
+  in.kind = jobKindSpec(job.kind).failed;
+  in.job = job.id;
+  in.path = job.source;
+  in.error = why;
+  return in;
+}
+
+}  // namespace ignav::workflow

@@ -1,0 +1,49 @@
+// The job thread: the workflow's background jobs (workflow/background_jobs.hpp: marker detections,
+// confirmation CT measurements, and whatever kinds are declared next) run here, off the event
+// thread, one at a time. The event thread hands over a job (it holds an immutable snapshot) and
+// never waits; the outcome comes back as an input through finished(), with the waitset woken.
+//
+// One queued job per kind: a newer job replaces one of its kind still queued (the session awaits
+// one of each at most: an older job's outcome would be refused as stale anyway). When several
+// kinds are queued, the earlier JobKind runs first. At destruction the job under way is finished
+// (it cannot be interrupted); queued ones are dropped: a restarted server runs what its journal
+// awaits again (workflow::pendingJobs).
+#pragma once
+
+#include <condition_variable>
+#include <deque>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <vector>
+
+#include "ignav/protocol/wire/dds.hpp"
+#include "ignav/workflow/background_jobs.hpp"
+
+namespace ignav::server {
+
+class JobRunner {
+ public:
+  explicit JobRunner(protocol::WaitSet& waitset);
+  ~JobRunner();
+  JobRunner(const JobRunner&) = delete;
+  JobRunner& operator=(const JobRunner&) = delete;
+
+  // Queue a job (replacing one of its kind still queued); return at once.
+  void start(workflow::BackgroundJob job);
+  // The outcomes that came since last time, as inputs, in the order the jobs ended.
+  std::vector<workflow::Input> finished();
+
+ private:
+  void loop();
+
+  protocol::WaitSet& waitset_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::vector<std::optional<workflow::BackgroundJob>> queued_;  // by JobKind
+  std::deque<workflow::Input> done_;
+  bool stopping_ = false;
+  std::thread thread_;  // last: it starts once everything above is built
+};
+
+}  // namespace ignav::server
