@@ -76,16 +76,17 @@ ControllerReading Server::latestReading() const {
 // an event (takeControllerEvents). The one place a workflow command becomes a motor command: a
 // move goes out only if it is exactly one move of an intact approval
 // (ControllerCommand::releasable); anything else halts the robot and becomes a fault.
-void Server::runController(const workflow::ControllerCommand& c,
-                           const std::optional<actuation::Steps>& expect_from) {
+void Server::runController(const workflow::ControllerCommand& c) {
   if (!component_) return;
-  if (!c.releasable()) {
+  const auto released = MotorCommand::release(c);
+  if (!released) {
     refused_move_ = "refused to send a move that is not exactly what was approved";
     spdlog::critical("{}", refused_move_);
-    last_submitted_ = component_->submit({workflow::ControllerAction::kAbort, {}});
+    last_submitted_ =
+        component_->submit(*MotorCommand::release(workflow::ControllerCommand::abort()));
     return;
   }
-  const std::uint64_t seq = component_->submit({c.action(), c.increments()}, expect_from);
+  const std::uint64_t seq = component_->submit(*released);
   last_submitted_ = seq;
   if (c.action() == workflow::ControllerAction::kMove) move_seq_ = seq;
 }

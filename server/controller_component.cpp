@@ -75,8 +75,18 @@ double ControllerComponent::clock_s() const {
   return std::chrono::duration<double>(Clock::now() - epoch_).count();
 }
 
-std::uint64_t ControllerComponent::submit(const MotorCommand& command,
-                                          std::optional<actuation::Steps> expect_from) {
+std::optional<MotorCommand> MotorCommand::release(const workflow::ControllerCommand& command) {
+  if (!command.releasable()) return std::nullopt;
+  MotorCommand released(command.action());
+  if (command.action() == workflow::ControllerAction::kMove) {
+    released.increments_ = command.increments();
+    released.starts_at_ = command.segmentStart();
+    released.digest_ = command.approval()->request().digest;
+  }
+  return released;
+}
+
+std::uint64_t ControllerComponent::submit(const MotorCommand& command) {
   std::uint64_t seq = 0;
   if (command.isHalt()) {
     std::size_t dropped = 0;
@@ -86,16 +96,18 @@ std::uint64_t ControllerComponent::submit(const MotorCommand& command,
       const auto before = queue_.size();
       queue_.erase(std::remove_if(queue_.begin(), queue_.end(),
                                   [this](const Queued& q) {
-                                    if (q.command.action != ControllerAction::kMove) return false;
+                                    if (q.command.action() != ControllerAction::kMove) {
+                                      return false;
+                                    }
                                     pending_.erase(q.seq);
                                     return true;
                                   }),
                    queue_.end());
       dropped = before - queue_.size();
       pending_.insert(seq);
-      last_halt_ = command.action;
+      last_halt_ = command.action();
       ++halt_epoch_;
-      halts_.emplace_back(seq, command.action);
+      halts_.emplace_back(seq, command.action());
       next_poll_ = Clock::now();  // show the robot at rest as soon as it is
     }
     halt_cv_.notify_one();
@@ -106,7 +118,7 @@ std::uint64_t ControllerComponent::submit(const MotorCommand& command,
     std::lock_guard<std::mutex> lock(mutex_);
     seq = ++next_seq_;
     pending_.insert(seq);
-    queue_.push_back({seq, command, expect_from});
+    queue_.push_back({seq, command});
   }
   cycle_cv_.notify_one();
   return seq;
@@ -316,16 +328,17 @@ void ControllerComponent::publish(ControllerReading reading, bool force_event) {
   if (event && wake_) wake_();
 }
 
-void ControllerComponent::failed(const Queued& q, const std::string& why) {
-  spdlog::error("controller {}: {} (command {}): {}", options_.name,
-                workflow::toString(q.command.action), q.seq, why);
+void ControllerComponent::failed(std::uint64_t seq, ControllerAction action,
+                                 const std::string& why) {
+  spdlog::error("controller {}: {} (command {}): {}", options_.name, workflow::toString(action),
+                seq, why);
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ControllerEvent e;
     e.kind = ControllerEvent::Kind::kCommandFailed;
     e.reading = latest_;
-    e.command = q.seq;
-    e.action = q.command.action;
+    e.command = seq;
+    e.action = action;
     e.why = why;
     events_.push_back(std::move(e));
   }
@@ -335,17 +348,17 @@ void ControllerComponent::failed(const Queued& q, const std::string& why) {
 void ControllerComponent::execute(const Queued& q) {
   if (!connected_) {
     // Not sent: the reading already says why the controller is away (reconnection is ours).
-    failed(q, "the controller is not connected: " + latest().status.fault);
+    failed(q.seq, q.command.action(), "the controller is not connected: " + latest().status.fault);
     finished(q.seq);
     return;
   }
   const std::uint64_t epoch = halt_epoch_.load();
   Status done = Ok{};
-  switch (q.command.action) {
-    case ControllerAction::kMove:
-      if (q.expect_from) {
-        // The approval was judged on the last reading; the move goes only if the robot is still
-        // at rest where that approval's plan starts, read just now.
+  switch (q.command.action()) {
+    case ControllerAction::kMove: {
+      // The approval was judged on the last reading; the move goes only if the robot is still at
+      // rest where that approval says its segment starts, read just now.
+      {
         auto now = call([&] { return driver_->poll(); });
         if (!now) {
           done = now.error();
@@ -355,9 +368,9 @@ void ControllerComponent::execute(const Queued& q) {
                                actuation::toString(now->state) +
                                (now->fault.empty() ? "" : " (" + now->fault + ")"),
                            "not_at_rest");
-        } else if (now->position != *q.expect_from) {
+        } else if (now->position != q.command.startsAt()) {
           const auto& p = now->position.motor;
-          const auto& e = q.expect_from->motor;
+          const auto& e = q.command.startsAt().motor;
           done = makeError(ErrorCode::kInvalidArgument,
                            fmt::format("move not sent: the motors are at {} / {} / {} steps, "
                                        "not at {} / {} / {} where the approved move starts",
@@ -366,12 +379,15 @@ void ControllerComponent::execute(const Queued& q) {
         }
       }
       if (done && halt_epoch_.load() == epoch) {
-        done = call([&] { return driver_->move(q.command.increments); });
+        spdlog::info("controller {}: move {} of approval {} sent", options_.name, q.seq,
+                     q.command.digest().substr(0, 12));
+        done = call([&] { return driver_->move(q.command.increments()); });
         if (done) moving_ = true;
       } else if (done) {
         spdlog::warn("controller {}: move {} not sent: a halt came first", options_.name, q.seq);
       }
       break;
+    }
     case ControllerAction::kHome:
       done = call([&] { return driver_->home(); });
       break;
@@ -385,7 +401,7 @@ void ControllerComponent::execute(const Queued& q) {
   finished(q.seq);
   // A halt that came while the move was on its way may have reached the controller before it:
   // halt again, after it.
-  if (q.command.action == ControllerAction::kMove && halt_epoch_.load() != epoch) {
+  if (q.command.action() == ControllerAction::kMove && halt_epoch_.load() != epoch) {
     workflow::ControllerAction again;
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -397,9 +413,9 @@ void ControllerComponent::execute(const Queued& q) {
   }
   if (!done) {
     // A move that a halt kept from beginning is not a fault: the halt took the motion away.
-    if (q.command.action != ControllerAction::kMove || halt_epoch_.load() == epoch ||
+    if (q.command.action() != ControllerAction::kMove || halt_epoch_.load() == epoch ||
         done.error().reason != "halted") {
-      failed(q, done.error().message);
+      failed(q.seq, q.command.action(), done.error().message);
     }
     if (connectionError(done.error())) lost(done.error().message);
   }
@@ -431,7 +447,7 @@ void ControllerComponent::haltLoop() {
       }
     }
     const auto halted = halt(action);
-    if (!halted) failed({seq, {action, {}}, std::nullopt}, halted.error().message);
+    if (!halted) failed(seq, action, halted.error().message);
     for (const auto s : seqs)
       finished(s);
     cycle_cv_.notify_one();  // read the robot at rest soon

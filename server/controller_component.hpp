@@ -69,17 +69,32 @@ struct ControllerComponentOptions {
   bool home_on_first_connect = false;              // a new session: the robot is at home
 };
 
-// What the component sends to the driver. Below the workflow: the executor (server.cpp
-// runController) makes one from a workflow::ControllerCommand only when that command is
-// releasable (a move exactly as its approval); the component and the drivers know nothing of
-// approvals, as a ros2_control hardware interface knows nothing of topics.
-struct MotorCommand {
-  workflow::ControllerAction action = workflow::ControllerAction::kStop;
-  actuation::Steps increments;  // kMove
+// What the component sends to the driver, made only by release(): a move exists only as released
+// from a workflow::ControllerCommand that is releasable (its approval intact, the increments
+// exactly its segment's), and carries that approval's digest and the position its segment starts
+// from, so nothing but an approved move can reach the motors and none goes unless the robot rests
+// where its approval said. The component and the drivers know nothing else of approvals, as a
+// ros2_control hardware interface knows nothing of topics.
+class MotorCommand {
+ public:
+  // Nothing for a move that is not exactly as approved; every other action is released as it is.
+  static std::optional<MotorCommand> release(const workflow::ControllerCommand& command);
+
+  workflow::ControllerAction action() const { return action_; }
+  const actuation::Steps& increments() const { return increments_; }  // a move's; else zero
+  const actuation::Steps& startsAt() const { return starts_at_; }     // a move's
+  const std::string& digest() const { return digest_; }               // a move's approval's
   bool isHalt() const {
-    return action == workflow::ControllerAction::kStop ||
-           action == workflow::ControllerAction::kAbort;
+    return action_ == workflow::ControllerAction::kStop ||
+           action_ == workflow::ControllerAction::kAbort;
   }
+
+ private:
+  explicit MotorCommand(workflow::ControllerAction action) : action_(action) {}
+  workflow::ControllerAction action_;
+  actuation::Steps increments_;
+  actuation::Steps starts_at_;
+  std::string digest_;
 };
 
 class ControllerComponent {
@@ -95,10 +110,9 @@ class ControllerComponent {
   void shutdown();  // the threads end (a call in flight finishes, within the driver's timeout)
 
   // Queues a command; returns its sequence number. A halt (stop, abort) pre-empts: queued moves
-  // are dropped and it goes to the controller at once. A move with `expect_from` is sent only if
-  // a reading taken just before shows the robot at rest there (else it fails, with why).
-  std::uint64_t submit(const MotorCommand& command,
-                       std::optional<actuation::Steps> expect_from = std::nullopt);
+  // are dropped and it goes to the controller at once. A move is sent only if a reading taken
+  // just before shows the robot at rest where it starts (else it fails, with why).
+  std::uint64_t submit(const MotorCommand& command);
 
   ControllerReading latest() const;                             // the last reading (any thread)
   std::vector<ControllerEvent> take();                          // the events since the last take
@@ -112,7 +126,6 @@ class ControllerComponent {
   struct Queued {
     std::uint64_t seq = 0;
     MotorCommand command;
-    std::optional<actuation::Steps> expect_from;
   };
   void cycleLoop();
   void haltLoop();
@@ -125,7 +138,7 @@ class ControllerComponent {
   auto call(F&& f) -> decltype(f());
   void lost(const std::string& why);
   void publish(ControllerReading reading, bool force_event);
-  void failed(const Queued& q, const std::string& why);
+  void failed(std::uint64_t seq, workflow::ControllerAction action, const std::string& why);
   void setLifecycle(Lifecycle l);
   std::uint64_t completed() const;   // the reading's after_command, now
   void finished(std::uint64_t seq);  // executed, failed or dropped

@@ -98,8 +98,8 @@ class Server {
   // controller.cpp
   void startController(bool home, const std::optional<actuation::Steps>& place_at);
   ControllerReading latestReading() const;
-  void runController(const workflow::ControllerCommand& c,
-                     const std::optional<actuation::Steps>& expect_from);
+  // Released to the component (MotorCommand::release), or refused: an abort and a fault.
+  void runController(const workflow::ControllerCommand& c);
   void takeControllerEvents();
   void onReading(const ControllerReading& reading);
 
@@ -147,7 +147,7 @@ class Server {
   std::string refused_move_;  // a move runController would not send: a fault, reported next
   protocol::WaitSet waitset_;
   VolumeLoader loader_;
-  // auto_fiducials' marker detections, on a thread of their own (it wakes the waitset).
+  // The workflow's background jobs, on a thread of their own (it wakes the waitset).
   JobRunner jobs_;
   // The controller component (run() only; its threads wake the waitset, so it goes first).
   std::unique_ptr<ControllerComponent> component_;

@@ -26,7 +26,7 @@ class Server::Sink final : public workflow::EffectSink {
       : s_(server), in_(in), effects_(step.effects), revision_(step.session.revision) {}
 
   // Handed to the component's halt thread, which sends them at once (queued moves are dropped).
-  void halt(const workflow::ControllerCommand& c) override { s_.runController(c, std::nullopt); }
+  void halt(const workflow::ControllerCommand& c) override { s_.runController(c); }
 
   bool journal(const std::vector<std::string>& records) override {
     s_.crashPoint("before_journal", revision_);
@@ -39,7 +39,7 @@ class Server::Sink final : public workflow::EffectSink {
         s_.journal_failure_ = ok.error().message;
         spdlog::critical("{}: halting the robot and refusing every change until restarted",
                          s_.journal_failure_);
-        s_.runController(workflow::ControllerCommand::stop(), std::nullopt);
+        s_.runController(workflow::ControllerCommand::stop());
         s_.publishHealth();
         return false;
       }
@@ -63,12 +63,8 @@ class Server::Sink final : public workflow::EffectSink {
     }
   }
 
-  // A move is sent only if the robot is still at rest where its segment starts.
-  void command(const workflow::ControllerCommand& c) override {
-    const auto& motion = s_.session_.motion;
-    s_.runController(c,
-                     motion ? std::optional<actuation::Steps>(motion->segment_from) : std::nullopt);
-  }
+  // A move is sent only if the robot is still at rest where its approval says it starts.
+  void command(const workflow::ControllerCommand& c) override { s_.runController(c); }
 
   void publish(const workflow::Effects& e) override {
     s_.state_.publishEffects(s_.session_, e, s_.readings());

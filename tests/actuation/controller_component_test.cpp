@@ -8,6 +8,7 @@
 
 #include "controller_component.hpp"
 #include "ignav/actuation/galil.hpp"
+#include "support/approved_moves.hpp"
 #include "support/delay_proxy.hpp"
 #include "support/dmc_emulator.hpp"
 
@@ -16,7 +17,10 @@ namespace {
 
 using actuation::ControllerState;
 using Clock = std::chrono::steady_clock;
+using test::approvedMoves;
+using test::released;
 using workflow::ControllerAction;
+using workflow::ControllerCommand;
 using namespace std::chrono_literals;
 
 double ms(Clock::duration d) {
@@ -52,6 +56,24 @@ std::size_t count(const test::DelayProxy& proxy, const std::string& prefix) {
   return n;
 }
 
+TEST(ControllerComponent, AMoveIsReleasedOnlyFromItsApprovalAndStartsWhereTheApprovalSays) {
+  const actuation::Steps from{{100, -20, 5}};
+  const auto moves = approvedMoves({{{1000, 0, 0}}, {{0, -300, 40}}, {{-7, 0, 0}}}, from);
+  ASSERT_EQ(moves.size(), 3u);
+  EXPECT_EQ(moves[0].startsAt(), from);
+  EXPECT_EQ(moves[1].startsAt(), (actuation::Steps{{1100, -20, 5}}));
+  EXPECT_EQ(moves[2].startsAt(), (actuation::Steps{{1100, -320, 45}}));
+  EXPECT_EQ(moves[2].increments(), (actuation::Steps{{-7, 0, 0}}));
+  for (const auto& m : moves) {
+    EXPECT_EQ(m.action(), ControllerAction::kMove);
+    EXPECT_EQ(m.digest().size(), 64u);  // SHA-256, hex
+    EXPECT_EQ(m.digest(), moves[0].digest());
+  }
+  // Nothing else carries increments.
+  EXPECT_EQ(released(ControllerCommand::home()).increments(), actuation::Steps{});
+  EXPECT_TRUE(released(ControllerCommand::abort()).isHalt());
+}
+
 TEST(ControllerComponent, AnAbortGoesOutWhileAPollWaitsForASlowReply) {
   test::Emulator dmc;
   test::DelayProxy proxy(dmc.port());
@@ -61,13 +83,13 @@ TEST(ControllerComponent, AnAbortGoesOutWhileAPollWaitsForASlowReply) {
   ASSERT_EQ(c.latest().status.state, ControllerState::kIdle) << c.latest().status.fault;
   EXPECT_EQ(c.lifecycle(), Lifecycle::kActive);
   const auto start = Clock::now();
-  c.submit({ControllerAction::kMove, {{20000, 0, 0}}});
+  c.submit(approvedMoves({{{20000, 0, 0}}}).at(0));
   ASSERT_TRUE(proxy.waitFor("BG", start, 5s));
   constexpr auto kSlowReply = 900ms;
   proxy.setDelay(kSlowReply);
   std::this_thread::sleep_for(400ms);  // a poll now waits for its replies
   const auto sent = Clock::now();
-  c.submit({ControllerAction::kAbort, {}});
+  c.submit(released(ControllerCommand::abort()));
   const auto ab = proxy.waitFor("AB", sent, 3s);
   ASSERT_TRUE(ab);
   // Before the proxy let the reply to the poll's command in flight through (kSlowReply after that
@@ -93,11 +115,12 @@ TEST(ControllerComponent, AHaltDropsTheMovesQueuedBehindItAndHaltsTheOneOnItsWay
   ASSERT_TRUE(c.waitForFirstReading(5s));
   proxy.setDelay(300ms);
   const auto queued = Clock::now();
-  c.submit({ControllerAction::kMove, {{20000, 0, 0}}});
-  c.submit({ControllerAction::kMove, {{0, 20000, 0}}});
+  const auto moves = approvedMoves({{{20000, 0, 0}}, {{0, 20000, 0}}});
+  c.submit(moves.at(0));
+  c.submit(moves.at(1));
   // The first is on its way (PR waits 300 ms for its reply, then BG goes): halt now.
   ASSERT_TRUE(proxy.waitFor("PR 20000", queued, 5s));
-  c.submit({ControllerAction::kAbort, {}});
+  c.submit(released(ControllerCommand::abort()));
   std::this_thread::sleep_for(2500ms);
   // The second move never went; the first never began (the driver saw the halt before BG), and
   // the component halted again after it, in case BG had gone first.
@@ -121,7 +144,7 @@ TEST(ControllerComponent, AReadingSaysWhichCommandsCameBeforeIt) {
   ControllerComponent c(std::make_unique<actuation::SimulatedController>(axes), {}, {});
   c.start();
   ASSERT_TRUE(c.waitForFirstReading(1s));
-  const auto seq = c.submit({ControllerAction::kMove, {{1000, -500, 250}}}, actuation::Steps{});
+  const auto seq = c.submit(approvedMoves({{{1000, -500, 250}}}).at(0));
   EXPECT_LT(c.latest().after_command, seq + 1);
   ASSERT_TRUE(waitEvent(
       c,
@@ -135,8 +158,7 @@ TEST(ControllerComponent, AReadingSaysWhichCommandsCameBeforeIt) {
       },
       5s));
   // A move that expects the robot elsewhere is not sent, and says why.
-  const auto refused =
-      c.submit({ControllerAction::kMove, {{1, 0, 0}}}, actuation::Steps{{0, 0, 0}});
+  const auto refused = c.submit(approvedMoves({{{1, 0, 0}}}, actuation::Steps{{0, 0, 0}}).at(0));
   ASSERT_TRUE(waitEvent(
       c,
       [&](const ControllerEvent& e) {

@@ -402,6 +402,16 @@ ControllerCommand ControllerCommand::move(const ApprovedMotion& approved, std::s
   return c;
 }
 
+actuation::Steps ControllerCommand::segmentStart() const {
+  if (!approved_) return {};
+  const auto& request = approved_->request();
+  actuation::Steps start = request.from;
+  for (std::size_t k = 0; k < segment_ && k < request.moves.size(); ++k)
+    for (std::size_t a = 0; a < 3; ++a)
+      start.motor[a] += request.moves[k].steps.motor[a];
+  return start;
+}
+
 bool ControllerCommand::releasable() const {
   if (action_ != ControllerAction::kMove) return true;
   if (!approved_ || !approved_->intact()) return false;

@@ -332,6 +332,9 @@ class ControllerCommand {
   // releases no motion. True for every other action.
   bool releasable() const;
   const std::optional<ApprovedMotion>& approval() const { return approved_; }
+  // A move: where its segment starts, from the approval alone (the request's start plus the
+  // segments before it). The controller sends it only with the robot at rest there.
+  actuation::Steps segmentStart() const;
 
  private:
   explicit ControllerCommand(ControllerAction action) : action_(action) {}
