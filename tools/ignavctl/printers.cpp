@@ -1,0 +1,116 @@
+#include "printers.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <vector>
+
+namespace ignav::ctl {
+namespace {
+
+using nlohmann::json;
+using protocol::Point3;
+
+std::string fmt3(const Point3& p) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "(%7.2f, %7.2f, %7.2f)", p.x, p.y, p.z);
+  return buf;
+}
+
+template <typename T, std::size_t N>
+std::string list(const std::array<T, N>& values) {
+  return json(values).dump();
+}
+
+}  // namespace
+
+void printReply(const protocol::Reply& r, bool as_json, double round_trip_ms) {
+  if (as_json) {
+    json out = r;  // its JSON view, from the Reply's one list of fields
+    if (round_trip_ms >= 0) out["round_trip_ms"] = round_trip_ms;
+    std::cout << out.dump() << "\n";
+  } else if (r.accepted) {
+    std::cout << "accepted" << (r.target_id ? " (target " + std::to_string(r.target_id) + ")" : "")
+              << ": " << r.message << "\n";
+  } else {
+    std::cout << "REJECTED [" << r.error_code << "]: " << r.message << "\n";
+  }
+}
+
+void printTargets(const protocol::StateMirror& state) {
+  std::printf("%-4s %-5s %-26s %-26s %-12s %8s %8s %8s %6s\n", "id", "order", "LPS (mm)",
+              "robot (mm)", "status", "θc(deg)", "zc(mm)", "zs(mm)", "TRE");
+  std::vector<const protocol::TargetState*> rows;
+  for (const auto& [id, t] : state.targets)
+    rows.push_back(&t);
+  std::sort(rows.begin(), rows.end(),
+            [](const protocol::TargetState* a, const protocol::TargetState* b) {
+              return a->order < b->order;
+            });
+  for (const protocol::TargetState* t : rows) {
+    std::printf("%-4u %-5u %-26s %-26s %-12s %8.2f %8.3f %8.3f %6.2f\n", t->id, t->order,
+                fmt3(t->lps).c_str(), fmt3(t->robot).c_str(), t->status.c_str(),
+                t->joints[0] * 180.0 / M_PI, t->joints[1], t->joints[2], t->tre_mm);
+    if (t->status != "planned" || !t->path_warning.empty())
+      std::printf("     %s\n", t->message.c_str());
+  }
+}
+
+void printApproval(const protocol::StateMirror& s) {
+  if (!s.approval || s.approval->status != "pending") {
+    std::cout << "no motion is waiting for approval\n";
+    return;
+  }
+  const protocol::ApprovalState& a = *s.approval;
+  std::cout << a.summary << "\n"
+            << "  plan " << a.plan_id << ", digest " << a.digest << "\n"
+            << "  from steps " << list(a.from_steps) << ", expires in "
+            << static_cast<int>(a.expires_in_s) << " s; approvers " << json(a.approvers).dump()
+            << "\n";
+  for (const auto& m : a.moves)
+    std::printf("  %-18s %s  %.2f s\n", m.kind.c_str(), list(m.steps).c_str(), m.duration_s);
+}
+
+void printMotion(const protocol::StateMirror& s) {
+  if (!s.motion) {
+    std::cout << "no motion state yet\n";
+    return;
+  }
+  const protocol::MotionState& m = *s.motion;
+  std::cout << "controller " << m.controller << ": " << m.state << " (link " << m.lifecycle << ")\n"
+            << "  steps " << list(m.steps) << " (verified " << list(m.verified_steps) << ")\n"
+            << "  joints θc " << m.joints[0] * 180.0 / M_PI << "°, zc " << m.joints[1] << " mm, zs "
+            << m.joints[2] << " mm\n"
+            << "  tip robot " << fmt3(m.tip_robot)
+            << (m.tip_lps ? ", LPS " + fmt3(*m.tip_lps) : std::string()) << "\n";
+  if (m.plan_id != 0) {
+    std::cout << "  plan " << m.plan_id << " to target " << m.target_id << ": move " << m.move_index
+              << " of " << m.move_count << " (" << m.move_kind << ") towards " << list(m.goal_steps)
+              << "\n";
+  }
+  if (!m.fault.empty()) std::cout << "  fault: " << m.fault << "\n";
+}
+
+void printStatus(const protocol::StateMirror& s) {
+  using protocol::RegistrationState;
+  using protocol::VolumeState;
+  using protocol::WorkflowState;
+  const auto or_dash = [](const auto& part, auto field) {
+    return part ? json((*part).*field).dump() : std::string("-");
+  };
+  std::cout << "session      " << or_dash(s.health, &protocol::Health::session_dir) << "\n"
+            << "phase        " << or_dash(s.workflow, &WorkflowState::phase) << " (revision "
+            << or_dash(s.workflow, &WorkflowState::revision) << ")\n"
+            << "allowed      " << or_dash(s.workflow, &WorkflowState::allowed_commands) << "\n"
+            << "robot        " << or_dash(s.robot, &protocol::RobotState::name) << "\n"
+            << "volume       " << or_dash(s.volume, &VolumeState::status) << " "
+            << or_dash(s.volume, &VolumeState::message) << "\n"
+            << "registration " << or_dash(s.registration, &RegistrationState::status) << " "
+            << or_dash(s.registration, &RegistrationState::message) << "\n"
+            << "targets      " << s.targets.size() << "\n";
+  if (s.workflow && !s.workflow->safety_notice.empty())
+    std::cout << "SAFETY       " << s.workflow->safety_notice << "\n";
+}
+
+}  // namespace ignav::ctl
