@@ -44,7 +44,8 @@ Input toInput(const protocol::EmergencyStop& e) {
 }
 
 protocol::Reply toWire(const workflow::Reply& r) {
-  return {r.client_id, r.request_id, r.accepted, r.error_code, r.message, r.target_id, r.revision};
+  return {r.client_id, r.request_id, r.accepted,      r.error_code, r.message,
+          r.target_id, r.revision,   r.server_time_s, r.job};
 }
 
 }  // namespace ignav::server

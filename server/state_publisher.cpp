@@ -38,6 +38,7 @@ StatePublisher::StatePublisher(const protocol::Participant& p, std::string contr
       approval_(p),
       motion_(p),
       verification_(p),
+      job_outcome_(p),
       controller_name_(std::move(controller_name)),
       session_dir_(session_dir.string()),
       started_(Clock::now()) {}
@@ -59,6 +60,11 @@ void StatePublisher::publishEffects(const Session& s, const workflow::Effects& e
   if (e.confirmation_changed || e.robot_changed) publishVerification(s);
   if (e.motion_changed || !e.controller.empty()) publishMotion(s, r.controller, r.lifecycle);
   if (e.workflow_changed) publishWorkflow(s);
+  if (e.job_outcome) publishJobOutcome(*e.job_outcome);
+}
+
+void StatePublisher::publishJobOutcome(const workflow::JobOutcome& o) {
+  job_outcome_.write({o.job, o.kind, o.input, o.status, o.message, o.revision});
 }
 
 void StatePublisher::publishEverything(const Session& s, const Readings& r) {

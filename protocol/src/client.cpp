@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <map>
 #include <set>
 #include <thread>
 #include <tuple>
@@ -89,6 +90,8 @@ struct Client::Impl {
   TopicReader<ApprovalState> approval;
   TopicReader<MotionState> motion;
   TopicReader<VerificationState> verification;
+  TopicReader<JobOutcome> job_outcomes;
+  std::map<std::uint64_t, JobOutcome> outcomes_seen;  // by job, the newest 64
   WaitSet waitset;
 
   template <typename T>
@@ -119,6 +122,7 @@ struct Client::Impl {
         approval(participant),
         motion(participant),
         verification(participant),
+        job_outcomes(participant),
         waitset(participant) {
     waitset.attach(replies.handle());
     waitset.attach(slice_replies.handle());
@@ -363,6 +367,25 @@ std::vector<std::string> Client::missingState() const {
       if (m.targets.count(id) == 0) missing.push_back("target " + std::to_string(id));
   }
   return missing;
+}
+
+JobOutcome Client::waitForJobOutcome(std::uint64_t job, std::chrono::milliseconds timeout) {
+  constexpr std::size_t kKept = 64;
+  const auto end = Clock::now() + timeout;
+  auto& seen = impl_->outcomes_seen;
+  for (;;) {
+    impl_->job_outcomes.take([&](const JobOutcome& o) {
+      seen[o.job] = o;
+      while (seen.size() > kKept)
+        seen.erase(seen.begin());
+    });
+    if (auto it = seen.find(job); it != seen.end()) return it->second;
+    if (Clock::now() >= end) {
+      throw Timeout("no outcome of job #" + std::to_string(job) + " within " +
+                    std::to_string(timeout.count()) + " ms");
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
 }
 
 bool Client::waitForPresent(std::chrono::milliseconds timeout) {

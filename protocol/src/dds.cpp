@@ -309,6 +309,8 @@ template class Writer<ignav_msg_TargetState>;
 template class Reader<ignav_msg_TargetState>;
 template class Writer<ignav_msg_Health>;
 template class Reader<ignav_msg_Health>;
+template class Writer<ignav_msg_JobOutcome>;
+template class Reader<ignav_msg_JobOutcome>;
 template class Writer<ignav_msg_Approval>;
 template class Reader<ignav_msg_Approval>;
 template class Writer<ignav_msg_EmergencyStop>;

@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <fstream>
 #include <functional>
+#include <optional>
 #include <regex>
 #include <sstream>
 #include <thread>
@@ -221,6 +222,7 @@ TEST(DetectionE2E, AnOutcomeForACtNoLongerLoadedIsIgnoredAndTheNextDetectionRegi
 
   const auto first = op->send("auto_fiducials");
   ASSERT_TRUE(first.accepted) << first.message;
+  EXPECT_EQ(first.job, first.revision);  // the job it started, named by its outcome
   // One detection at a time.
   const auto again = op->send("auto_fiducials");
   EXPECT_FALSE(again.accepted);
@@ -232,20 +234,25 @@ TEST(DetectionE2E, AnOutcomeForACtNoLongerLoadedIsIgnoredAndTheNextDetectionRegi
         return stateText(s, "volume", "status") == "loaded" && phaseIs(s, "registration");
       },
       120s);
-  // The first detection runs to its end (it cannot be interrupted), however long that takes.
-  const std::string ignored = "marker detection #" + std::to_string(first.revision);
+  // The first detection runs to its end (it cannot be interrupted), however long that takes; its
+  // outcome is reported stale, with why.
+  std::optional<protocol::JobOutcome> stale;
   ASSERT_TRUE(detectionEnded(
       server,
       [&] {
-        return server.serverLog().find(ignored + " on " + nrrd + " ignored") != std::string::npos;
+        try {
+          stale = op->waitForJobOutcome(first.job, 100ms);
+        } catch (const protocol::Timeout&) {
+        }
+        return stale.has_value();
       },
       give_up));
-  const std::string log = server.serverLog();
-  EXPECT_NE(log.find(ignored + " on " + nrrd +
-                     " ignored, nothing registered: the CT it ran on "
-                     "is no longer loaded"),
-            std::string::npos)
-      << log;
+  EXPECT_EQ(stale->status, "stale");
+  EXPECT_EQ(stale->kind, "marker detection");
+  EXPECT_EQ(stale->input, "fiducials_detected");
+  const std::string why = "marker detection #" + std::to_string(first.job) + " on " + nrrd +
+                          " ignored, nothing registered: the CT it ran on is no longer loaded";
+  EXPECT_EQ(stale->message.rfind(why, 0), 0u) << stale->message;
   op->poll();
   EXPECT_EQ(stateText(op->state(), "registration", "status"), "none")
       << op->state()["registration"].dump();
@@ -254,6 +261,9 @@ TEST(DetectionE2E, AnOutcomeForACtNoLongerLoadedIsIgnoredAndTheNextDetectionRegi
   // The phantom's own detection registers it.
   const auto second = op->send("auto_fiducials");
   ASSERT_TRUE(second.accepted) << second.message;
+  const auto done = op->waitForJobOutcome(second.job, 60s);
+  EXPECT_EQ(done.status, "done") << done.message;
+  EXPECT_EQ(done.input, "fiducials_detected");
   op->waitFor(
       [](const json& s) {
         return stateText(s, "registration", "status") == "registered" && phaseIs(s, "planning");

@@ -107,6 +107,7 @@ TEST(Detection, AutoFiducialsStartsADetectionAndItsOutcomeRegisters) {
   auto step = reduce(s, command(InputKind::kAutoFiducials, 2));
   const Reply& reply = step.effects.replies.at(0);
   ASSERT_TRUE(reply.accepted) << reply.message;
+  EXPECT_EQ(reply.job, step.session.revision);  // the job it started
   EXPECT_NE(reply.message.find("started"), std::string::npos) << reply.message;
   // Nothing is registered yet: the server is asked to detect, and the state says so.
   EXPECT_EQ(step.session.phase, Phase::kRegistration);
@@ -134,6 +135,12 @@ TEST(Detection, AutoFiducialsStartsADetectionAndItsOutcomeRegisters) {
   step = reduce(s, found);
   EXPECT_EQ(step.session.phase, Phase::kPlanning);
   EXPECT_EQ(step.session.detecting, 0u);
+  // What a client waiting on the job it started (the reply's job) is told.
+  ASSERT_TRUE(step.effects.job_outcome.has_value());
+  EXPECT_EQ(step.effects.job_outcome->job, job.job);
+  EXPECT_EQ(step.effects.job_outcome->status, "done");
+  EXPECT_EQ(step.effects.job_outcome->message, found.summary);
+  EXPECT_EQ(step.effects.job_outcome->revision, step.session.revision);
   EXPECT_TRUE(step.effects.replies.empty());  // the server's own input: nobody to answer
   expectTrueRegistration(step.session);
   // Journaled with the points it registered from.
@@ -178,6 +185,9 @@ TEST(Detection, AnOutcomeForACtNoLongerLoadedOrARegistrationGivenMeanwhileIsIgno
               std::string::npos)
         << note;
     EXPECT_NE(note.find("the CT it ran on is no longer loaded"), std::string::npos) << note;
+    ASSERT_TRUE(step.effects.job_outcome.has_value());
+    EXPECT_EQ(step.effects.job_outcome->status, "stale");
+    EXPECT_EQ(step.effects.job_outcome->message, note);
     EXPECT_FALSE(step.session.registration.has_value());
     EXPECT_EQ(step.session.revision, now.revision);
     EXPECT_EQ(step.session.phase, now.phase);
@@ -219,6 +229,9 @@ TEST(Detection, AFailedDetectionSaysWhyAndAnEarlierRegistrationStays) {
   step = reduce(step.session, failed);
   EXPECT_EQ(step.session.phase, Phase::kRegistration);
   EXPECT_EQ(step.session.registration_status.status, "rejected");
+  ASSERT_TRUE(step.effects.job_outcome.has_value());
+  EXPECT_EQ(step.effects.job_outcome->status, "failed");
+  EXPECT_EQ(step.effects.job_outcome->message, failed.error);
   EXPECT_EQ(step.session.registration_status.message, "marker detection failed: " + failed.error);
   ASSERT_EQ(step.effects.journal.size(), 1u);
   EXPECT_EQ(parseJournalRecord(step.effects.journal[0])->input.error, failed.error);

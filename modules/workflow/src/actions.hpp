@@ -20,6 +20,9 @@ struct ActionOutput {
   Effects& effects;
   std::uint32_t new_target_id = 0;
   std::string note;
+  // A background job's outcome was taken but its work came to nothing (markers found that do not
+  // register): JobOutcome.status failed, with the note.
+  bool outcome_failed = false;
 };
 
 using Refusal = std::optional<Rejection>;

@@ -120,9 +120,9 @@ Refusal refuseDetectedMarkers(Session& s, const Input& in, ActionOutput& out) {
   if (reg) {  // markersRegister() said otherwise: the table's guards and this action disagree
     return Rejection{ReplyCode::kInternal, "the detected markers register after all"};
   }
-  detectionFailed(s,
-                  "the markers found do not register: " + registrationRefusal(reg.error()).message,
-                  out.effects);
+  out.note = "the markers found do not register: " + registrationRefusal(reg.error()).message;
+  out.outcome_failed = true;
+  detectionFailed(s, out.note, out.effects);
   return std::nullopt;
 }
 

@@ -200,6 +200,7 @@ Step reduce(const Session& session, const Input& in) {
   Effects& e = step.effects;
   const bool command = isCommand(in.kind);
   Reply reply{in.client_id, in.request_id, false, "", "", 0, s.revision};
+  reply.server_time_s = in.time_s;
 
   auto reject = [&](const Rejection& r) {
     Step rejected{session, {}};
@@ -233,7 +234,11 @@ Step reduce(const Session& session, const Input& in) {
   if (const JobKindSpec* job = jobOfOutcome(in.kind)) {
     const std::uint64_t awaited = job->awaited(session);
     if (awaited == 0 || in.job != awaited) {
-      return reject({ReplyCode::kStaleDetection, job->stale(session, in)});
+      const std::string why = job->stale(session, in);
+      Step stale = reject({ReplyCode::kStaleDetection, why});
+      stale.effects.job_outcome =
+          JobOutcome{in.job, job->name, toString(in.kind), "stale", why, session.revision};
+      return stale;
     }
   }
   const auto& table = transitionTable();
@@ -278,11 +283,23 @@ Step reduce(const Session& session, const Input& in) {
   e.workflow_changed = true;
   if (before != s.phase && in.kind == InputKind::kLoadVolume) e.volume_changed = true;
   if (!question) e.journal.push_back(detail::journalLine(in, s));
+  if (const JobKindSpec* job = jobOfOutcome(in.kind)) {
+    const bool failed = in.kind == job->failed || out.outcome_failed;
+    e.job_outcome = JobOutcome{in.job,
+                               job->name,
+                               toString(in.kind),
+                               failed ? "failed" : "done",
+                               !out.note.empty() ? out.note
+                               : failed          ? in.error
+                                                 : in.summary,
+                               s.revision};
+  }
   if (command) {
     reply.accepted = true;
     reply.target_id = out.new_target_id;
     reply.revision = s.revision;
     reply.message = out.note.empty() ? std::string("ok") : out.note;
+    if (!e.start_jobs.empty()) reply.job = s.revision;
     remember(s, reply);
     e.replies.push_back(reply);
   }

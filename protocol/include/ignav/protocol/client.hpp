@@ -148,6 +148,11 @@ class Client {
   // within `timeout` (missingState() says what is missing): a one-shot reader must then say "not
   // yet known", not "none".
   bool waitForPresent(std::chrono::milliseconds timeout);
+  // What became of the background job a command started (its Reply.job: auto_fiducials,
+  // load_confirmation), as the server reports it on the JobOutcome topic: done, failed or stale,
+  // with why. Throws Timeout. Outcomes of other jobs that arrive meanwhile are kept for their own
+  // wait (the last 64).
+  JobOutcome waitForJobOutcome(std::uint64_t job, std::chrono::milliseconds timeout);
   std::vector<std::string> missingState() const;  // the topics (and targets) not yet heard
   const nlohmann::json& state() const { return state_; }
   const StateMirror& mirror() const { return mirror_; }

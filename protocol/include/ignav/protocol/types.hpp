@@ -82,10 +82,23 @@ struct Reply {
   std::string client_id;
   std::uint64_t request_id = 0;
   bool accepted = false;
-  std::string error_code;       // "" when accepted (docs/PROTOCOL.md's table of codes)
-  std::string message;          // for a person: names the field, value and limit
-  std::uint32_t target_id = 0;  // add_target: the new id
-  std::uint64_t revision = 0;   // the workflow revision after the command
+  std::string error_code;           // "" when accepted (docs/PROTOCOL.md's table of codes)
+  std::string message;              // for a person: names the field, value and limit
+  std::uint32_t target_id = 0;      // add_target: the new id
+  std::uint64_t revision = 0;       // the workflow revision after the command
+  double server_time_unix_s = 0.0;  // when the server took the command (ping's answer)
+  std::uint64_t job = 0;  // the background job the command started (JobOutcome.job); 0: none
+};
+
+// What became of a background job the server ran (auto_fiducials' marker detection,
+// load_confirmation's measurement): wait for the one whose job is the command's Reply.job.
+struct JobOutcome {
+  std::uint64_t job = 0;
+  std::string kind;    // "marker detection", "confirmation CT measurement"
+  std::string input;   // the outcome input: "fiducials_detected", ...
+  std::string status;  // done | failed | stale (no longer awaited: changed nothing)
+  std::string message;
+  std::uint64_t revision = 0;
 };
 
 struct Approval {
@@ -327,9 +340,18 @@ struct Fields<Command> {
 template <>
 struct Fields<Reply> {
   using T = Reply;
-  static constexpr auto list = std::make_tuple(
-      IGNAV_FIELD(client_id), IGNAV_FIELD(request_id), IGNAV_FIELD(accepted),
-      IGNAV_FIELD(error_code), IGNAV_FIELD(message), IGNAV_FIELD(target_id), IGNAV_FIELD(revision));
+  static constexpr auto list =
+      std::make_tuple(IGNAV_FIELD(client_id), IGNAV_FIELD(request_id), IGNAV_FIELD(accepted),
+                      IGNAV_FIELD(error_code), IGNAV_FIELD(message), IGNAV_FIELD(target_id),
+                      IGNAV_FIELD(revision), IGNAV_FIELD(server_time_unix_s), IGNAV_FIELD(job));
+};
+
+template <>
+struct Fields<JobOutcome> {
+  using T = JobOutcome;
+  static constexpr auto list =
+      std::make_tuple(IGNAV_FIELD(job), IGNAV_FIELD(kind), IGNAV_FIELD(input), IGNAV_FIELD(status),
+                      IGNAV_FIELD(message), IGNAV_FIELD(revision));
 };
 
 template <>
@@ -537,6 +559,7 @@ IGNAV_TOPIC_OF(ApprovalState, topic::kApprovalState, Qos::kState);
 IGNAV_TOPIC_OF(MotionState, topic::kMotion, Qos::kState);
 IGNAV_TOPIC_OF(Health, topic::kHealth, Qos::kState);
 IGNAV_TOPIC_OF(VerificationState, topic::kVerification, Qos::kState);
+IGNAV_TOPIC_OF(JobOutcome, topic::kJobOutcome, Qos::kStateOfMany);
 #undef IGNAV_TOPIC_OF
 
 }  // namespace ignav::protocol

@@ -130,6 +130,8 @@ struct Reply {
   std::string message;
   std::uint32_t target_id = 0;
   std::uint64_t revision = 0;
+  double server_time_s = 0.0;  // Unix s: when the server took the command (ping's answer)
+  std::uint64_t job = 0;       // the background job the command started (JobOutcome.job); 0: none
 };
 
 // Aiming with a tissue profile (use_tissue, issue 23): the joints whose tip, deflected as the
@@ -357,6 +359,17 @@ struct FiducialDetectionJob {
 // The kinds of background work (background_jobs.hpp).
 enum class JobKind;
 
+// What became of a background job, from the step that took its outcome: for a client waiting on
+// the job its command started (Reply::job), so that it need not guess from the state topics.
+struct JobOutcome {
+  std::uint64_t job = 0;
+  std::string kind;    // the job's kind: "marker detection", ...
+  std::string input;   // the outcome input: "fiducials_detected", ...
+  std::string status;  // done | failed | stale (no longer awaited: nothing changed)
+  std::string message;
+  std::uint64_t revision = 0;  // the session's after the step
+};
+
 // What the server must do after a step, in this order: append the journal records (durably),
 // publish the changed state, send the replies, start the volume load or the marker detection.
 struct Effects {
@@ -371,6 +384,7 @@ struct Effects {
   std::optional<std::string> load_volume;  // path to load, then feed kVolumeLoaded/Failed
   // Background jobs to start, made from the new session (background_jobs.hpp: pending).
   std::vector<JobKind> start_jobs;
+  std::optional<JobOutcome> job_outcome;  // this step took a background job's outcome
   // The report's slices to render (server/reports.hpp): every target's when the plan is locked, the
   // one just reached when the needle arrives.
   bool plan_slices = false;

@@ -88,6 +88,7 @@ IGNAV_PROTOCOL_MSG(PlannedMove, ignav_msg_PlannedMove);
 IGNAV_PROTOCOL_MSG(ApprovalState, ignav_msg_ApprovalState);
 IGNAV_PROTOCOL_MSG(MotionState, ignav_msg_MotionState);
 IGNAV_PROTOCOL_MSG(Health, ignav_msg_Health);
+IGNAV_PROTOCOL_MSG(JobOutcome, ignav_msg_JobOutcome);
 IGNAV_PROTOCOL_MSG(ErrorStats, ignav_msg_ErrorStats);
 IGNAV_PROTOCOL_MSG(SeedState, ignav_msg_SeedState);
 IGNAV_PROTOCOL_MSG(MeasuredTargetState, ignav_msg_MeasuredTargetState);
