@@ -5,6 +5,8 @@
 #include <spdlog/spdlog.h>
 
 #include <array>
+#include <thread>
+#include <tuple>
 #include <utility>
 
 #include "ignav/actuation/galil.hpp"
@@ -157,6 +159,70 @@ void Server::onReading(const ControllerReading& reading) {
   fault.kind = InputKind::kControllerFault;
   fault.controller = r;
   step(std::move(fault));
+}
+
+// ---- one robot, one server: the robot-id check that gates the controller's start ----
+
+// Another server's Health in this robot's partition: the later one to start gives way (ties by
+// session id, host and folder, so exactly one of two gives way). A later one is said once; it will
+// stop. This server's own Health is the one with its start, session, host and folder: the session
+// id alone (the folder's name) is not, since two servers may be given folders of one name.
+std::optional<std::string> Server::robotIdConflict() {
+  std::optional<std::string> conflict;
+  const std::string folder = session_dir_.string();
+  const auto mine = std::tie(started_unix_s_, session_.session_id, host_, folder);
+  robot_peers_.take([&](const protocol::Health& h) {
+    if (h.robot_id != options_.robot_id) return;
+    const auto theirs = std::tie(h.started_unix_s, h.session_id, h.host, h.session_dir);
+    if (theirs == mine) return;
+    const bool it_is_older = theirs < mine;
+    const std::string who = fmt::format("session {} on host {}, serving since {:.0f}", h.session_id,
+                                        h.host, h.started_unix_s);
+    if (it_is_older) {
+      conflict = fmt::format(
+          "robot_id '{}': another ignav-server already serves this robot on DDS domain {} ({}); "
+          "two servers must never act on one robot's commands: give each robot its own "
+          "server.robot_id",
+          options_.robot_id, options_.domain_id, who);
+    } else if (peers_warned_.insert(h.session_dir + "@" + h.host).second) {
+      spdlog::warn(
+          "robot_id '{}': a later ignav-server with this robot id appeared ({}); it "
+          "gives way to this one",
+          options_.robot_id, who);
+    }
+  });
+  return conflict;
+}
+
+// No other server with this robot id was heard for robot_id_check_ms: the controller starts
+// (a new session's robot is at its home, where its position is zero; a recovered one's
+// simulation is placed where the journal last verified the motors, a real controller kept
+// counting), a recovered session is judged on its first reading, and what waited is released.
+void Server::startControllerWhenClear() {
+  startController(!recovering_,
+                  recovering_ ? std::optional<actuation::Steps>(session_.position) : std::nullopt);
+  if (recovering_) {
+    // Approvals die here, and the position is checked against the controller's.
+    Input restarted;
+    restarted.kind = InputKind::kServerRestarted;
+    stepNow(std::move(restarted));
+  }
+  publishMotion();
+  waitset_.trigger();  // what finished meanwhile (a load, a detection) is taken at once
+}
+
+// Announces this server, then listens for robot_id_check_ms (from the start of the process's
+// participant) for another with its robot id; commands wait in DDS meanwhile. 0: not at start,
+// only once serving (robotIdConflict in the loop).
+std::optional<std::string> Server::checkRobotIdAtStart() {
+  publishHealth();
+  if (options_.robot_id_check_ms == 0) return std::nullopt;
+  const auto end = participant_started_ + std::chrono::milliseconds(options_.robot_id_check_ms);
+  for (;;) {
+    if (auto conflict = robotIdConflict()) return conflict;
+    if (Clock::now() >= end) return std::nullopt;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
 }
 
 }  // namespace ignav::server

@@ -34,8 +34,10 @@ Input runTimed(const BackgroundJob& job) {
 
 }  // namespace
 
-JobRunner::JobRunner(protocol::WaitSet& waitset)
-    : waitset_(waitset), queued_(workflow::jobKinds().size()), thread_([this] { loop(); }) {}
+JobRunner::JobRunner(std::function<void()> wake)
+    : wake_up_(std::move(wake)),
+      queued_(workflow::jobKinds().size()),
+      thread_([this] { loop(); }) {}
 
 JobRunner::~JobRunner() {
   {
@@ -93,7 +95,7 @@ void JobRunner::loop() {
       std::lock_guard<std::mutex> lock(mutex_);
       done_.push_back(std::move(in));
     }
-    waitset_.trigger();
+    if (wake_up_) wake_up_();
   }
 }
 

@@ -1,7 +1,8 @@
 // The job thread: the workflow's background jobs (workflow/background_jobs.hpp: marker detections,
 // confirmation CT measurements, and whatever kinds are declared next) run here, off the event
 // thread, one at a time. The event thread hands over a job (it holds an immutable snapshot) and
-// never waits; the outcome comes back as an input through finished(), with the waitset woken.
+// never waits; the outcome comes back as an input through finished(), with the event thread
+// woken.
 //
 // One queued job per kind: a newer job replaces one of its kind still queued (the session awaits
 // one of each at most: an older job's outcome would be refused as stale anyway). When several
@@ -12,19 +13,21 @@
 
 #include <condition_variable>
 #include <deque>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <thread>
 #include <vector>
 
-#include "ignav/protocol/wire/dds.hpp"
 #include "ignav/workflow/background_jobs.hpp"
 
 namespace ignav::server {
 
 class JobRunner {
  public:
-  explicit JobRunner(protocol::WaitSet& waitset);
+  // `wake` is called (from the job thread) whenever an outcome is waiting: the server triggers
+  // its waitset's guard.
+  explicit JobRunner(std::function<void()> wake);
   ~JobRunner();
   JobRunner(const JobRunner&) = delete;
   JobRunner& operator=(const JobRunner&) = delete;
@@ -37,7 +40,7 @@ class JobRunner {
  private:
   void loop();
 
-  protocol::WaitSet& waitset_;
+  std::function<void()> wake_up_;
   std::mutex mutex_;
   std::condition_variable wake_;
   std::vector<std::optional<workflow::BackgroundJob>> queued_;  // by JobKind

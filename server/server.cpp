@@ -112,7 +112,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
       slices_(participant_),
       waitset_(participant_),
       loader_(waitset_),
-      jobs_(waitset_),
+      jobs_([this] { waitset_.trigger(); }),
       reports_(session_dir_),
       journal_(std::move(journal)),
       crash_at_(std::getenv("IGNAV_CRASH_AT") ? std::getenv("IGNAV_CRASH_AT") : "") {
@@ -385,87 +385,6 @@ void Server::publishEverything() {
   reports_.report(snapshot());
 }
 
-// Inputs that judge the robot by a controller reading wait (held, in order, with the client
-// commands that come after them) for a reading taken after every command already sent to the
-// controller: the latest one may predate a move or a halt, and a slow controller takes seconds
-// per reading. The event loop goes on meanwhile. Emergency stops, queries and pings never wait; an
-// emergency stop refuses what was held (it came after them and must not be undone by them).
-void Server::step(Input in) {
-  if (in.kind == InputKind::kEmergencyStop) {
-    refuseHeld(workflow::toString(workflow::ReplyCode::kSuperseded),
-               "not done: an emergency stop came while this waited for a reading of the "
-               "controller");
-    // Before the robot-id check lets this server touch the controller, its halt goes out the
-    // moment the controller starts (at once after the others' if another server has the robot).
-    if (!controllerPending()) return stepNow(std::move(in));
-    held_since_ = Clock::now();
-    held_.push_back({std::move(in), held_since_});
-    return;
-  }
-  // Questions that need no reading (query, ping) never wait behind the held inputs.
-  const bool at_once = workflow::isQuestion(in.kind) && !workflow::needsControllerReading(in.kind);
-  const bool client = workflow::isCommand(in.kind) && !at_once;
-  const auto arrived = Clock::now();
-  if ((client && !held_.empty()) || waitsForReading(in, arrived)) {
-    if (held_.empty()) held_since_ = arrived;
-    held_.push_back({std::move(in), arrived});
-    if (component_) component_->pollNow();
-    return;
-  }
-  stepNow(std::move(in));
-}
-
-// An input judged by a reading waits for one taken after every command sent so far; one that
-// releases motion (approve) waits for one begun after it arrived, so that motors moved
-// by hand a moment before are seen (issue 38: an approval accepted on the old position made a
-// move the executor then refused, and a fault).
-bool Server::waitsForReading(const Input& in, Clock::time_point arrived) const {
-  if (in.controller) return false;
-  // The controller not yet started (the robot-id check): what reads or halts it waits.
-  if (controllerPending()) {
-    return workflow::needsControllerReading(in.kind) || in.kind == InputKind::kStop ||
-           in.kind == InputKind::kEmergencyStop;
-  }
-  if (!workflow::needsControllerReading(in.kind)) return false;
-  const auto r = component_->latest();
-  if (r.status.state == actuation::ControllerState::kDisconnected) return false;
-  if (r.after_command < last_submitted_) return true;
-  return workflow::releasesMotion(in.kind) && r.taken < arrived;
-}
-
-// Steps the held inputs whose reading has come; one that waited too long is refused.
-void Server::releaseHeld() {
-  const auto limit = std::chrono::milliseconds(6 * options_.controller.timeout_ms + 1000);
-  while (!held_.empty()) {
-    if (waitsForReading(held_.front().input, held_.front().arrived)) {
-      if (controllerPending() || Clock::now() - held_since_ < limit) return;
-      const Input& late = held_.front().input;
-      sendReply({late.client_id, late.request_id, false,
-                 workflow::toString(workflow::ReplyCode::kControllerUnavailable),
-                 fmt::format("not done: no reading of the controller came within {} ms after "
-                             "its last command; try again",
-                             limit.count()),
-                 0, session_.revision});
-      held_.pop_front();
-      held_since_ = Clock::now();
-      continue;
-    }
-    Input in = std::move(held_.front().input);
-    held_.pop_front();
-    held_since_ = Clock::now();
-    stepNow(std::move(in));
-  }
-}
-
-void Server::refuseHeld(const char* code, const std::string& why) {
-  for (const auto& held : held_) {
-    const Input& in = held.input;
-    if (!workflow::isCommand(in.kind)) continue;
-    sendReply({in.client_id, in.request_id, false, code, why, 0, session_.revision});
-  }
-  held_.clear();
-}
-
 // While replaying: slices are drawn from the replayed CT; commands, approvals and emergency stops
 // are refused (nothing here moves a robot).
 void Server::serveReadOnly(Clock::time_point until, const std::atomic<bool>& stop) {
@@ -498,68 +417,6 @@ void Server::serveReadOnly(Clock::time_point until, const std::atomic<bool>& sto
       publishHealth();
       last_health = Clock::now();
     }
-  }
-}
-
-// Another server's Health in this robot's partition: the later one to start gives way (ties by
-// session id, host and folder, so exactly one of two gives way). A later one is said once; it will
-// stop. This server's own Health is the one with its start, session, host and folder: the session
-// id alone (the folder's name) is not, since two servers may be given folders of one name.
-std::optional<std::string> Server::robotIdConflict() {
-  std::optional<std::string> conflict;
-  const std::string folder = session_dir_.string();
-  const auto mine = std::tie(started_unix_s_, session_.session_id, host_, folder);
-  robot_peers_.take([&](const protocol::Health& h) {
-    if (h.robot_id != options_.robot_id) return;
-    const auto theirs = std::tie(h.started_unix_s, h.session_id, h.host, h.session_dir);
-    if (theirs == mine) return;
-    const bool it_is_older = theirs < mine;
-    const std::string who = fmt::format("session {} on host {}, serving since {:.0f}", h.session_id,
-                                        h.host, h.started_unix_s);
-    if (it_is_older) {
-      conflict = fmt::format(
-          "robot_id '{}': another ignav-server already serves this robot on DDS domain {} ({}); "
-          "two servers must never act on one robot's commands: give each robot its own "
-          "server.robot_id",
-          options_.robot_id, options_.domain_id, who);
-    } else if (peers_warned_.insert(h.session_dir + "@" + h.host).second) {
-      spdlog::warn(
-          "robot_id '{}': a later ignav-server with this robot id appeared ({}); it "
-          "gives way to this one",
-          options_.robot_id, who);
-    }
-  });
-  return conflict;
-}
-
-// No other server with this robot id was heard for robot_id_check_ms: the controller starts
-// (a new session's robot is at its home, where its position is zero; a recovered one's
-// simulation is placed where the journal last verified the motors, a real controller kept
-// counting), a recovered session is judged on its first reading, and what waited is released.
-void Server::startControllerWhenClear() {
-  startController(!recovering_,
-                  recovering_ ? std::optional<actuation::Steps>(session_.position) : std::nullopt);
-  if (recovering_) {
-    // Approvals die here, and the position is checked against the controller's.
-    Input restarted;
-    restarted.kind = InputKind::kServerRestarted;
-    stepNow(std::move(restarted));
-  }
-  publishMotion();
-  waitset_.trigger();  // what finished meanwhile (a load, a detection) is taken at once
-}
-
-// Announces this server, then listens for robot_id_check_ms (from the start of the process's
-// participant) for another with its robot id; commands wait in DDS meanwhile. 0: not at start,
-// only once serving (robotIdConflict in the loop).
-std::optional<std::string> Server::checkRobotIdAtStart() {
-  publishHealth();
-  if (options_.robot_id_check_ms == 0) return std::nullopt;
-  const auto end = participant_started_ + std::chrono::milliseconds(options_.robot_id_check_ms);
-  for (;;) {
-    if (auto conflict = robotIdConflict()) return conflict;
-    if (Clock::now() >= end) return std::nullopt;
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
 }
 

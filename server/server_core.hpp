@@ -1,10 +1,12 @@
 // The Server: the event thread's object. It owns the session (the only writer), the journal and
 // the DDS readers, runs the event loop and steps every input through the reducer. Its methods sit
 // in three files by concern:
-//   server.cpp      construction, the event loop, recovery, replay, inputs held for a reading;
-//   step.cpp        one input through the reducer and its effects (workflow::executeStep's
-//                   order: halts, journal, session, moves, state, replies, the rest);
-//   controller.cpp  the controller component: started, sent commands, its events as inputs.
+//   server.cpp      construction, the event loop, recovery, replay;
+//   step.cpp        inputs held for a reading; one input through the reducer and its effects
+//                   (workflow::executeStep's order: halts, journal, session, moves, state,
+//                   replies, the rest);
+//   controller.cpp  the controller component: started (once the robot-id check is clear), sent
+//                   commands, its events as inputs.
 // What it hands to other threads: volume_loader.hpp, job_runner.hpp, slices.hpp,
 // reports.hpp, controller_component.hpp, igtl_bridge.hpp. docs/ARCHITECTURE.md has the picture.
 #pragma once

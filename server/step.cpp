@@ -1,8 +1,8 @@
 // One input through the reducer, and its effects in the order DESIGN.md's safety invariants
 // require, which workflow::executeStep (effect_order.hpp) keeps: halts first, then the journal
 // (fdatasync), the new session, the other controller commands, the state topics, the replies,
-// and last the files for people (reports thread), a volume load, a marker detection (detector
-// thread) and the OpenIGTLink bridge.
+// and last the files for people (reports thread), a volume load, the background jobs (job thread)
+// and the OpenIGTLink bridge. Before that, the inputs held until a fresh controller reading.
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -166,6 +166,87 @@ void Server::crashPoint(const char* where, std::uint64_t revision) const {
 void Server::publishHealth() {
   state_.publishHealth(session_, {journal_failure_, igtl_ ? igtl_->clientCount() : 0,
                                   options_.robot_id, host_, started_unix_s_});
+}
+
+// Inputs that judge the robot by a controller reading wait (held, in order, with the client
+// commands that come after them) for a reading taken after every command already sent to the
+// controller: the latest one may predate a move or a halt, and a slow controller takes seconds
+// per reading. The event loop goes on meanwhile. Emergency stops, queries and pings never wait; an
+// emergency stop refuses what was held (it came after them and must not be undone by them).
+void Server::step(Input in) {
+  if (in.kind == InputKind::kEmergencyStop) {
+    refuseHeld(workflow::toString(workflow::ReplyCode::kSuperseded),
+               "not done: an emergency stop came while this waited for a reading of the "
+               "controller");
+    // Before the robot-id check lets this server touch the controller, its halt goes out the
+    // moment the controller starts (at once after the others' if another server has the robot).
+    if (!controllerPending()) return stepNow(std::move(in));
+    held_since_ = Clock::now();
+    held_.push_back({std::move(in), held_since_});
+    return;
+  }
+  // Questions that need no reading (query, ping) never wait behind the held inputs.
+  const bool at_once = workflow::isQuestion(in.kind) && !workflow::needsControllerReading(in.kind);
+  const bool client = workflow::isCommand(in.kind) && !at_once;
+  const auto arrived = Clock::now();
+  if ((client && !held_.empty()) || waitsForReading(in, arrived)) {
+    if (held_.empty()) held_since_ = arrived;
+    held_.push_back({std::move(in), arrived});
+    if (component_) component_->pollNow();
+    return;
+  }
+  stepNow(std::move(in));
+}
+
+// An input judged by a reading waits for one taken after every command sent so far; one that
+// releases motion (approve) waits for one begun after it arrived, so that motors moved
+// by hand a moment before are seen (issue 38: an approval accepted on the old position made a
+// move the executor then refused, and a fault).
+bool Server::waitsForReading(const Input& in, Clock::time_point arrived) const {
+  if (in.controller) return false;
+  // The controller not yet started (the robot-id check): what reads or halts it waits.
+  if (controllerPending()) {
+    return workflow::needsControllerReading(in.kind) || in.kind == InputKind::kStop ||
+           in.kind == InputKind::kEmergencyStop;
+  }
+  if (!workflow::needsControllerReading(in.kind)) return false;
+  const auto r = component_->latest();
+  if (r.status.state == actuation::ControllerState::kDisconnected) return false;
+  if (r.after_command < last_submitted_) return true;
+  return workflow::releasesMotion(in.kind) && r.taken < arrived;
+}
+
+// Steps the held inputs whose reading has come; one that waited too long is refused.
+void Server::releaseHeld() {
+  const auto limit = std::chrono::milliseconds(6 * options_.controller.timeout_ms + 1000);
+  while (!held_.empty()) {
+    if (waitsForReading(held_.front().input, held_.front().arrived)) {
+      if (controllerPending() || Clock::now() - held_since_ < limit) return;
+      const Input& late = held_.front().input;
+      sendReply({late.client_id, late.request_id, false,
+                 workflow::toString(workflow::ReplyCode::kControllerUnavailable),
+                 fmt::format("not done: no reading of the controller came within {} ms after "
+                             "its last command; try again",
+                             limit.count()),
+                 0, session_.revision});
+      held_.pop_front();
+      held_since_ = Clock::now();
+      continue;
+    }
+    Input in = std::move(held_.front().input);
+    held_.pop_front();
+    held_since_ = Clock::now();
+    stepNow(std::move(in));
+  }
+}
+
+void Server::refuseHeld(const char* code, const std::string& why) {
+  for (const auto& held : held_) {
+    const Input& in = held.input;
+    if (!workflow::isCommand(in.kind)) continue;
+    sendReply({in.client_id, in.request_id, false, code, why, 0, session_.revision});
+  }
+  held_.clear();
 }
 
 }  // namespace ignav::server

@@ -90,6 +90,21 @@ bool matches(const json& actual, const json& expected) {
 
 // `ignavctl run`: each step sends a command (and checks the reply), waits for a state, or
 // fetches a slice. Any mismatch stops the script with exit code 1.
+// A step's reply as the script expects it (`expect`: accepted | rejected, and `error_code`); says
+// what was expected when not.
+bool asExpected(const json& step, const protocol::Reply& reply, const std::string& where) {
+  const std::string expect = step.value("expect", "accepted");
+  if ((expect == "accepted") != reply.accepted) {
+    std::cerr << where << ": expected " << expect << "\n";
+    return false;
+  }
+  if (step.contains("error_code") && step["error_code"] != reply.error_code) {
+    std::cerr << where << ": expected error_code " << step["error_code"] << "\n";
+    return false;
+  }
+  return true;
+}
+
 int runScript(Client& client, const std::string& path, const std::string& out_dir, bool as_json) {
   YAML::Node doc;
   try {
@@ -133,15 +148,7 @@ int runScript(Client& client, const std::string& path, const std::string& out_di
       const auto reply = client.send(step["send"], args);
       std::cout << where << " " << step["send"].get<std::string>() << ": ";
       printReply(reply, as_json);
-      const std::string expect = step.value("expect", "accepted");
-      if ((expect == "accepted") != reply.accepted) {
-        std::cerr << where << ": expected " << expect << "\n";
-        return kExitRejected;
-      }
-      if (step.contains("error_code") && step["error_code"] != reply.error_code) {
-        std::cerr << where << ": expected error_code " << step["error_code"] << "\n";
-        return kExitRejected;
-      }
+      if (!asExpected(step, reply, where)) return kExitRejected;
       if (step.contains("name")) names[step["name"]] = reply.target_id;
       catchUp(reply);
     } else if (step.contains("approve") || step.contains("emergency_stop")) {
@@ -169,15 +176,7 @@ int runScript(Client& client, const std::string& path, const std::string& out_di
         std::cout << where << " approve plan " << plan << ": ";
       }
       printReply(reply, as_json);
-      const std::string expect = step.value("expect", "accepted");
-      if ((expect == "accepted") != reply.accepted) {
-        std::cerr << where << ": expected " << expect << "\n";
-        return kExitRejected;
-      }
-      if (step.contains("error_code") && step["error_code"] != reply.error_code) {
-        std::cerr << where << ": expected error_code " << step["error_code"] << "\n";
-        return kExitRejected;
-      }
+      if (!asExpected(step, reply, where)) return kExitRejected;
       catchUp(reply);
     } else if (step.contains("wait")) {
       const json want = step["wait"];
