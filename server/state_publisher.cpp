@@ -115,8 +115,7 @@ void StatePublisher::publishMotion(const Session& s, const actuation::Controller
     m.move_index = static_cast<std::uint32_t>(mo->segment + 1);
     m.move_count = static_cast<std::uint32_t>(mo->request().moves.size());
     m.move_kind = planning::toString(move.kind);
-    for (std::size_t a = 0; a < 3; ++a)
-      m.goal_steps[a] = mo->segment_from.motor[a] + move.steps.motor[a];
+    m.goal_steps = stepsOf(mo->segment_from + move.steps);
   }
   const auto& robot = *s.robot;
   const auto joints = robot.transmission.toJoints(r.position);

@@ -1,15 +1,8 @@
 #include "ignav/protocol/client.hpp"
 
-#include <unistd.h>
-
-#include <algorithm>
-#include <cerrno>
-#include <cstdio>
-#include <cstring>
 #include <map>
-#include <set>
+#include <stdexcept>
 #include <thread>
-#include <tuple>
 
 #include "ignav/protocol/json_view.hpp"
 #include "ignav/protocol/wire/messages.hpp"

@@ -2,6 +2,8 @@
 
 #include <stdexcept>
 
+#include "ignav/core/table_order.hpp"
+
 namespace ignav::commands {
 namespace {
 
@@ -127,12 +129,6 @@ const std::vector<InputSpec> kInputs = {
      "a confirmation CT could not be loaded or its markers were not found: why"},
 };
 
-bool inOrder() {
-  for (std::size_t i = 0; i < kInputs.size(); ++i)
-    if (static_cast<std::size_t>(kInputs[i].kind) != i) return false;
-  return true;
-}
-
 }  // namespace
 
 const char* toString(ClientRole role) {
@@ -149,7 +145,7 @@ const char* toString(ClientRole role) {
 
 const std::vector<InputSpec>& inputTable() {
   // A row out of place would give an input another's name and rules: refuse to run at all.
-  static const bool ok = inOrder();
+  static const bool ok = inEnumOrder(kInputs, &InputSpec::kind);
   if (!ok) throw std::logic_error("workflow input table is not in InputKind order");
   return kInputs;
 }

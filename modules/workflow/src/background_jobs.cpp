@@ -8,6 +8,7 @@
 
 #include <stdexcept>
 
+#include "ignav/core/table_order.hpp"
 #include "ignav/workflow/reducer.hpp"
 #include "session_rules.hpp"
 
@@ -44,16 +45,10 @@ const std::vector<JobKindSpec> kJobKinds = {
      staleMeasurement},
 };
 
-bool inOrder() {
-  for (std::size_t i = 0; i < kJobKinds.size(); ++i)
-    if (static_cast<std::size_t>(kJobKinds[i].kind) != i) return false;
-  return true;
-}
-
 }  // namespace
 
 const std::vector<JobKindSpec>& jobKinds() {
-  static const bool ok = inOrder();
+  static const bool ok = inEnumOrder(kJobKinds, &JobKindSpec::kind);
   if (!ok) throw std::logic_error("background job table is not in JobKind order");
   return kJobKinds;
 }

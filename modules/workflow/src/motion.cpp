@@ -201,11 +201,7 @@ std::string readingFault(const Input& in) {
 }
 
 actuation::Steps moveEnd(const ActiveMotion& m) {
-  actuation::Steps end = m.segment_from;
-  const auto& increments = m.request().moves[m.segment].steps;
-  for (std::size_t a = 0; a < 3; ++a)
-    end.motor[a] += increments.motor[a];
-  return end;
+  return m.segment_from + m.request().moves[m.segment].steps;
 }
 
 std::string restartDoubt(const Session& s, const Input& in) {
@@ -407,8 +403,7 @@ actuation::Steps ControllerCommand::segmentStart() const {
   const auto& request = approved_->request();
   actuation::Steps start = request.from;
   for (std::size_t k = 0; k < segment_ && k < request.moves.size(); ++k)
-    for (std::size_t a = 0; a < 3; ++a)
-      start.motor[a] += request.moves[k].steps.motor[a];
+    start = start + request.moves[k].steps;
   return start;
 }
 

@@ -2,6 +2,8 @@
 
 #include <stdexcept>
 
+#include "ignav/core/table_order.hpp"
+
 namespace ignav::workflow {
 namespace {
 
@@ -119,16 +121,10 @@ const std::vector<ReplyCodeSpec> kCodes = {
     {C::kInternal, "internal", "a bug: the server refused rather than act on it (please report)"},
 };
 
-bool inOrder() {
-  for (std::size_t i = 0; i < kCodes.size(); ++i)
-    if (static_cast<std::size_t>(kCodes[i].code) != i) return false;
-  return true;
-}
-
 }  // namespace
 
 const std::vector<ReplyCodeSpec>& replyCodeTable() {
-  static const bool ok = inOrder();
+  static const bool ok = inEnumOrder(kCodes, &ReplyCodeSpec::code);
   if (!ok) throw std::logic_error("reply code table is not in ReplyCode order");
   return kCodes;
 }

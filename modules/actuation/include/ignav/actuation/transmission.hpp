@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 
 #include <Eigen/Core>
@@ -35,6 +36,12 @@ struct Steps {
   std::array<std::int64_t, 3> motor{0, 0, 0};
   friend bool operator==(const Steps& a, const Steps& b) { return a.motor == b.motor; }
   friend bool operator!=(const Steps& a, const Steps& b) { return !(a == b); }
+  // A position plus an increment, per motor (where a move from `a` by `b` ends).
+  friend Steps operator+(Steps a, const Steps& b) {
+    for (std::size_t i = 0; i < a.motor.size(); ++i)
+      a.motor[i] += b.motor[i];
+    return a;
+  }
 };
 
 // The result of quantising joints to whole steps, and what the quantisation costs.
