@@ -16,14 +16,14 @@ namespace {
 
 // The job itself, timed and logged; an exception (out of memory on a huge CT, say) is said, not
 // fatal.
-Input runTimed(const BackgroundJob& job) {
+Input runTimed(const BackgroundJob& job, const workflow::JobContext& context) {
   const auto& spec = workflow::jobKindSpec(job.kind);
   const auto t = std::chrono::steady_clock::now();
   Input in;
   try {
-    in = job.run();
+    in = job.run(context);
   } catch (const std::exception& ex) {
-    in = workflow::failedOutcome(job, std::string("the analysis failed: ") + ex.what());
+    in = workflow::failedOutcome(job, std::string("the ") + spec.name + " failed: " + ex.what());
   }
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
@@ -34,8 +34,9 @@ Input runTimed(const BackgroundJob& job) {
 
 }  // namespace
 
-JobRunner::JobRunner(std::function<void()> wake)
+JobRunner::JobRunner(std::function<void()> wake, std::filesystem::path session_dir)
     : wake_up_(std::move(wake)),
+      session_dir_(std::move(session_dir)),
       queued_(workflow::jobKinds().size()),
       thread_([this] { loop(); }) {}
 
@@ -75,7 +76,21 @@ std::vector<Input> JobRunner::finished() {
   return out;
 }
 
+std::pair<std::size_t, std::size_t> JobRunner::progress(workflow::JobKind kind) const {
+  if (running_kind_ != static_cast<int>(kind)) return {0, 0};
+  return {done_units_, total_units_};
+}
+
+void JobRunner::report(std::size_t done, std::size_t total) {
+  done_units_ = done;
+  total_units_ = total;
+  // Wake the event thread about every 5 % so that the progress reaches clients.
+  if (wake_up_ && (total == 0 || done % std::max<std::size_t>(1, total / 20) == 0)) wake_up_();
+}
+
 void JobRunner::loop() {
+  const workflow::JobContext context{
+      session_dir_, [this](std::size_t done, std::size_t total) { report(done, total); }};
   for (;;) {
     BackgroundJob job;
     {
@@ -90,7 +105,10 @@ void JobRunner::loop() {
       job = std::move(**slot);
       slot->reset();
     }
-    Input in = runTimed(job);
+    done_units_ = total_units_ = 0;
+    running_kind_ = static_cast<int>(job.kind);
+    Input in = runTimed(job, context);
+    running_kind_ = -1;
     {
       std::lock_guard<std::mutex> lock(mutex_);
       done_.push_back(std::move(in));

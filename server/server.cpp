@@ -111,8 +111,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
       state_(participant_, controller_name_, session_dir_),
       slices_(participant_),
       waitset_(participant_),
-      loader_(waitset_),
-      jobs_([this] { waitset_.trigger(); }),
+      jobs_([this] { waitset_.trigger(); }, session_dir_),
       reports_(session_dir_),
       journal_(std::move(journal)),
       crash_at_(std::getenv("IGNAV_CRASH_AT") ? std::getenv("IGNAV_CRASH_AT") : "") {
@@ -265,10 +264,6 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
     // A recovered session's first new record is its restart (a load or a detection the crash
     // interrupted, started again, ends after it).
     if (!(controllerPending() && recovering_)) {
-      for (auto& in : loader_.finished()) {
-        ++handled;
-        step(in);
-      }
       for (auto& in : jobs_.finished()) {
         ++handled;
         step(std::move(in));
@@ -281,9 +276,9 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
     takeControllerEvents();
     releaseHeld();
     if (handled > 0) last_event = Clock::now();
-    if (session_.volume_status.status == "loading" && loader_.progress() != last_progress_) {
-      last_progress_ = loader_.progress();
-      state_.publishVolume(session_, loader_.progress());
+    if (session_.volume_status.status == "loading" && ctLoadProgress() != last_progress_) {
+      last_progress_ = ctLoadProgress();
+      state_.publishVolume(session_, last_progress_);
     }
     if (Clock::now() - last_health > std::chrono::seconds(1)) {
       publishHealth();
@@ -349,7 +344,7 @@ std::size_t Server::takeCommands() {
 }
 
 Expected<workflow::LoadedCt> Server::reloadCt(const std::string& source) {
-  Input reloaded = loader_.load(source, *session_.robot, session_dir_);
+  Input reloaded = workflow::loadCt(0, source, *session_.robot, {session_dir_, {}});
   if (reloaded.kind != InputKind::kVolumeLoaded) {
     return makeError(ErrorCode::kIo, reloaded.error);
   }
@@ -365,9 +360,6 @@ Status Server::recover(const std::vector<std::string>& lines) {
       workflow::replayJournal(session_, lines, load_ct, (session_dir_ / "journal.jsonl").string());
   if (!recovered) return recovered.error();
   replaceSession(std::move(recovered).value());
-  if (session_.volume_status.status == "loading") {
-    loader_.start(session_.volume_status.source, *session_.robot, session_dir_);
-  }
   for (auto& job : workflow::pendingJobs(session_)) {
     spdlog::info("{} #{} was under way: started again", workflow::jobKindSpec(job.kind).name,
                  job.id);
@@ -434,7 +426,7 @@ bool Server::reservedClientId(const std::string& client_id, std::uint64_t reques
 
 // A path the server cannot read is refused before acknowledging (the reducer does no I/O).
 std::optional<workflow::Reply> Server::checkPath(const Input& in) const {
-  if (!workflow::specOf(in.kind).args.path_is_server_file || in.path == kPhantomSource ||
+  if (!workflow::specOf(in.kind).args.path_is_server_file || in.path == workflow::kPhantomSource ||
       in.path.empty() || in.path.size() > workflow::kMaxPathLength) {
     return std::nullopt;
   }

@@ -7,7 +7,7 @@
 //                   replies, the rest);
 //   controller.cpp  the controller component: started (once the robot-id check is clear), sent
 //                   commands, its events as inputs.
-// What it hands to other threads: volume_loader.hpp, job_runner.hpp, slices.hpp,
+// What it hands to other threads: job_runner.hpp, slices.hpp,
 // reports.hpp, controller_component.hpp, igtl_bridge.hpp. docs/ARCHITECTURE.md has the picture.
 #pragma once
 
@@ -39,7 +39,6 @@
 #include "service_notify.hpp"
 #include "slices.hpp"
 #include "state_publisher.hpp"
-#include "volume_loader.hpp"
 
 namespace ignav::server {
 
@@ -93,7 +92,10 @@ class Server {
   void sendReply(const workflow::Reply& r);
   void refuseUnjournaled(const Input& in, const workflow::Effects& effects);
   void crashPoint(const char* where, std::uint64_t revision) const;
-  Readings readings() const { return {last_reading_, toString(lifecycle_), loader_.progress()}; }
+  std::pair<std::size_t, std::size_t> ctLoadProgress() const {
+    return jobs_.progress(workflow::JobKind::kVolumeLoad);
+  }
+  Readings readings() const { return {last_reading_, toString(lifecycle_), ctLoadProgress()}; }
   void publishMotion() { state_.publishMotion(session_, last_reading_, toString(lifecycle_)); }
   void publishHealth();
 
@@ -148,8 +150,8 @@ class Server {
   std::string last_fault_reported_;
   std::string refused_move_;  // a move runController would not send: a fault, reported next
   protocol::WaitSet waitset_;
-  VolumeLoader loader_;
-  // The workflow's background jobs, on a thread of their own (it wakes the waitset).
+  // The workflow's background jobs (CT loads among them), on a thread of their own (it wakes the
+  // waitset).
   JobRunner jobs_;
   // The controller component (run() only; its threads wake the waitset, so it goes first).
   std::unique_ptr<ControllerComponent> component_;

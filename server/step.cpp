@@ -73,8 +73,8 @@ class Server::Sink final : public workflow::EffectSink {
   void reply(const workflow::Reply& r) override { s_.sendReply(r); }
 
   // The files for people (Slicer exports, report slices, the report) on the reports thread:
-  // handed a snapshot of the session, never waited for. Then a volume load or a marker detection
-  // (handed over, never waited for), then the bridge.
+  // handed a snapshot of the session, never waited for. Then the background jobs the step asked
+  // for (handed to the job thread, never waited for), then the bridge.
   void finish(const workflow::Effects& e) override {
     const Session& now = s_.session_;
     auto& reports = s_.reports_;
@@ -86,7 +86,6 @@ class Server::Sink final : public workflow::EffectSink {
     if (e.reached_target_slices) reports.slices(s_.snapshot(), false, *e.reached_target_slices);
     if (e.confirmation_changed || e.tissue_fitted) reports.verification(s_.snapshot());
     if (!e.journal.empty()) reports.report(s_.snapshot());
-    if (e.load_volume) s_.loader_.start(*e.load_volume, *now.robot, s_.session_dir_);
     for (const auto kind : e.start_jobs) {
       if (auto job = workflow::jobKindSpec(kind).pending(now)) s_.jobs_.start(std::move(*job));
     }

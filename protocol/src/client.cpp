@@ -356,16 +356,24 @@ std::vector<std::string> Client::missingState() const {
   return missing;
 }
 
-JobOutcome Client::waitForJobOutcome(std::uint64_t job, std::chrono::milliseconds timeout) {
+std::vector<JobOutcome> Client::takeJobOutcomes() {
   constexpr std::size_t kKept = 64;
-  const auto end = Clock::now() + timeout;
   auto& seen = impl_->outcomes_seen;
+  std::vector<JobOutcome> arrived;
+  impl_->job_outcomes.take([&](const JobOutcome& o) {
+    seen[o.job] = o;
+    while (seen.size() > kKept)
+      seen.erase(seen.begin());
+    arrived.push_back(o);
+  });
+  return arrived;
+}
+
+JobOutcome Client::waitForJobOutcome(std::uint64_t job, std::chrono::milliseconds timeout) {
+  const auto end = Clock::now() + timeout;
+  const auto& seen = impl_->outcomes_seen;
   for (;;) {
-    impl_->job_outcomes.take([&](const JobOutcome& o) {
-      seen[o.job] = o;
-      while (seen.size() > kKept)
-        seen.erase(seen.begin());
-    });
+    takeJobOutcomes();
     if (auto it = seen.find(job); it != seen.end()) return it->second;
     if (Clock::now() >= end) {
       throw Timeout("no outcome of job #" + std::to_string(job) + " within " +

@@ -43,6 +43,7 @@ inline workflow::Session planningSession(std::vector<std::string> approvers) {
   feed(load);
   Input loaded;
   loaded.kind = InputKind::kVolumeLoaded;
+  loaded.job = session.ct_revision;
   loaded.loaded.volume = test::phantomCtGrid(*robot);
   feed(loaded);
   Input fiducials;

@@ -133,6 +133,7 @@ TEST(BrpBridge, ATargetOutsideTheLoadedCtIsRefusedWithTheReason) {
   loop.run(load);
   workflow::Input loaded;
   loaded.kind = InputKind::kVolumeLoaded;
+  loaded.job = loop.session.ct_revision;
   loaded.loaded.volume = test::phantomCtGrid(*paperRobot());
   loaded.loaded.source = "phantom:";
   loop.run(loaded);

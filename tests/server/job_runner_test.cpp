@@ -48,7 +48,8 @@ class Gate {
 };
 
 BackgroundJob job(JobKind kind, std::uint64_t id, Gate& gate) {
-  return BackgroundJob{kind, id, "/scans/" + std::to_string(id), [kind, id, &gate] {
+  return BackgroundJob{kind, id, "/scans/" + std::to_string(id),
+                       [kind, id, &gate](const workflow::JobContext&) {
                          gate.passThrough(id);
                          Input in;
                          in.kind = workflow::jobKindSpec(kind).succeeded;
@@ -89,7 +90,7 @@ TEST(JobRunner, ANewerJobReplacesAQueuedOneOfItsKindAndEarlierKindsGoFirst) {
   Gate gate;
   JobRunner* runner_ptr = nullptr;
   Outcomes outcomes(runner_ptr);
-  JobRunner runner([&] { outcomes.wake(); });
+  JobRunner runner([&] { outcomes.wake(); }, "/sessions/s1");
   runner_ptr = &runner;
 
   runner.start(job(JobKind::kConfirmationMeasurement, 1, gate));
@@ -113,20 +114,52 @@ TEST(JobRunner, ARunThatThrowsBecomesItsKindsFailureAndTheThreadGoesOn) {
   gate.open();
   JobRunner* runner_ptr = nullptr;
   Outcomes outcomes(runner_ptr);
-  JobRunner runner([&] { outcomes.wake(); });
+  JobRunner runner([&] { outcomes.wake(); }, "/sessions/s1");
   runner_ptr = &runner;
-  runner.start(BackgroundJob{JobKind::kMarkerDetection, 7, "/scans/huge",
-                             []() -> Input { throw std::runtime_error("std::bad_alloc"); }});
+  runner.start(BackgroundJob{
+      JobKind::kMarkerDetection, 7, "/scans/huge",
+      [](const workflow::JobContext&) -> Input { throw std::runtime_error("std::bad_alloc"); }});
   auto got = outcomes.waitFor(1);
   ASSERT_EQ(got.size(), 1u);
   EXPECT_EQ(got[0].kind, workflow::InputKind::kFiducialDetectionFailed);
   EXPECT_EQ(got[0].job, 7u);
   EXPECT_EQ(got[0].path, "/scans/huge");
-  EXPECT_EQ(got[0].error, "the analysis failed: std::bad_alloc");
+  EXPECT_EQ(got[0].error, "the marker detection failed: std::bad_alloc");
   runner.start(job(JobKind::kMarkerDetection, 8, gate));
   got = outcomes.waitFor(1);
   ASSERT_EQ(got.size(), 1u);
   EXPECT_EQ(got[0].job, 8u);
+}
+
+// A run says how far it is through its context; the event thread reads it for that kind only, and
+// the run finds the session folder there.
+TEST(JobRunner, ARunsProgressIsReadForItsKindWhileItRuns) {
+  Gate gate;
+  JobRunner* runner_ptr = nullptr;
+  Outcomes outcomes(runner_ptr);
+  JobRunner runner([&] { outcomes.wake(); }, "/sessions/s1");
+  runner_ptr = &runner;
+  std::string folder_seen;
+  runner.start(
+      BackgroundJob{JobKind::kVolumeLoad, 5, "/scans/ct", [&](const workflow::JobContext& context) {
+                      folder_seen = context.session_dir.string();
+                      context.progress(30, 120);
+                      gate.passThrough(5);
+                      Input in;
+                      in.kind = workflow::InputKind::kVolumeLoadFailed;
+                      in.job = 5;
+                      return in;
+                    }});
+  gate.waitUntilRunning(1);
+  using Progress = std::pair<std::size_t, std::size_t>;
+  EXPECT_EQ(runner.progress(JobKind::kVolumeLoad), (Progress{30, 120}));
+  EXPECT_EQ(runner.progress(JobKind::kMarkerDetection), (Progress{0, 0}));
+  gate.open();
+  const auto got = outcomes.waitFor(1);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].job, 5u);
+  EXPECT_EQ(folder_seen, "/sessions/s1");
+  EXPECT_EQ(runner.progress(JobKind::kVolumeLoad), (Progress{0, 0}));
 }
 
 }  // namespace

@@ -366,3 +366,25 @@ test("measuredByTarget: each measured target's row by id", () => {
   assert.equal(rows.has(4), false);
   assert.equal(ver.measuredByTarget(undefined).size, 0);
 });
+
+test("the job line: a started job, then its outcome as the server gave it", () => {
+  assert.equal(s.jobStartedText("load_volume", 2), "load_volume: job #2 running…");
+  const outcome = { type: "job_outcome", job: 2, kind: "CT load", input: "volume_loaded", revision: 3 };
+  assert.equal(s.jobOutcomeText({ ...outcome, status: "done", message: "128 x 128 x 112 voxels" }),
+    "CT load #2: done: 128 x 128 x 112 voxels");
+  assert.equal(s.jobOutcomeText({ ...outcome, status: "failed", message: "no DICOM files in /x" }),
+    "CT load #2: failed: no DICOM files in /x");
+  assert.equal(s.jobOutcomeText({ ...outcome, status: "stale", message: "" }), "CT load #2: stale (changed nothing)");
+});
+
+test("the reply line: accepted (a new target's id, a started job's message), refused, or failed", () => {
+  const reply = { type: "reply", seq: 1, error_code: "", target_id: 0, revision: 4, job: 0, message: "ok" };
+  assert.equal(s.replyText("lock_plan", { ...reply, accepted: true }), "lock_plan: accepted");
+  assert.equal(s.replyText("add_target", { ...reply, accepted: true, target_id: 3 }), "add_target: accepted (target 3)");
+  assert.equal(s.replyText("load_volume", { ...reply, accepted: true, job: 4, message: "loading phantom:" }),
+    "load_volume: accepted: loading phantom:");
+  assert.equal(s.replyText("add_target", { ...reply, accepted: false, error_code: "wrong_phase", message: "not now" }),
+    "add_target: rejected: wrong_phase: not now");
+  assert.equal(s.replyText("stop", { type: "error", seq: 2, code: "timeout", message: "no answer" }),
+    "stop: failed: timeout: no answer");
+});

@@ -119,12 +119,20 @@ TEST(Gateway, BrowserDrivesTheServerAndSeesItsVerdicts) {
   tab.sendText("\xff\xfe not even text");  // a text frame that is not UTF-8 fails the socket
   Browser tab2(gateway.port());            // ... and a new tab still works
 
+  // The background work a command starts ends in its job's outcome (on the JobOutcome topic,
+  // passed to every browser).
   const json load = tab2.request(command("load_volume", {{"path", "phantom:"}}));
   ASSERT_EQ(load["accepted"], true) << load;
+  ASSERT_GT(load["job"].get<std::uint64_t>(), 0u) << load;
+  const json loaded = tab2.jobOutcome(load["job"]);
+  EXPECT_EQ(loaded["kind"], "CT load");
+  EXPECT_EQ(loaded["input"], "volume_loaded");
+  EXPECT_EQ(loaded["status"], "done") << loaded;
   tab2.waitState(
       [](const json& s) { return s.contains("volume") && s["volume"]["status"] == "loaded"; });
   const json fid = tab2.request(command("auto_fiducials"));
   ASSERT_EQ(fid["accepted"], true) << fid;
+  EXPECT_EQ(tab2.jobOutcome(fid["job"])["status"], "done");
   tab2.waitState([](const json& s) {
     return s.contains("registration") && s["registration"]["status"] == "registered" &&
            s["workflow"]["phase"] == "planning";

@@ -362,6 +362,8 @@ async function run(pages) {
   await waitText(page, "phase", /imaging/);
   await byTestId(page, "load-path").fill(path.join(tmp, "ct"));
   await expectAccepted(page, "load_volume", () => byTestId(page, "load-path-button").click());
+  // The load is a background job: the page shows its outcome (the JobOutcome topic) on the job line.
+  await waitText(page, "last-job", /^CT load #\d+: done: \d+ x \d+ x \d+ voxels/);
   await waitText(page, "volume-status", /^loaded$/);
   await page.waitForFunction(() => document.querySelectorAll("canvas[data-pixel-to-lps]").length === 3, null, {
     timeout: kTimeoutMs,

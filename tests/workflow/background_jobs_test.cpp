@@ -2,6 +2,8 @@
 // comes from it (staleness, recovery, a run that throws) holds for every kind alike.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+#include <filesystem>
 #include <set>
 
 #include "ignav/workflow/background_jobs.hpp"
@@ -61,6 +63,48 @@ TEST(BackgroundJobs, ARunThatCannotFinishBecomesItsKindsFailureNamingTheJob) {
     EXPECT_EQ(failed.path, "/scans/ct");
     EXPECT_EQ(failed.error, "out of memory");
   }
+}
+
+// load_volume's job: the built-in phantom is written into the session folder as a DICOM series
+// (a file per slice, which a person can open) and read back like any scan, with progress; a second
+// run reads that series again (recovery, replay). A path that is not there is the load's failure,
+// naming it.
+TEST(BackgroundJobs, ACtLoadWritesThePhantomIntoTheSessionAndReadsItBack) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("ignav_ct_load_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const auto robot = test::paperRobot();
+  std::size_t calls = 0, last_done = 0, last_total = 0;
+  const JobContext context{dir, [&](std::size_t done, std::size_t total) {
+                             ++calls;
+                             last_done = done;
+                             last_total = total;
+                           }};
+  const Input in = loadCt(12, kPhantomSource, *robot, context);
+  ASSERT_EQ(in.kind, InputKind::kVolumeLoaded) << in.error;
+  EXPECT_EQ(in.job, 12u);
+  EXPECT_EQ(in.loaded.source, kPhantomSource);
+  ASSERT_TRUE(in.loaded.volume);
+  const auto grid = test::phantomCtGrid(*robot)->geometry;
+  EXPECT_EQ(in.loaded.volume->geometry.dims, grid.dims);
+  std::size_t slices = 0;
+  for (const auto& f : fs::directory_iterator(dir / "phantom_ct"))
+    slices += f.is_regular_file() ? 1 : 0;
+  EXPECT_EQ(slices, static_cast<std::size_t>(grid.dims[2]));
+  EXPECT_GT(calls, 0u);
+  EXPECT_EQ(last_total, slices);
+  EXPECT_EQ(last_done, last_total);
+
+  const Input again = loadCt(13, kPhantomSource, *robot, {dir, {}});
+  ASSERT_EQ(again.kind, InputKind::kVolumeLoaded) << again.error;
+  EXPECT_EQ(again.loaded.volume->geometry.dims, grid.dims);
+
+  const Input missing = loadCt(14, (dir / "no_such_scan").string(), *robot, context);
+  EXPECT_EQ(missing.kind, InputKind::kVolumeLoadFailed);
+  EXPECT_EQ(missing.job, 14u);
+  EXPECT_NE(missing.error.find("no_such_scan"), std::string::npos) << missing.error;
+  fs::remove_all(dir);
 }
 
 }  // namespace

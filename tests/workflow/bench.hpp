@@ -62,6 +62,7 @@ class Bench {
     load.path = "phantom:";
     feed(load);
     Input loaded = internal(InputKind::kVolumeLoaded);
+    loaded.job = s.ct_revision;
     loaded.loaded.volume = ignav::test::phantomCtGrid(*paperRobot());
     feed(loaded);
     auto rp = registration::makeRobotPhantom(paperRobot()->kinematics,

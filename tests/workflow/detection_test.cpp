@@ -30,7 +30,7 @@ Input runStartedJob(const Step& step) {
     return {};
   }
   EXPECT_EQ(job->id, step.session.detecting);
-  return job->run();
+  return job->run({});
 }
 
 const registration::RobotPhantom& truth() {
@@ -70,9 +70,11 @@ Input command(InputKind kind, std::uint64_t request, std::vector<Eigen::Vector3d
   return in;
 }
 
-Input loaded(const LoadedCt& ct) {
+// The outcome of the CT load `s` awaits.
+Input loaded(const Session& s, const LoadedCt& ct) {
   Input in;
   in.kind = InputKind::kVolumeLoaded;
+  in.job = s.ct_revision;
   in.loaded = ct;
   return in;
 }
@@ -82,12 +84,15 @@ Session registrationSession(const LoadedCt& ct, std::vector<std::string>* journa
   Session s = newSession("t", paperRobot(), "robot.yaml");
   Input config;
   config.kind = InputKind::kConfigLoaded;
-  for (const Input& in : {config, command(InputKind::kLoadVolume, 1), loaded(ct)}) {
+  auto feed = [&](const Input& in) {
     auto step = reduce(s, in);
     if (journal)
       journal->insert(journal->end(), step.effects.journal.begin(), step.effects.journal.end());
     s = std::move(step.session);
-  }
+  };
+  feed(config);
+  feed(command(InputKind::kLoadVolume, 1));
+  feed(loaded(s, ct));
   EXPECT_EQ(s.phase, Phase::kRegistration);
   return s;
 }
@@ -176,7 +181,8 @@ TEST(Detection, AnOutcomeForACtNoLongerLoadedOrARegistrationGivenMeanwhileIsIgno
   auto reloading = reduce(started.session, command(InputKind::kLoadVolume, 3));
   ASSERT_TRUE(reloading.effects.replies.at(0).accepted);
   for (const Session& now :
-       {reloading.session, reduce(reloading.session, loaded(emptyCt())).session}) {
+       {reloading.session,
+        reduce(reloading.session, loaded(reloading.session, emptyCt())).session}) {
     const auto step = reduce(now, found);
     EXPECT_EQ(step.effects.replies.at(0).error_code, "stale_detection");
     const std::string& note = step.effects.replies.at(0).message;

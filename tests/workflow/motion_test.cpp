@@ -732,6 +732,7 @@ TEST(Resume, EveryInterruptionSequenceReturnsToTheInterruptedPhase) {
   };
   const auto loaded = [](Bench& b) {
     Input in = Bench::internal(InputKind::kVolumeLoaded);
+    in.job = b.s.ct_revision;
     in.loaded.volume = test::phantomCtGrid(*paperRobot());
     in.loaded.source = "phantom:";
     b.feed(in);

@@ -52,6 +52,7 @@ Session planningSession() {
   s = reduce(s, internal(InputKind::kConfigLoaded)).session;
   s = reduce(s, command(InputKind::kLoadVolume, 1)).session;
   Input loaded = internal(InputKind::kVolumeLoaded);
+  loaded.job = s.ct_revision;
   loaded.loaded.volume = test::phantomCtGrid(*paperRobot());
   loaded.loaded.source = "phantom:";
   s = reduce(s, loaded).session;
@@ -361,6 +362,7 @@ TEST(Workflow, JournalRecordsReplayToTheSameSession) {
   run(internal(InputKind::kConfigLoaded));
   run(command(InputKind::kLoadVolume, 1));
   Input loaded = internal(InputKind::kVolumeLoaded);
+  loaded.job = live.ct_revision;
   loaded.loaded.volume = test::phantomCtGrid(*paperRobot());
   run(loaded);
   run(command(InputKind::kSetFiducials, 2, clickedFeatures()));
@@ -429,6 +431,7 @@ TEST(Targets, ACtThatMissesATargetLoadedLaterBlocksTheLock) {
   auto shifted = std::make_shared<volume::Volume>(*test::phantomCtGrid(*paperRobot()));
   shifted->geometry.origin_lps_mm.x() += 200.0;
   Input loaded = internal(InputKind::kVolumeLoaded);
+  loaded.job = s.ct_revision;
   loaded.loaded.volume = shifted;
   auto step = reduce(s, loaded);
   s = step.session;
@@ -465,6 +468,7 @@ TEST(Targets, APathLeavingTheCtIsAWarningNotARefusal) {
   cube->geometry.spacing_mm = Eigen::Vector3d::Ones();
   cube->geometry.origin_lps_mm = click - Eigen::Vector3d::Constant(9.5);  // centred on the target
   Input loaded = internal(InputKind::kVolumeLoaded);
+  loaded.job = s.ct_revision;
   loaded.loaded.volume = cube;
   s = reduce(s, loaded).session;
   const auto added = reduce(s, command(InputKind::kSetFiducials, 82, clickedFeatures()));

@@ -34,99 +34,14 @@
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 
+#include "bench_load.hpp"
 #include "ignav/config/robot_config.hpp"
 #include "ignav/protocol/client.hpp"
 #include "ignav/protocol/wire/dds.hpp"
 #include "ignav/protocol/wire/messages.hpp"
 
+namespace ignav::bench {
 namespace {
-
-using ignav::protocol::Client;
-using ignav::protocol::CommandArgs;
-using nlohmann::json;
-using Clock = std::chrono::steady_clock;
-using namespace std::chrono_literals;
-
-double since_ms(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
-
-// The server's resident memory (MiB) and open descriptors, from /proc.
-struct ProcessSample {
-  double t_s = 0;
-  double rss_mib = 0;
-  int fds = 0;
-};
-
-ProcessSample sampleProcess(int pid, Clock::time_point start) {
-  ProcessSample s;
-  s.t_s = std::chrono::duration<double>(Clock::now() - start).count();
-  std::ifstream status("/proc/" + std::to_string(pid) + "/status");
-  for (std::string line; std::getline(status, line);) {
-    if (line.rfind("VmRSS:", 0) == 0) s.rss_mib = std::stod(line.substr(6)) / 1024.0;
-  }
-  if (DIR* d = ::opendir(("/proc/" + std::to_string(pid) + "/fd").c_str())) {
-    while (const dirent* e = ::readdir(d))
-      if (e->d_name[0] != '.') ++s.fds;
-    ::closedir(d);
-  }
-  return s;
-}
-
-struct Percentiles {
-  std::size_t n = 0;
-  double p50 = 0, p90 = 0, p99 = 0, max = 0;
-};
-
-Percentiles percentiles(std::vector<double> v) {
-  Percentiles p;
-  p.n = v.size();
-  if (v.empty()) return p;
-  std::sort(v.begin(), v.end());
-  auto at = [&](double q) {
-    return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
-  };
-  p.p50 = at(0.50);
-  p.p90 = at(0.90);
-  p.p99 = at(0.99);
-  p.max = v.back();
-  return p;
-}
-
-// The robot-frame point -> LPS through the registration the server publishes.
-Eigen::Vector3d lpsOf(const json& state, const Eigen::Vector3d& robot_mm) {
-  const Eigen::Matrix4d m =
-      ignav::protocol::matrixFromState(state["registration"]["image_to_robot"]);
-  return (m.inverse() * robot_mm.homogeneous()).head<3>();
-}
-
-bool registered(Client& c) {
-  if (!c.send("load_volume", {"phantom:", {}, {}}).accepted) return false;
-  c.waitFor([](const json& s) { return s.contains("volume") && s["volume"]["status"] == "loaded"; },
-            120s);
-  if (!c.send("auto_fiducials").accepted) return false;
-  c.waitFor(
-      [](const json& s) {
-        return s.contains("registration") && s["registration"]["status"] == "registered";
-      },
-      10s);
-  return true;
-}
-
-// Points the paper's robot reaches (configs/robots/torabi2014.yaml), in the robot frame: drawn
-// around the needle axis (within 1 rad of `sector_rad` when given) and kept when the exact inverse
-// kinematics reaches them.
-Eigen::Vector3d reachablePoint(std::mt19937& rng, std::optional<double> sector_rad = {}) {
-  static const auto robot = ignav::config::loadRobot(IGNAV_ROBOT_CONFIG).value();
-  std::uniform_real_distribution<double> angle(-M_PI, M_PI), near(-1.0, 1.0), radius(5.0, 20.0),
-      z(-195.0, -165.0);
-  for (;;) {
-    const double a = sector_rad ? *sector_rad + near(rng) : angle(rng), r = radius(rng);
-    const Eigen::Vector3d p(r * std::cos(a), r * std::sin(a), z(rng));
-    const auto ik = robot.kinematics.inverse(p);
-    if (ik && ik->reachable()) return p;
-  }
-}
 
 // ---- load -----------------------------------------------------------------------------------
 
@@ -390,100 +305,14 @@ int runLoad(std::uint32_t domain, const std::string& xml, const LoadOptions& o) 
   return ok ? 0 : 1;
 }
 
-// ---- soak -----------------------------------------------------------------------------------
-
-bool waitApprovalAndApprove(Client& c, std::string& why) {
-  c.waitFor(
-      [](const json& s) {
-        return s.contains("approval") && s["approval"]["status"] == "pending" &&
-               s["workflow"]["phase"] != "moving";
-      },
-      60s);
-  const json a = c.state()["approval"];
-  const auto r = c.approve(a["plan_id"].get<std::uint64_t>(), a["digest"].get<std::string>());
-  if (!r.accepted) why = "approve: " + r.error_code + " " + r.message;
-  return r.accepted;
-}
-
-int runSoak(std::uint32_t domain, const std::string& xml, int cycles, int targets_per_cycle,
-            int server_pid) {
-  Client c(domain, xml, "operator", nullptr,
-           ignav::protocol::chooseRobot(domain, xml, nullptr, "", 20s));
-  if (!c.waitForServer(20s) || !registered(c)) {
-    std::fprintf(stderr, "bench_load: the server did not load and register the phantom\n");
-    return 1;
-  }
-  std::mt19937 rng(42);
-  const auto start = Clock::now();
-  int reached_total = 0, refused_rotation = 0;
-  std::printf("%6s %9s %9s %6s %9s\n", "cycle", "reached", "RSS MiB", "fds", "cycle s");
-  for (int cycle = 1; cycle <= cycles; ++cycle) {
-    const auto t0 = Clock::now();
-    std::string why;
-    // Clustered, as the targets of one biopsy are. From where the last insertion left the
-    // cannula, some clusters need more than the 360° of rotation a plan may use: the server
-    // refuses those (rightly); they are counted and another cluster is drawn.
-    for (int attempt = 0; why.empty(); ++attempt) {
-      if (!c.send("clear_targets").accepted) why = "clear_targets refused";
-      const double sector_rad = std::uniform_real_distribution<double>(-M_PI, M_PI)(rng);
-      for (int k = 0; k < targets_per_cycle && why.empty(); ++k) {
-        const auto r =
-            c.send("add_target", {"", {lpsOf(c.state(), reachablePoint(rng, sector_rad))}, {}});
-        if (!r.accepted) why = "add_target: " + r.message;
-      }
-      if (!why.empty()) break;
-      const auto r = c.send("lock_plan");
-      if (r.accepted) break;
-      if (r.error_code != "rotation_limit" || attempt == 20) why = "lock_plan: " + r.message;
-      ++refused_rotation;
-    }
-    int reached = 0;
-    // One approval per target, then one for the final retraction.
-    for (int m = 0; m <= targets_per_cycle && why.empty(); ++m) {
-      if (!waitApprovalAndApprove(c, why)) break;
-      c.waitFor(
-          [](const json& s) {
-            const auto& p = s["workflow"]["phase"];
-            return p == "at_target" || p == "done" || p == "fault" || p == "emergency";
-          },
-          60s);
-      const auto phase = c.state()["workflow"]["phase"].get<std::string>();
-      if (phase == "at_target") {
-        ++reached;
-      } else if (phase != "done") {
-        why = "motion ended in " + phase;
-      }
-    }
-    if (why.empty()) {
-      if (reached != targets_per_cycle) why = "reached " + std::to_string(reached);
-      const auto r = c.send("unlock_plan");
-      if (!r.accepted) why = "unlock_plan: " + r.message;
-    }
-    reached_total += reached;
-    const auto s = server_pid > 0 ? sampleProcess(server_pid, start) : ProcessSample{};
-    std::printf("%6d %9d %9.1f %6d %9.2f\n", cycle, reached_total, s.rss_mib, s.fds,
-                std::chrono::duration<double>(Clock::now() - t0).count());
-    std::fflush(stdout);
-    if (!why.empty()) {
-      std::printf("FAIL in cycle %d: %s\n", cycle, why.c_str());
-      return 1;
-    }
-  }
-  std::printf(
-      "soak: %d cycles, %d targets reached in %.1f s; %d target sets refused as needing more than "
-      "360 deg of cannula rotation\nPASS\n",
-      cycles, reached_total, std::chrono::duration<double>(Clock::now() - start).count(),
-      refused_rotation);
-  return 0;
-}
-
 }  // namespace
+}  // namespace ignav::bench
 
 int main(int argc, char** argv) {
   CLI::App app{"Load and soak against a running ignav-server"};
   std::uint32_t domain = 0;
   std::string config;
-  LoadOptions load;
+  ignav::bench::LoadOptions load;
   int soak_cycles = 0, targets_per_cycle = 5;
   app.add_option("--domain", domain, "DDS domain id")->required();
   app.add_option("--dds-config", config, "Cyclone XML (configs/dds/loopback.xml)")->required();
@@ -501,8 +330,8 @@ int main(int argc, char** argv) {
   try {
     const std::string xml = ignav::protocol::readConfigFile(config);
     if (soak_cycles > 0)
-      return runSoak(domain, xml, soak_cycles, targets_per_cycle, load.server_pid);
-    return runLoad(domain, xml, load);
+      return ignav::bench::runSoak(domain, xml, soak_cycles, targets_per_cycle, load.server_pid);
+    return ignav::bench::runLoad(domain, xml, load);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_load: %s\n", e.what());
     return 1;

@@ -5,7 +5,7 @@
 
 #include "ignav/config/robot_config.hpp"
 #include "ignav/journal/journal.hpp"
-#include "ignav/volume/load.hpp"
+#include "ignav/workflow/background_jobs.hpp"
 #include "ignav/workflow/reducer.hpp"
 
 namespace ignav::plan {
@@ -20,19 +20,18 @@ ReplayedSession replayedSession(const ReplayArgs& args) {
   auto contents = journal::readJournal(journal_path);
   if (!contents) throw CliError{contents.error().message};
 
-  auto load_ct = [&](const std::string& source) -> Expected<workflow::LoadedCt> {
-    // The server writes the built-in phantom into the session; everything else is a path.
-    const std::string path = source == "phantom:" ? (dir / "phantom_ct").string() : source;
-    auto loaded = volume::loadVolume(path, {});
-    if (!loaded) return loaded.error();
-    workflow::LoadedCt ct;
-    ct.source = source;
-    ct.volume = std::make_shared<const volume::Volume>(std::move(loaded->volume));
-    return ct;
-  };
   const auto start = workflow::newSession(
       dir.filename().string(), std::make_shared<const config::Robot>(std::move(robot).value()),
       args.robot_path);
+  // The CT load's own run, as the server's recovery reads a journaled CT again (the built-in
+  // phantom from the series the server wrote into the session).
+  auto load_ct = [&](const std::string& source) -> Expected<workflow::LoadedCt> {
+    workflow::Input loaded = workflow::loadCt(0, source, *start.robot, {dir, {}});
+    if (loaded.kind != workflow::InputKind::kVolumeLoaded) {
+      return makeError(ErrorCode::kIo, loaded.error);
+    }
+    return loaded.loaded;
+  };
   auto session = workflow::replayJournal(start, contents->lines, load_ct, journal_path);
   if (!session) throw CliError{session.error().message};
   return {std::move(session).value(), contents->lines.size(), contents->torn_tail};

@@ -212,6 +212,12 @@ json replyMessage(std::uint64_t seq, const protocol::Reply& reply) {
   return message;
 }
 
+json jobOutcomeMessage(const protocol::JobOutcome& outcome) {
+  json message = outcome;  // its JSON view, from JobOutcome's one list of fields
+  message["type"] = "job_outcome";
+  return message;
+}
+
 json sliceMessage(std::uint64_t seq, const protocol::SliceResult& slice) {
   json m = json::array();
   for (int i = 0; i < 16; ++i)

@@ -60,6 +60,9 @@ nlohmann::json connectionMessage(bool server_matched);
 // "targets" map). Empty `changed`: the whole state.
 nlohmann::json stateMessage(const nlohmann::json& state, const std::vector<std::string>& changed);
 nlohmann::json replyMessage(std::uint64_t seq, const protocol::Reply& reply);
+// What became of a background job (every browser hears it; the one whose reply named the job
+// waits for it).
+nlohmann::json jobOutcomeMessage(const protocol::JobOutcome& outcome);
 nlohmann::json sliceMessage(std::uint64_t seq, const protocol::SliceResult& slice);
 // code: bad_request | timeout | busy | no_server | failed
 nlohmann::json errorMessage(std::optional<std::uint64_t> seq, const std::string& code,

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 
@@ -41,7 +42,15 @@ class BrowserSocket {
     last_bytes_ = buffer.size();
     nlohmann::json m = nlohmann::json::parse(boost::beast::buffers_to_string(buffer.data()));
     if (m["type"] == "state") state_.update(m["state"]);
+    if (m["type"] == "job_outcome") outcomes_[m["job"].get<std::uint64_t>()] = m;
     return m;
+  }
+
+  // Reads until the outcome of background job `job` (a reply's "job") has come.
+  nlohmann::json jobOutcome(std::uint64_t job) {
+    while (outcomes_.count(job) == 0)
+      next();
+    return outcomes_.at(job);
   }
 
   // Reads until a message of `type` (and `seq`, when given).
@@ -76,6 +85,7 @@ class BrowserSocket {
   boost::asio::io_context io_;
   boost::beast::websocket::stream<boost::beast::tcp_stream> ws_{io_};
   nlohmann::json state_ = nlohmann::json::object();
+  std::map<std::uint64_t, nlohmann::json> outcomes_;  // job_outcome messages by job
   std::uint64_t seq_ = 0;
   std::size_t last_bytes_ = 0;
 };

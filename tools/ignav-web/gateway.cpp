@@ -17,6 +17,7 @@
 #include "browser_messages.hpp"
 #include "ignav/commands/command_table.hpp"
 #include "ignav/protocol/client.hpp"
+#include "static_files.hpp"
 
 namespace ignav::web {
 namespace {
@@ -44,32 +45,6 @@ constexpr auto kServerCheckPeriod = std::chrono::milliseconds(100);
 // lists it as matched: a killed server's endpoints stay matched until its lease runs out (10 s
 // by default), and one whose loop is stuck answers nothing either.
 constexpr auto kServerSilence = std::chrono::seconds(3);
-
-std::string contentType(const fs::path& file) {
-  const std::string ext = file.extension().string();
-  if (ext == ".html") return "text/html; charset=utf-8";
-  if (ext == ".js") return "text/javascript; charset=utf-8";
-  if (ext == ".css") return "text/css; charset=utf-8";
-  if (ext == ".json" || ext == ".map") return "application/json";
-  if (ext == ".png") return "image/png";
-  if (ext == ".svg") return "image/svg+xml";
-  return "application/octet-stream";
-}
-
-// The file under `root` that a request target names, or nullopt. Only plain names: no "..", no
-// percent-escapes, no hidden files, so that nothing outside the app folder is ever served.
-std::optional<fs::path> staticFile(const fs::path& root, std::string_view target) {
-  target = target.substr(0, target.find('?'));
-  if (target.empty() || target.front() != '/') return std::nullopt;
-  if (target == "/") target = "/index.html";
-  for (const char c : target) {
-    const bool plain =
-        std::isalnum(static_cast<unsigned char>(c)) || c == '/' || c == '.' || c == '-' || c == '_';
-    if (!plain) return std::nullopt;
-  }
-  if (target.find("/.") != std::string_view::npos) return std::nullopt;
-  return root / fs::path(std::string(target.substr(1)));
-}
 
 class WsSession;
 
@@ -458,6 +433,8 @@ void Gateway::Impl::ddsLoop() {
     // State after the answer: a browser sees its reply, then what its command changed.
     const auto changed = client.poll();
     if (!changed.empty()) post({}, stateMessage(client.state(), changed), false);
+    for (const auto& outcome : client.takeJobOutcomes())
+      post({}, jobOutcomeMessage(outcome), false);
     const bool heard = std::find(changed.begin(), changed.end(), "health") != changed.end();
     if (heard) last_health = Clock::now();
     // At once when a silent server speaks again, else every check period.

@@ -14,6 +14,24 @@ int Server::send(const std::string& command, const protocol::CommandArgs& args) 
   return r.accepted ? 0 : kExitRejected;
 }
 
+std::optional<protocol::JobOutcome> Server::sendAndAwaitJob(const std::string& command,
+                                                            const protocol::CommandArgs& args,
+                                                            double wait_s,
+                                                            protocol::Reply* reply) const {
+  const auto r = client.send(command, args);
+  if (reply) *reply = r;
+  if (!r.accepted || !as_json) printReply(r, as_json);
+  if (!r.accepted) return std::nullopt;
+  auto outcome = client.waitForJobOutcome(
+      r.job, std::chrono::milliseconds(static_cast<std::int64_t>(wait_s * 1000.0)));
+  client.waitUntil(
+      [&](const protocol::StateMirror& m) {
+        return m.workflow && m.workflow->revision >= outcome.revision;
+      },
+      std::chrono::seconds(5));
+  return outcome;
+}
+
 int Server::notYetKnown() const {
   std::string missing;
   for (const auto& m : client.missingState())

@@ -52,6 +52,14 @@ struct Server {
 
   // Sends a command and prints its reply; the exit code.
   int send(const std::string& command, const protocol::CommandArgs& args = {}) const;
+  // Sends a command that starts a background job (load_volume, auto_fiducials, load_confirmation)
+  // and waits up to `wait_s` for the job's outcome (JobOutcome, named by the reply's job), then
+  // for the state up to the step that took it. The reply is printed when refused, and always
+  // without --json; nullopt when refused.
+  std::optional<protocol::JobOutcome> sendAndAwaitJob(const std::string& command,
+                                                      const protocol::CommandArgs& args,
+                                                      double wait_s,
+                                                      protocol::Reply* reply = nullptr) const;
   // What a view says when the present did not all arrive: never "none" for "not yet heard"
   // (issue 38). Exit 3.
   int notYetKnown() const;

@@ -35,26 +35,44 @@ void onAlias(CLI::App* sub, Action& chosen, const std::string& group, const std:
   });
 }
 
-// Accepted when the detection starts (issue 22); waits for the job's outcome (JobOutcome, named
-// by the reply's job), then for the RegistrationState it left.
+// Accepted when the load starts; waits for the CT load's outcome, then shows what was loaded (or
+// why not).
+int loadCt(Server& s, const AliasCall& call, double wait_s) {
+  protocol::CommandArgs args = call.args;
+  if (args.path == "phantom") args.path = "phantom:";
+  protocol::Reply r;
+  const auto outcome = s.sendAndAwaitJob(call.row.name, args, wait_s, &r);
+  if (!outcome) return kExitRejected;
+  if (s.as_json) {
+    std::cout << json{{"accepted", true},
+                      {"message", r.message},
+                      {"request_id", r.request_id},
+                      {"revision", r.revision},
+                      {"outcome", *outcome}}
+                     .dump()
+              << "\n";
+  } else {
+    std::cout << "CT " << (outcome->status == "done" ? "loaded" : outcome->status) << ": "
+              << outcome->message << "\n";
+  }
+  return outcome->status == "done" ? 0 : kExitRejected;
+}
+
+// Accepted when the detection starts (issue 22); waits for the job's outcome, then shows the
+// RegistrationState it left.
 int detectFiducials(Server& s, const AliasCall& call, double wait_s) {
-  const auto r = s.client.send(call.row.name, call.args);
-  if (!r.accepted || !s.as_json) printReply(r, s.as_json);
-  if (!r.accepted) return kExitRejected;
-  const auto outcome =
-      s.client.waitForJobOutcome(r.job, std::chrono::seconds(static_cast<long>(wait_s)));
-  s.client.waitUntil(
-      [&](const protocol::StateMirror& m) {
-        return m.registration && m.workflow && m.workflow->revision >= outcome.revision;
-      },
-      std::chrono::seconds(5));
+  protocol::Reply r;
+  const auto outcome = s.sendAndAwaitJob(call.row.name, call.args, wait_s, &r);
+  if (!outcome) return kExitRejected;
+  s.client.waitUntil([](const protocol::StateMirror& m) { return m.registration.has_value(); },
+                     std::chrono::seconds(5));
   const protocol::RegistrationState& reg = *s.client.mirror().registration;
   // A failed detection leaves a registration from before in use: the outcome says it failed.
-  const bool registered = outcome.status == "done";
+  const bool registered = outcome->status == "done";
   if (s.as_json) {
     std::cout << json{{"accepted", true},           {"message", r.message},
                       {"request_id", r.request_id}, {"revision", r.revision},
-                      {"registered", registered},   {"outcome", outcome},
+                      {"registered", registered},   {"outcome", *outcome},
                       {"registration", reg}}
                      .dump()
               << "\n";
@@ -79,12 +97,13 @@ int listTargets(Server& s) {
 }  // namespace
 
 void addAliasCommands(CLI::App& app, Action& chosen) {
-  auto* load = app.add_subcommand("load", "load a CT: a server-side path, or 'phantom'");
-  onAlias(load, chosen, "load", aliasUsage("load"), [](Server& s, const AliasCall& call) {
-    protocol::CommandArgs args = call.args;
-    if (args.path == "phantom") args.path = "phantom:";
-    return s.send(call.row.name, args);
-  });
+  auto* load = app.add_subcommand(
+      "load", "load a CT: a server-side path, or 'phantom'; waits for the load to end");
+  auto load_wait_s = std::make_shared<double>(300.0);
+  load->add_option("--wait-s", *load_wait_s, "how long to wait for the load (default 300)");
+  onAlias(
+      load, chosen, "load", aliasUsage("load"),
+      [load_wait_s](Server& s, const AliasCall& call) { return loadCt(s, call, *load_wait_s); });
 
   auto* fiducials = app.add_subcommand("fiducials", aliasUsage("fiducials") + " (LPS)");
   auto detect_wait_s = std::make_shared<double>(120.0);

@@ -42,22 +42,14 @@ Eigen::Matrix4d sessionRegistration(Server& s, const std::string& path) {
 // Accepted when the measurement starts; waits for the job's outcome (JobOutcome, named by the
 // reply's job), then shows the VerificationState it left.
 int measure(Server& s, const AliasCall& call, double wait_s) {
-  const auto r = s.client.send(call.row.name, call.args);
-  if (!r.accepted) {
-    printReply(r, s.as_json);
-    return kExitRejected;
-  }
-  const auto outcome =
-      s.client.waitForJobOutcome(r.job, std::chrono::seconds(static_cast<long>(wait_s)));
-  s.client.waitUntil(
-      [&](const protocol::StateMirror& m) {
-        return m.verification && m.workflow && m.workflow->revision >= outcome.revision;
-      },
-      std::chrono::seconds(5));
+  const auto outcome = s.sendAndAwaitJob(call.row.name, call.args, wait_s);
+  if (!outcome) return kExitRejected;
+  s.client.waitUntil([](const protocol::StateMirror& m) { return m.verification.has_value(); },
+                     std::chrono::seconds(5));
   showVerification(s);
   // Done but unmatched (the match needs a person) is not measured yet.
   const auto& v = *s.client.mirror().verification;
-  return outcome.status == "done" && v.status == "measured" ? 0 : kExitRejected;
+  return outcome->status == "done" && v.status == "measured" ? 0 : kExitRejected;
 }
 
 // The measurement as the state shows it.

@@ -15,18 +15,35 @@
 namespace ignav::workflow {
 namespace {
 
+std::optional<BackgroundJob> ctLoad(const Session& s) {
+  if (s.volume_status.status != "loading" || !s.robot) return std::nullopt;
+  return BackgroundJob{
+      JobKind::kVolumeLoad, s.ct_revision, s.volume_status.source,
+      [job = s.ct_revision, source = s.volume_status.source, robot = s.robot](
+          const JobContext& context) { return loadCt(job, source, *robot, context); }};
+}
+
+std::string staleLoad(const Session& s, const Input& in) {
+  return fmt::format("CT load #{} ({}) is not the one awaited ({}): ignored", in.job,
+                     in.kind == InputKind::kVolumeLoaded ? in.loaded.source : in.path,
+                     s.volume_status.status == "loading"
+                         ? fmt::format("#{}, {}", s.ct_revision, s.volume_status.source)
+                         : "none is loading");
+}
+
 std::optional<BackgroundJob> markerDetection(const Session& s) {
   auto job = pendingDetection(s);
   if (!job) return std::nullopt;
   return BackgroundJob{JobKind::kMarkerDetection, job->job, job->ct_source,
-                       [job = std::move(*job)] { return detectFiducials(job); }};
+                       [job = std::move(*job)](const JobContext&) { return detectFiducials(job); }};
 }
 
 std::optional<BackgroundJob> confirmationMeasurement(const Session& s) {
   auto job = pendingConfirmation(s);
   if (!job) return std::nullopt;
-  return BackgroundJob{JobKind::kConfirmationMeasurement, job->job, job->source,
-                       [job = std::move(*job)] { return measureConfirmation(job); }};
+  return BackgroundJob{
+      JobKind::kConfirmationMeasurement, job->job, job->source,
+      [job = std::move(*job)](const JobContext&) { return measureConfirmation(job); }};
 }
 
 std::string staleMeasurement(const Session& s, const Input& in) {
@@ -36,6 +53,9 @@ std::string staleMeasurement(const Session& s, const Input& in) {
 
 const std::vector<JobKindSpec> kJobKinds = {
     // kind, name, outcome inputs (succeeded, failed), awaited, pending, stale
+    {JobKind::kVolumeLoad, "CT load", InputKind::kVolumeLoaded, InputKind::kVolumeLoadFailed,
+     [](const Session& s) { return s.volume_status.status == "loading" ? s.ct_revision : 0; },
+     ctLoad, staleLoad},
     {JobKind::kMarkerDetection, "marker detection", InputKind::kFiducialsDetected,
      InputKind::kFiducialDetectionFailed, [](const Session& s) { return s.detecting; },
      markerDetection, detail::staleDetection},

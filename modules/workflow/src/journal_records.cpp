@@ -273,6 +273,12 @@ Expected<ReplayedStep> replayRecord(const Session& session, const std::string& l
   auto entry = parseJournalRecord(line);
   if (!entry) return makeError(ErrorCode::kFormat, where + ": " + entry.error().message);
   Input& in = entry->input;
+  // Journals from before issue 39 name no job on a CT load's outcome: there was one load at a
+  // time, the one the session awaited.
+  if ((in.kind == InputKind::kVolumeLoaded || in.kind == InputKind::kVolumeLoadFailed) &&
+      in.job == 0) {
+    in.job = session.ct_revision;
+  }
   if (in.kind == InputKind::kVolumeLoaded) {
     auto ct = load_ct(in.loaded.source);
     if (!ct) {

@@ -30,9 +30,13 @@ Refusal startVolumeLoad(Session& s, const Input& in, ActionOutput& out) {
   s.registration.reset();
   s.registration_status = {};
   s.detecting = 0;  // a detection on the CT before is ignored when it ends
-  e.load_volume = in.path;
+  e.start_jobs.push_back(JobKind::kVolumeLoad);  // its outcome names this step's revision
   e.volume_changed = e.registration_changed = true;
   evaluateAll(s, e);
+  out.note = fmt::format(
+      "CT load #{} started ({}): VolumeState shows loading with the files read, then loaded or "
+      "failed",
+      s.ct_revision, in.path);
   return std::nullopt;
 }
 

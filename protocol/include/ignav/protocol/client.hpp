@@ -153,6 +153,9 @@ class Client {
   // with why. Throws Timeout. Outcomes of other jobs that arrive meanwhile are kept for their own
   // wait (the last 64).
   JobOutcome waitForJobOutcome(std::uint64_t job, std::chrono::milliseconds timeout);
+  // The outcomes that arrived since last time, whichever job they name (a gateway passes them on);
+  // they are kept for waitForJobOutcome too.
+  std::vector<JobOutcome> takeJobOutcomes();
   std::vector<std::string> missingState() const;  // the topics (and targets) not yet heard
   const nlohmann::json& state() const { return state_; }
   const StateMirror& mirror() const { return mirror_; }

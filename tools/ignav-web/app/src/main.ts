@@ -91,6 +91,9 @@ const socket = new GatewaySocket(`${location.protocol === "https:" ? "wss" : "ws
     if (back) for (const view of views) view.refresh(true);
     scheduleRender();
   },
+  jobOutcome(outcome) {
+    panels.jobOutcome(outcome);
+  },
   status(status) {
     socketStatus = status;
     if (!status.open) serverConnected = null; // unknown until the gateway says again

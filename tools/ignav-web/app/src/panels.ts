@@ -12,6 +12,7 @@ import type {
   Answer,
   ApprovalState,
   HelloMessage,
+  JobOutcomeMessage,
   MotionState,
   RegistrationState,
   MeasuredTargetState,
@@ -21,7 +22,7 @@ import type {
   VolumeState,
   WorkflowState,
 } from "./state";
-import { targetDisplay } from "./status";
+import { jobOutcomeText, jobStartedText, replyText, targetDisplay } from "./status";
 import { extremes, fixed, meanSd, measuredByTarget, registrationText, withSe } from "./verification";
 
 export interface PanelActions {
@@ -459,25 +460,34 @@ export class Panels {
 
   // The answer to what this viewer just asked, at once: "accepted" or the server's reason.
   reply(what: string, answer: Answer): void {
-    let text: string;
-    let ok = false;
-    if (answer.type === "reply") {
-      ok = answer.accepted;
-      // auto_fiducials is accepted when the marker detection starts; its outcome shows in the
-      // registration panel (status detecting, then registered or rejected), the reply says so.
-      const background = answer.accepted && what === "auto_fiducials" ? `: ${answer.message}` : "";
-      text = answer.accepted
-        ? `${what}: accepted${answer.target_id ? ` (target ${answer.target_id})` : ""}${background}`
-        : `${what}: rejected: ${answer.error_code}: ${answer.message}`;
-    } else if (answer.type === "error") {
-      text = `${what}: failed: ${answer.code}: ${answer.message}`;
-    } else {
-      text = `${what}: unexpected answer ${answer.type}`;
+    // A command that starts background work (load_volume, auto_fiducials, load_confirmation) is
+    // accepted when the work starts; its job's outcome follows on the job line (jobOutcome).
+    if (answer.type === "reply" && answer.accepted && answer.job > 0) {
+      this.showJob(jobStartedText(what, answer.job), "", answer.job);
     }
+    const text = replyText(what, answer);
+    const ok = answer.type === "reply" && answer.accepted;
     const line = byId("last-reply");
     line.textContent = text;
     line.title = text;
     line.className = ok ? "ok" : "bad";
     line.dataset.count = String(++this.replies);
+  }
+
+  // A background job ended. Every page hears every outcome; this page shows the one its own last
+  // command started (other pages' work shows in the state panels as it always did).
+  jobOutcome(outcome: JobOutcomeMessage): void {
+    const line = byId("last-job");
+    if (line.dataset.job !== String(outcome.job)) return;
+    this.showJob(jobOutcomeText(outcome), outcome.status === "done" ? "ok" : "bad");
+  }
+
+  private showJob(text: string, className: string, job?: number): void {
+    const line = byId("last-job");
+    line.hidden = false;
+    line.textContent = text;
+    line.title = text;
+    line.className = className;
+    if (job !== undefined) line.dataset.job = String(job);
   }
 }

@@ -4,7 +4,7 @@
 // again within about a quarter of a second. A refused connection costs next to nothing; one to an
 // unreachable host takes the browser's own connect timeout before it fails, which paces the
 // attempts by itself.
-import type { Answer, GatewayMessage, HelloMessage, Request, ServerState } from "./state";
+import type { Answer, GatewayMessage, HelloMessage, JobOutcomeMessage, Request, ServerState } from "./state";
 
 const kFirstRetryMs = 100;
 const kLongestRetryMs = 250;
@@ -18,6 +18,7 @@ export interface SocketEvents {
   state(topics: ServerState): void; // the named topics, each whole
   serverConnection(connected: boolean): void;
   status(status: SocketStatus): void;
+  jobOutcome(outcome: JobOutcomeMessage): void;
 }
 
 export class GatewaySocket {
@@ -95,6 +96,9 @@ export class GatewaySocket {
         return;
       case "connection":
         this.events.serverConnection(message.server);
+        return;
+      case "job_outcome":
+        this.events.jobOutcome(message);
         return;
       case "reply":
       case "slice":

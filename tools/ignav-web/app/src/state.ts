@@ -255,6 +255,19 @@ export interface ReplyMessage {
   message: string;
   target_id: number;
   revision: number;
+  job: number; // the background job the command started (its JobOutcomeMessage), 0: none
+}
+
+// What became of a background job (a CT load, a marker detection, a confirmation measurement):
+// every page hears it; the page whose reply named the job shows it.
+export interface JobOutcomeMessage {
+  type: "job_outcome";
+  job: number;
+  kind: string; // "CT load", "marker detection", ...
+  input: string; // the outcome input: "volume_loaded", ...
+  status: "done" | "failed" | "stale";
+  message: string;
+  revision: number;
 }
 
 export interface SliceMessage {
@@ -280,6 +293,7 @@ export type GatewayMessage =
   | ConnectionMessage
   | StateMessage
   | ReplyMessage
+  | JobOutcomeMessage
   | SliceMessage
   | ErrorMessage;
 

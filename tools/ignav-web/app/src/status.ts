@@ -1,6 +1,6 @@
 // How a target is shown: one status, one colour, derived from the target and the workflow, the
 // approval and the motion around it. Pure, so the rule reads in one place.
-import type { ApprovalState, MotionState, TargetState } from "./state";
+import type { Answer, ApprovalState, JobOutcomeMessage, MotionState, TargetState } from "./state";
 
 export type DisplayStatus =
   | "outside_volume" // outside the loaded CT: never imaged, so lock_plan refuses it
@@ -83,4 +83,27 @@ function displayStatus(
   if (approval?.status === "pending" && approval.target_id === target.id) return "awaiting_approval";
   if (target.status === "reached") return "reached";
   return isPlanLocked(phase) ? "planned" : "reachable";
+}
+
+// The reply line: "accepted" (with the new target's id, or what a background job started says) or
+// the server's reason.
+export function replyText(what: string, answer: Answer): string {
+  if (answer.type === "reply") {
+    if (!answer.accepted) return `${what}: rejected: ${answer.error_code}: ${answer.message}`;
+    const target = answer.target_id ? ` (target ${answer.target_id})` : "";
+    return `${what}: accepted${target}${answer.job > 0 ? `: ${answer.message}` : ""}`;
+  }
+  if (answer.type === "error") return `${what}: failed: ${answer.code}: ${answer.message}`;
+  return `${what}: unexpected answer ${answer.type}`;
+}
+
+// The job line: the background job a command of this page started, then what became of it (the
+// server's JobOutcome: done, failed with why, or stale: no longer awaited, it changed nothing).
+export function jobStartedText(command: string, job: number): string {
+  return `${command}: job #${job} running…`;
+}
+
+export function jobOutcomeText(outcome: JobOutcomeMessage): string {
+  const verdict = outcome.status === "stale" ? "stale (changed nothing)" : outcome.status;
+  return `${outcome.kind} #${outcome.job}: ${verdict}${outcome.message ? `: ${outcome.message}` : ""}`;
 }

@@ -9,18 +9,15 @@
 import {
   type CanvasScale,
   type SliceFrame,
-  add,
   cssFromPixel,
   formatLps,
   pixelFromCss,
   pixelToLps,
   project,
-  scale,
   sliceFrame,
-  sub,
-  norm,
 } from "./geometry";
 import type { Answer, SliceRequest, Vec3, ViewName } from "./state";
+import { drawMarker, drawPath, drawSeeds } from "./overlay_drawing";
 import type { SeedMarker } from "./verification";
 
 export const kSizePx = 512;
@@ -98,9 +95,6 @@ const kRetryLater = new Set(["disconnected", "no_server"]);
 // Slices a view keeps (decoded, about 1 MB each): the last few shown and the one fetched ahead.
 const kKeptSlices = 6;
 
-const kMarkerRadiusPx = 7;
-export const kSeedColour = "#ff1744"; // a matched seed: red, as in the targeting figure
-export const kExtraSeedColour = "#ff9100"; // a seed matched to no target
 const kHitRadiusCss = 10; // how near a press must be to a marker to grab it
 const kDragThresholdCss = 3; // a press that moves less is a click
 
@@ -301,131 +295,17 @@ export class SliceView {
       }
     }
 
-    for (const target of overlay.targets) this.drawPath(frame, target.path_lps, target.colour, tolerance);
+    for (const target of overlay.targets) drawPath(ctx, frame, target.path_lps, target.colour, tolerance);
 
-    overlay.fiducials.forEach((p, i) => this.marker(at(p), near(p), "#ffeb3b", `F${i + 1}`, "square"));
-    overlay.pending_fiducials.forEach((p, i) => this.marker(at(p), near(p), "#ffeb3b", `F${i + 1}?`, "ring"));
+    overlay.fiducials.forEach((p, i) => drawMarker(ctx, at(p), near(p), "#ffeb3b", `F${i + 1}`, "square"));
+    overlay.pending_fiducials.forEach((p, i) => drawMarker(ctx, at(p), near(p), "#ffeb3b", `F${i + 1}?`, "ring"));
     for (const target of overlay.targets) {
       const dragged = this.drag?.id === target.id && this.drag.moved;
       const position: readonly [number, number] = dragged && this.drag ? [this.drag.u, this.drag.v] : at(target.lps);
-      this.marker(position, dragged || near(target.lps), target.colour, `T${target.id}`, "disc");
+      drawMarker(ctx, position, dragged || near(target.lps), target.colour, `T${target.id}`, "disc");
     }
-    if (overlay.tip_lps) this.marker(at(overlay.tip_lps), near(overlay.tip_lps), "#ffffff", "tip", "cross");
-    this.drawSeeds(overlay.seeds, at, near);
-  }
-
-  // The seeds last: what was measured lies over what was planned. A thin line from each target to
-  // its seed (solid when both are on the plane), and the seed's cross. For tests and tools, the
-  // canvas says where each seed was drawn (PNG pixels).
-  private drawSeeds(
-    seeds: SeedMarker[],
-    at: (p: Vec3) => readonly [number, number],
-    near: (p: Vec3) => boolean,
-  ): void {
-    const ctx = this.ctx;
-    const drawn: { seed_id: number; target_id: number; u: number; v: number; on_plane: boolean }[] = [];
-    for (const seed of seeds) {
-      const colour = seed.target_id ? kSeedColour : kExtraSeedColour;
-      const [u, v] = at(seed.lps);
-      const onPlane = near(seed.lps);
-      if (seed.planned_lps) {
-        const [pu, pv] = at(seed.planned_lps);
-        ctx.strokeStyle = colour;
-        ctx.lineWidth = 1;
-        ctx.globalAlpha = onPlane && near(seed.planned_lps) ? 0.9 : 0.35;
-        ctx.setLineDash(onPlane ? [] : [3, 3]);
-        ctx.beginPath();
-        ctx.moveTo(pu, pv);
-        ctx.lineTo(u, v);
-        ctx.stroke();
-        ctx.globalAlpha = 1;
-        ctx.setLineDash([]);
-      }
-      this.marker([u, v], onPlane, colour, seed.target_id ? "" : `S${seed.seed_id}?`, "cross");
-      drawn.push({ seed_id: seed.seed_id, target_id: seed.target_id, u, v, on_plane: onPlane });
-    }
-    this.canvas.dataset.seeds = JSON.stringify(drawn);
-  }
-
-  // A polyline, solid where it runs within the tolerance of the plane and dashed and faint
-  // elsewhere, in pieces of about one tolerance so that a crossing shows where it crosses.
-  private drawPath(frame: SliceFrame, path: Vec3[], colour: string, tolerance: number): void {
-    const ctx = this.ctx;
-    ctx.strokeStyle = colour;
-    ctx.lineWidth = 2;
-    for (let i = 1; i < path.length; ++i) {
-      const a = path[i - 1]!;
-      const b = path[i]!;
-      const step = sub(b, a);
-      const pieces = Math.max(1, Math.ceil(norm(step) / tolerance));
-      for (let k = 0; k < pieces; ++k) {
-        const p = add(a, scale(step, k / pieces));
-        const q = add(a, scale(step, (k + 1) / pieces));
-        const mid = add(p, scale(sub(q, p), 0.5));
-        const onPlane = Math.abs(project(frame, mid).distance_mm) <= tolerance;
-        ctx.globalAlpha = onPlane ? 1 : 0.35;
-        ctx.setLineDash(onPlane ? [] : [4, 4]);
-        const pp = project(frame, p);
-        const qq = project(frame, q);
-        ctx.beginPath();
-        ctx.moveTo(pp.u, pp.v);
-        ctx.lineTo(qq.u, qq.v);
-        ctx.stroke();
-      }
-    }
-    ctx.globalAlpha = 1;
-    ctx.setLineDash([]);
-  }
-
-  private marker(
-    [u, v]: readonly [number, number],
-    onPlane: boolean,
-    colour: string,
-    label: string,
-    shape: "disc" | "ring" | "square" | "cross",
-  ): void {
-    const ctx = this.ctx;
-    const r = onPlane ? kMarkerRadiusPx : kMarkerRadiusPx - 3;
-    ctx.globalAlpha = onPlane ? 1 : 0.35;
-    ctx.setLineDash([]);
-    ctx.lineWidth = 2;
-    ctx.strokeStyle = colour;
-    ctx.fillStyle = colour;
-    ctx.beginPath();
-    switch (shape) {
-      case "disc":
-        ctx.arc(u, v, r, 0, 2 * Math.PI);
-        ctx.fill();
-        ctx.strokeStyle = "#000";
-        ctx.lineWidth = 1;
-        ctx.stroke();
-        break;
-      case "ring":
-        ctx.setLineDash([3, 2]);
-        ctx.arc(u, v, r, 0, 2 * Math.PI);
-        ctx.stroke();
-        break;
-      case "square":
-        ctx.rect(u - r, v - r, 2 * r, 2 * r);
-        ctx.stroke();
-        break;
-      case "cross":
-        ctx.moveTo(u - r, v - r);
-        ctx.lineTo(u + r, v + r);
-        ctx.moveTo(u - r, v + r);
-        ctx.lineTo(u + r, v - r);
-        ctx.stroke();
-        break;
-    }
-    ctx.setLineDash([]);
-    ctx.font = "bold 13px sans-serif";
-    ctx.textAlign = "left";
-    ctx.fillStyle = colour;
-    ctx.strokeStyle = "#000";
-    ctx.lineWidth = 3;
-    ctx.strokeText(label, u + r + 3, v - r);
-    ctx.fillText(label, u + r + 3, v - r);
-    ctx.globalAlpha = 1;
+    if (overlay.tip_lps) drawMarker(ctx, at(overlay.tip_lps), near(overlay.tip_lps), "#ffffff", "tip", "cross");
+    this.canvas.dataset.seeds = JSON.stringify(drawSeeds(ctx, overlay.seeds, at, near));
   }
 
   // ---- input ---------------------------------------------------------------------------

@@ -12,7 +12,9 @@
 // started again (pendingJobs).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <optional>
 #include <string>
@@ -22,8 +24,17 @@
 
 namespace ignav::workflow {
 
-// In the order the job thread prefers them when several are queued.
-enum class JobKind { kMarkerDetection, kConfirmationMeasurement };
+// In the order the job thread prefers them when several are queued (a CT before what is found on
+// it).
+enum class JobKind { kVolumeLoad, kMarkerDetection, kConfirmationMeasurement };
+
+// What the job thread gives every run besides its snapshot: the session folder (for files a job
+// leaves for people, such as the built-in phantom's DICOM series) and where to say how far it is.
+struct JobContext {
+  std::filesystem::path session_dir;
+  // Units done of all (total 0: unknown); clients see it (VolumeState's files read). May be empty.
+  std::function<void(std::size_t done, std::size_t total)> progress;
+};
 
 // One job, ready to run off the event thread: `run` holds an immutable snapshot of what it needs
 // (shared_ptr<const ...>, copies) and touches no session.
@@ -31,7 +42,7 @@ struct BackgroundJob {
   JobKind kind = JobKind::kMarkerDetection;
   std::uint64_t id = 0;  // the revision of the step that asked for it: its outcome names it
   std::string source;    // what it runs on, for the log and a failure's input
-  std::function<Input()> run;
+  std::function<Input(const JobContext&)> run;
 };
 
 struct JobKindSpec {
@@ -56,5 +67,17 @@ const JobKindSpec* jobOfOutcome(InputKind kind);
 std::vector<BackgroundJob> pendingJobs(const Session& session);
 // The outcome of a run that could not finish (it threw): its kind's failure, naming the job.
 Input failedOutcome(const BackgroundJob& job, const std::string& why);
+
+// ---- The runs of the kinds declared since issue 39 (each in a file of its own) ----
+
+// The source that names the built-in phantom (written as a DICOM series into the session folder,
+// then read back like any scan).
+constexpr const char* kPhantomSource = "phantom:";
+
+// load_volume's job (ct_load.cpp): the CT at `source` (a DICOM folder or file, .nrrd/.nhdr,
+// .mha/.mhd, or kPhantomSource, made for `robot`) as volume_loaded naming `job`, or
+// volume_load_failed with why. Replay and crash recovery call it to read a journaled CT again.
+Input loadCt(std::uint64_t job, const std::string& source, const config::Robot& robot,
+             const JobContext& context);
 
 }  // namespace ignav::workflow

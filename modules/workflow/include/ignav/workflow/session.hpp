@@ -381,7 +381,6 @@ struct Effects {
   std::vector<std::uint32_t> targets_changed;
   std::vector<std::uint32_t> targets_removed;
   std::vector<Reply> replies;
-  std::optional<std::string> load_volume;  // path to load, then feed kVolumeLoaded/Failed
   // Background jobs to start, made from the new session (background_jobs.hpp: pending).
   std::vector<JobKind> start_jobs;
   std::optional<JobOutcome> job_outcome;  // this step took a background job's outcome
