@@ -129,7 +129,9 @@ const Reports::Snapshot& Server::snapshot() {
 
 void Server::sendReply(const workflow::Reply& r) {
   if (igtl_ && igtl_->reply(r, session_)) return;
-  replies_.write(toWire(r));
+  // The server's own inputs (a job's outcome, a controller event) have no one to answer: a refused
+  // one is only logged (a stale outcome's clients hear of it on JobOutcome).
+  if (!r.client_id.empty() || r.request_id != 0) replies_.write(toWire(r));
   if (!r.accepted) spdlog::warn("rejected: {}", r.message);
 }
 

@@ -292,8 +292,9 @@ class Capture {
     posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
     ok_ = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ) == 0;
     posix_spawn_file_actions_destroy(&actions);
-    // Capturing once tshark says so.
-    for (int i = 0; ok_ && i < 500 && slurp(log_).find("Capturing on") == std::string::npos; ++i)
+    // Capturing once tshark says so (it starts in ~1 s alone; beside a browser test and builds it
+    // took longer than the 5 s this waited before).
+    for (int i = 0; ok_ && i < 3000 && slurp(log_).find("Capturing on") == std::string::npos; ++i)
       std::this_thread::sleep_for(10ms);
     ok_ = ok_ && slurp(log_).find("Capturing on") != std::string::npos;
   }

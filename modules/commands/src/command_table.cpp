@@ -63,7 +63,7 @@ std::string usageOf(const InputSpec& spec) {
   const Arguments& a = spec.args;
   std::string out;
   auto add = [&](const std::string& word) { out += (out.empty() ? "" : " ") + word; };
-  if (a.path_is) add(a.path_choices ? a.path_choices : "PATH");
+  if (a.path_is) add(a.path_choices ? a.path_choices : a.path_word ? a.path_word : "PATH");
   auto repeated = [&](std::size_t n, const char* one) {
     if (n == kAnyCount) {
       add(std::string(one) + "...");

@@ -79,6 +79,7 @@ constexpr std::size_t kAnyCount = static_cast<std::size_t>(-1);
 struct Arguments {
   const char* path_is = nullptr;       // nullptr: carries no path
   const char* path_choices = nullptr;  // "robot|targeting": the path is one of these
+  const char* path_word = nullptr;     // how a person's usage names it ("NAME"); nullptr: PATH
   // The path names a file or folder on the server: one that does not exist is refused before
   // the command is acknowledged (the reducer does no I/O).
   bool path_is_server_file = false;
@@ -93,6 +94,11 @@ struct Arguments {
     Arguments a = *this;
     a.path_is = is;
     a.path_choices = choices;
+    return a;
+  }
+  constexpr Arguments name(const char* is) const {  // a name, not a file, in Command.path
+    Arguments a = path(is);
+    a.path_word = "NAME";
     return a;
   }
   constexpr Arguments serverFile(const char* is) const {
@@ -267,11 +273,11 @@ inline constexpr InputSpec kInputRows[] = {
      kNone.withIds(1, "a seed (VerificationState.seeds)"),
      "this is no seed of the plan (a calcification, a seed from before): matched again without it"},
     {I::kFitTissue, "fit_tissue", 25, R::kPlanner, kCommand,
-     kNone.path("the new tissue profile's name (letters, digits, _ or -)"),
+     kNone.name("the new tissue profile's name (letters, digits, _ or -)"),
      "fit the extended bicycle model's λ1, λ2 to the measured errors (seed 000); the profile is "
      "usable by use_tissue, and written to the session folder as a configs/tissues.yaml entry"},
     {I::kUseTissue, "use_tissue", 26, R::kPlanner, kCommand,
-     kNone.path("a tissue profile: the configured one or one fitted in this session; none: aim "
+     kNone.name("a tissue profile: the configured one or one fitted in this session; none: aim "
                 "without compensation"),
      "aim every target so that the tip, deflected as this tissue's model predicts, lands on it "
      "(compensated joints; the approval request shows nominal and compensated)"},
