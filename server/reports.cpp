@@ -232,7 +232,10 @@ void Reports::writeVerification(const Session& session) const {
       spdlog::error("reports: the targeting figure: {}", png.error().message);
     }
   }
-  if (!session.fitted_tissues.empty()) {
+  if (session.fitted_tissues.empty()) {
+    std::error_code ec;  // the last fit was discarded (discard_tissue): nothing to offer
+    std::filesystem::remove(session_dir_ / "tissues_fitted.yaml", ec);
+  } else {
     const auto& needle = session.fitted_tissues.front().profile.needle;
     std::string yaml = fmt::format(
         "# Tissues fitted from the measured targeting errors of session {} (fit_tissue).\n"

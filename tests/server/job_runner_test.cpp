@@ -86,12 +86,19 @@ class Outcomes {
   std::size_t wakes_ = 0;
 };
 
+// A runner whose outcomes are collected as the event thread would.
+struct Rig {
+  JobRunner* runner_ptr = nullptr;
+  Outcomes outcomes{runner_ptr};
+  JobRunner runner{[this] { outcomes.wake(); }, "/sessions/s1"};
+  Rig() { runner_ptr = &runner; }
+};
+
 TEST(JobRunner, ANewerJobReplacesAQueuedOneOfItsKindAndEarlierKindsGoFirst) {
   Gate gate;
-  JobRunner* runner_ptr = nullptr;
-  Outcomes outcomes(runner_ptr);
-  JobRunner runner([&] { outcomes.wake(); }, "/sessions/s1");
-  runner_ptr = &runner;
+  Rig rig;
+  auto& runner = rig.runner;
+  auto& outcomes = rig.outcomes;
 
   runner.start(job(JobKind::kConfirmationMeasurement, 1, gate));
   gate.waitUntilRunning(1);  // #1 runs; the rest queue behind it
@@ -112,10 +119,9 @@ TEST(JobRunner, ANewerJobReplacesAQueuedOneOfItsKindAndEarlierKindsGoFirst) {
 TEST(JobRunner, ARunThatThrowsBecomesItsKindsFailureAndTheThreadGoesOn) {
   Gate gate;
   gate.open();
-  JobRunner* runner_ptr = nullptr;
-  Outcomes outcomes(runner_ptr);
-  JobRunner runner([&] { outcomes.wake(); }, "/sessions/s1");
-  runner_ptr = &runner;
+  Rig rig;
+  auto& runner = rig.runner;
+  auto& outcomes = rig.outcomes;
   runner.start(BackgroundJob{
       JobKind::kMarkerDetection, 7, "/scans/huge",
       [](const workflow::JobContext&) -> Input { throw std::runtime_error("std::bad_alloc"); }});
@@ -135,10 +141,9 @@ TEST(JobRunner, ARunThatThrowsBecomesItsKindsFailureAndTheThreadGoesOn) {
 // the run finds the session folder there.
 TEST(JobRunner, ARunsProgressIsReadForItsKindWhileItRuns) {
   Gate gate;
-  JobRunner* runner_ptr = nullptr;
-  Outcomes outcomes(runner_ptr);
-  JobRunner runner([&] { outcomes.wake(); }, "/sessions/s1");
-  runner_ptr = &runner;
+  Rig rig;
+  auto& runner = rig.runner;
+  auto& outcomes = rig.outcomes;
   std::string folder_seen;
   runner.start(
       BackgroundJob{JobKind::kVolumeLoad, 5, "/scans/ct", [&](const workflow::JobContext& context) {

@@ -356,5 +356,68 @@ TEST(ClosedLoop, TheFittedTissueIsTheHiddenOneAndAimingWithItLandsOnTheTargets) 
   EXPECT_EQ(again->pending->digest, b.s.pending->digest);
 }
 
+// A fit judged wrong is forgotten: no longer offered to use_tissue; the aim drops it with the plan
+// open, and a locked plan aiming with it is refused, not changed under its approval.
+TEST(ClosedLoop, ADiscardedFitIsForgottenAndTheAimDropsItOnlyWithThePlanOpen) {
+  const auto told = profile("agar", 0.49, 0.22);
+  Bench b = insertedBench(6, told);
+  std::vector<Eigen::Vector3d> landed;
+  compensation::DeflectionModel hidden{told.needle, {0.30, 0.15}};
+  for (const auto& t : b.s.targets) {
+    landed.push_back(
+        compensation::predictLanding(paperRobot()->kinematics, hidden, t.reached_joints)
+            .value()
+            .tip_mm);
+  }
+  b.feed(scanned(b.s, startMeasuring(b), landed));
+  ASSERT_TRUE(b.send(named(b, InputKind::kFitTissue, "gel_a")).accepted);
+  ASSERT_TRUE(b.send(named(b, InputKind::kFitTissue, "gel_b")).accepted);
+  ASSERT_TRUE(b.send(b.command(InputKind::kUnlockPlan)).accepted);
+  ASSERT_TRUE(b.send(b.command(InputKind::kClearTargets)).accepted);
+  ASSERT_TRUE(b.send(named(b, InputKind::kUseTissue, "gel_a")).accepted);
+  const std::uint32_t id = b.addRobotTarget(kJoints[0]);
+  ASSERT_TRUE(b.target(id).compensated.has_value());
+  ASSERT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+
+  const auto unknown =
+      b.send(named(b, InputKind::kDiscardTissue, "agar"));  // configured, not fitted
+  EXPECT_EQ(unknown.error_code, "unknown_tissue");
+  EXPECT_NE(unknown.message.find("fitted: gel_a, gel_b"), std::string::npos) << unknown.message;
+  const auto locked = b.send(named(b, InputKind::kDiscardTissue, "gel_a"));
+  EXPECT_EQ(locked.error_code, "wrong_phase");
+  EXPECT_NE(locked.message.find("unlock_plan first"), std::string::npos) << locked.message;
+  EXPECT_EQ(b.s.fitted_tissues.size(), 2u);
+  EXPECT_TRUE(b.target(id).compensated.has_value());
+  // Another fit goes while the plan stays locked (its approval request dies with the change).
+  ASSERT_TRUE(b.send(named(b, InputKind::kDiscardTissue, "gel_b")).accepted);
+  ASSERT_EQ(b.s.fitted_tissues.size(), 1u);
+  EXPECT_EQ(b.s.fitted_tissues[0].profile.name, "gel_a");
+  EXPECT_EQ(b.send(named(b, InputKind::kUseTissue, "gel_b")).error_code, "wrong_phase");
+
+  ASSERT_TRUE(b.send(b.command(InputKind::kUnlockPlan)).accepted);
+  EXPECT_EQ(b.send(named(b, InputKind::kUseTissue, "gel_b")).error_code, "unknown_tissue");
+  const auto discarded = b.send(named(b, InputKind::kDiscardTissue, "gel_a"));
+  ASSERT_TRUE(discarded.accepted) << discarded.message;
+  EXPECT_NE(discarded.message.find("aimed as planned"), std::string::npos) << discarded.message;
+  EXPECT_TRUE(b.s.fitted_tissues.empty());
+  EXPECT_FALSE(b.s.aim_tissue.has_value());
+  const auto& t = b.target(id);
+  EXPECT_FALSE(t.compensated.has_value());
+  EXPECT_EQ(t.steps, paperRobot()->transmission.toSteps(t.solution.joints).steps);
+
+  Session replayed = newSession("bench", paperRobot(), "robot.yaml");
+  auto reload = [](const std::string&) -> Expected<LoadedCt> {
+    LoadedCt ct;
+    ct.volume = ignav::test::phantomCtGrid(*paperRobot());
+    ct.source = "phantom:";
+    return ct;
+  };
+  auto again = replayJournal(replayed, b.journal, reload, "journal");
+  ASSERT_TRUE(again) << again.error().message;
+  EXPECT_EQ(again->revision, b.s.revision);
+  EXPECT_TRUE(again->fitted_tissues.empty());
+  EXPECT_FALSE(again->aim_tissue.has_value());
+}
+
 }  // namespace
 }  // namespace ignav::workflow

@@ -36,6 +36,7 @@ constexpr Alias kAliases[] = {
     {"verify reject", "reject_seed"},
     {"verify fit", "fit_tissue"},
     {"verify aim", "use_tissue"},
+    {"verify discard", "discard_tissue"},
 };
 
 const commands::InputSpec& rowOf(const Alias& alias) {

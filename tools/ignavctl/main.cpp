@@ -4,7 +4,7 @@
 //   ignavctl slice --view axial --lps X,Y,Z --out s.png | watch | run script.yaml
 //   ignavctl approval | approve [--yes] [--plan N --digest HEX] | motion | emergency-stop
 //   ignavctl verify [load PATH [same-frame] | place ID X,Y,Z | accept ID | reject SEED | fit NAME
-//                    | aim NAME]
+//                    | aim NAME | discard NAME]
 //   ignavctl replay SESSION [--speed 1|10|max] [--until SEQ]
 //   ignavctl robots (the servers on the domain); --robot ID picks one where several share it
 //   ignavctl doctor (participants, robots, round trips, clock offsets, what looks wrong)

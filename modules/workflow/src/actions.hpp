@@ -110,5 +110,6 @@ Refusal acceptSeed(Session& s, const Input& in, ActionOutput& out);
 Refusal rejectSeed(Session& s, const Input& in, ActionOutput& out);
 Refusal fitTissue(Session& s, const Input& in, ActionOutput& out);
 Refusal useTissue(Session& s, const Input& in, ActionOutput& out);
+Refusal discardTissue(Session& s, const Input& in, ActionOutput& out);
 
 }  // namespace ignav::workflow::detail

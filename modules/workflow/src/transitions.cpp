@@ -181,6 +181,7 @@ std::vector<Transition> buildTable() {
     t.push_back({p, I::kAcceptSeed, always, p, acceptSeed, "a match accepted"});
     t.push_back({p, I::kRejectSeed, always, p, rejectSeed, "no seed"});
     t.push_back({p, I::kFitTissue, always, p, fitTissue, "tissue fitted"});
+    t.push_back({p, I::kDiscardTissue, always, p, discardTissue, "a fit forgotten"});
   }
   for (Phase p : kAllPhases) {
     if (p == P::kStartup) continue;

@@ -436,4 +436,39 @@ Refusal useTissue(Session& s, const Input& in, ActionOutput& out) {
   return std::nullopt;
 }
 
+// A fit judged wrong is forgotten: not offered to use_tissue, not in tissues_fitted.yaml or the
+// report. The aim is the plan's: it drops the profile only with the plan open (evaluated again as
+// planned), and a locked plan that aims with it is refused rather than changed under an approval.
+Refusal discardTissue(Session& s, const Input& in, ActionOutput& out) {
+  auto fitted = std::find_if(s.fitted_tissues.begin(), s.fitted_tissues.end(),
+                             [&](const FittedTissue& f) { return f.profile.name == in.path; });
+  if (fitted == s.fitted_tissues.end()) {
+    std::string names;
+    for (const auto& f : s.fitted_tissues)
+      names += (names.empty() ? "" : ", ") + f.profile.name;
+    return Rejection{ReplyCode::kUnknownTissue,
+                     fmt::format("no tissue '{}' was fitted in this session (fitted: {})",
+                                 in.path.substr(0, 64), names.empty() ? "none" : names)};
+  }
+  // The aim is a copy of the profile chosen; a fitted one shadows a configured one of its name.
+  const bool aimed = s.aim_tissue && s.aim_tissue->name == fitted->profile.name &&
+                     s.aim_tissue->source == fitted->profile.source;
+  if (aimed && s.phase != Phase::kPlanning) {
+    return Rejection{ReplyCode::kWrongPhase,
+                     fmt::format("the locked plan aims with tissue '{}': unlock_plan first (its "
+                                 "targets are then aimed as planned)",
+                                 in.path)};
+  }
+  s.fitted_tissues.erase(fitted);
+  out.effects.tissue_fitted = out.effects.confirmation_changed = true;
+  if (aimed) {
+    s.aim_tissue.reset();
+    evaluateAll(s, out.effects);
+    out.effects.robot_changed = true;  // RobotState names the aim
+  }
+  out.note = fmt::format("tissue '{}' discarded{}", in.path,
+                         aimed ? "; the targets are aimed as planned (no compensation)" : "");
+  return std::nullopt;
+}
+
 }  // namespace ignav::workflow::detail

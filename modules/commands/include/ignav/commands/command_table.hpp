@@ -47,6 +47,7 @@ enum class InputKind {
   kRejectSeed,
   kFitTissue,
   kUseTissue,
+  kDiscardTissue,
   kConfigLoaded,
   kVolumeLoaded,
   kVolumeLoadFailed,
@@ -281,6 +282,11 @@ inline constexpr InputSpec kInputRows[] = {
                 "without compensation"),
      "aim every target so that the tip, deflected as this tissue's model predicts, lands on it "
      "(compensated joints; the approval request shows nominal and compensated)"},
+    {I::kDiscardTissue, "discard_tissue", 27, R::kPlanner, kCommand,
+     kNone.name("a tissue profile fitted in this session"),
+     "forget a fitted tissue (a fit judged wrong): use_tissue no longer offers it and "
+     "tissues_fitted.yaml drops it; the plan's aim, if it is this one, returns to none (with the "
+     "plan open; a locked plan is refused)"},
     {I::kConfigLoaded, "config_loaded", kNoWireKind, R::kApprover, kServer, kNone,
      "the server started with a valid robot config"},
     {I::kVolumeLoaded, "volume_loaded", kNoWireKind, R::kApprover, kServer, kNone,
