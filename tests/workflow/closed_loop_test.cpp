@@ -385,7 +385,7 @@ TEST(ClosedLoop, ADiscardedFitIsForgottenAndTheAimDropsItOnlyWithThePlanOpen) {
   EXPECT_NE(unknown.message.find("fitted: gel_a, gel_b"), std::string::npos) << unknown.message;
   const auto locked = b.send(named(b, InputKind::kDiscardTissue, "gel_a"));
   EXPECT_EQ(locked.error_code, "wrong_phase");
-  EXPECT_NE(locked.message.find("unlock_plan first"), std::string::npos) << locked.message;
+  EXPECT_NE(locked.message.find("is not open (plan_locked)"), std::string::npos) << locked.message;
   EXPECT_EQ(b.s.fitted_tissues.size(), 2u);
   EXPECT_TRUE(b.target(id).compensated.has_value());
   // Another fit goes while the plan stays locked (its approval request dies with the change).

@@ -455,9 +455,10 @@ Refusal discardTissue(Session& s, const Input& in, ActionOutput& out) {
                      s.aim_tissue->source == fitted->profile.source;
   if (aimed && s.phase != Phase::kPlanning) {
     return Rejection{ReplyCode::kWrongPhase,
-                     fmt::format("the locked plan aims with tissue '{}': unlock_plan first (its "
-                                 "targets are then aimed as planned)",
-                                 in.path)};
+                     fmt::format("the plan aims with tissue '{}' and is not open ({}): discard it "
+                                 "in planning (unlock_plan first; its targets are then aimed as "
+                                 "planned)",
+                                 in.path, toString(s.phase))};
   }
   s.fitted_tissues.erase(fitted);
   out.effects.tissue_fitted = out.effects.confirmation_changed = true;
