@@ -76,6 +76,14 @@ Input scanned(const Session& s, std::uint64_t job, const std::vector<Eigen::Vect
 }
 
 // A command whose path is a name (fit_tissue, use_tissue), with a fresh request id.
+// Replay's CT: the phantom's grid, as the bench loaded it.
+Expected<LoadedCt> phantomGridAgain(const std::string&) {
+  LoadedCt ct;
+  ct.volume = ignav::test::phantomCtGrid(*paperRobot());
+  ct.source = "phantom:";
+  return ct;
+}
+
 Input named(Bench& b, InputKind kind, const std::string& name) {
   Input in = b.command(kind);
   in.path = name;
@@ -341,13 +349,7 @@ TEST(ClosedLoop, TheFittedTissueIsTheHiddenOneAndAimingWithItLandsOnTheTargets) 
 
   // The journal holds all of it: replayed, the same session.
   Session replayed = newSession("bench", paperRobot(), "robot.yaml");
-  auto reload = [](const std::string&) -> Expected<LoadedCt> {
-    LoadedCt ct;
-    ct.volume = ignav::test::phantomCtGrid(*paperRobot());
-    ct.source = "phantom:";
-    return ct;
-  };
-  auto again = replayJournal(replayed, b.journal, reload, "journal");
+  auto again = replayJournal(replayed, b.journal, phantomGridAgain, "journal");
   ASSERT_TRUE(again) << again.error().message;
   EXPECT_EQ(again->revision, b.s.revision);
   ASSERT_EQ(again->fitted_tissues.size(), 2u);
@@ -406,13 +408,7 @@ TEST(ClosedLoop, ADiscardedFitIsForgottenAndTheAimDropsItOnlyWithThePlanOpen) {
   EXPECT_EQ(t.steps, paperRobot()->transmission.toSteps(t.solution.joints).steps);
 
   Session replayed = newSession("bench", paperRobot(), "robot.yaml");
-  auto reload = [](const std::string&) -> Expected<LoadedCt> {
-    LoadedCt ct;
-    ct.volume = ignav::test::phantomCtGrid(*paperRobot());
-    ct.source = "phantom:";
-    return ct;
-  };
-  auto again = replayJournal(replayed, b.journal, reload, "journal");
+  auto again = replayJournal(replayed, b.journal, phantomGridAgain, "journal");
   ASSERT_TRUE(again) << again.error().message;
   EXPECT_EQ(again->revision, b.s.revision);
   EXPECT_TRUE(again->fitted_tissues.empty());
