@@ -76,6 +76,18 @@ Input scanned(const Session& s, std::uint64_t job, const std::vector<Eigen::Vect
 }
 
 // A command whose path is a name (fit_tissue, use_tissue), with a fresh request id.
+// Where each reached target's seed lands in a tissue the server does not know.
+std::vector<Eigen::Vector3d> landedIn(const Bench& b, const compensation::DeflectionModel& tissue) {
+  std::vector<Eigen::Vector3d> landed;
+  for (const auto& t : b.s.targets) {
+    landed.push_back(
+        compensation::predictLanding(paperRobot()->kinematics, tissue, t.reached_joints)
+            .value()
+            .tip_mm);
+  }
+  return landed;
+}
+
 // Replay's CT: the phantom's grid, as the bench loaded it.
 Expected<LoadedCt> phantomGridAgain(const std::string&) {
   LoadedCt ct;
@@ -288,14 +300,7 @@ TEST(ClosedLoop, TheFittedTissueIsTheHiddenOneAndAimingWithItLandsOnTheTargets) 
   compensation::DeflectionModel hidden;
   hidden.needle = told.needle;
   hidden.tissue = {0.30, 0.15};
-  std::vector<Eigen::Vector3d> landed;
-  for (const auto& t : b.s.targets) {
-    landed.push_back(
-        compensation::predictLanding(paperRobot()->kinematics, hidden, t.reached_joints)
-            .value()
-            .tip_mm);
-  }
-  b.feed(scanned(b.s, startMeasuring(b), landed));
+  b.feed(scanned(b.s, startMeasuring(b), landedIn(b, hidden)));
   ASSERT_EQ(b.s.confirmation.status, "measured") << b.s.confirmation.message;
   // What the told tissue had predicted is on every row.
   for (const auto& m : b.s.confirmation.targets)
@@ -363,15 +368,8 @@ TEST(ClosedLoop, TheFittedTissueIsTheHiddenOneAndAimingWithItLandsOnTheTargets) 
 TEST(ClosedLoop, ADiscardedFitIsForgottenAndTheAimDropsItOnlyWithThePlanOpen) {
   const auto told = profile("agar", 0.49, 0.22);
   Bench b = insertedBench(6, told);
-  std::vector<Eigen::Vector3d> landed;
-  compensation::DeflectionModel hidden{told.needle, {0.30, 0.15}};
-  for (const auto& t : b.s.targets) {
-    landed.push_back(
-        compensation::predictLanding(paperRobot()->kinematics, hidden, t.reached_joints)
-            .value()
-            .tip_mm);
-  }
-  b.feed(scanned(b.s, startMeasuring(b), landed));
+  const compensation::DeflectionModel hidden{told.needle, {0.30, 0.15}};
+  b.feed(scanned(b.s, startMeasuring(b), landedIn(b, hidden)));
   ASSERT_TRUE(b.send(named(b, InputKind::kFitTissue, "gel_a")).accepted);
   ASSERT_TRUE(b.send(named(b, InputKind::kFitTissue, "gel_b")).accepted);
   ASSERT_TRUE(b.send(b.command(InputKind::kUnlockPlan)).accepted);

@@ -85,13 +85,11 @@ inline Eigen::Vector3d lpsOf(const json& state, const Eigen::Vector3d& robot_mm)
 
 // Loads the built-in phantom and registers on its markers, each awaited by its job's outcome.
 inline bool registered(Client& c) {
-  for (const auto& [command, timeout] :
-       {std::pair<const char*, std::chrono::seconds>{"load_volume", 120s},
-        {"auto_fiducials", 30s}}) {
-    const auto r =
-        c.send(command, {command == std::string("load_volume") ? "phantom:" : "", {}, {}});
-    if (!r.accepted || c.waitForJobOutcome(r.job, timeout).status != "done") return false;
-  }
+  const auto done = [&](const ignav::protocol::Reply& r, std::chrono::seconds timeout) {
+    return r.accepted && c.waitForJobOutcome(r.job, timeout).status == "done";
+  };
+  if (!done(c.send("load_volume", {"phantom:", {}, {}}), 120s)) return false;
+  if (!done(c.send("auto_fiducials"), 30s)) return false;
   // The state that follows the outcomes (the registration's matrix) before it is read.
   c.waitFor(
       [](const json& s) {
