@@ -208,7 +208,7 @@ void Reports::writeVerification(const Session& session) const {
       std::string label = "seed " + std::to_string(seed.id);
       std::string description = seed.placed ? "placed by hand" : "detected";
       for (const auto& t : c.targets) {
-        if (t.seed_id != seed.id) continue;
+        if (t.seed_id != seed.id || c.rows_source != c.source) continue;
         label = "T" + std::to_string(t.error.target_id);
         description +=
             fmt::format("; {:.2f} mm from target {}", t.error.error_mm, t.error.target_id);
@@ -222,7 +222,8 @@ void Reports::writeVerification(const Session& session) const {
     for (const auto& t : c.targets)
       errors.push_back(t.error);
     verification::FigureOptions options;
-    options.title = "session " + session.session_id + ": " + c.source;
+    options.title =
+        "session " + session.session_id + ": " + (c.rows_source.empty() ? c.source : c.rows_source);
     const auto png = verification::targetingFigurePng(
         errors, c.summary.value_or(verification::ErrorSummary{}),
         verification::feasibleVolume(session.robot->kinematics), options);

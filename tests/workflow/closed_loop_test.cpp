@@ -259,6 +259,36 @@ TEST(ClosedLoop, MoreSeedsThanTargetsNeedAPersonWhoRejectsTheExtra) {
   EXPECT_LT((b.s.confirmation.targets[0].error.error_robot_mm - kOffsets[0]).norm(), 1e-9);
 }
 
+TEST(ClosedLoop, AScanWhoseMatchNeedsAPersonKeepsTheRowsMeasuredBefore) {
+  // Issue 40: a second scan whose seeds cannot be matched alone (a stray seed: more seeds than
+  // targets) cleared the first scan's rows (8 → 0). They stay, named as the first scan's, until
+  // a person settles the second; then the second's rows replace them. Replay derives the same.
+  Bench b = insertedBench(4);
+  b.feed(scanned(b.s, startMeasuring(b), plannedPlus(b.s, kOffsets)));
+  ASSERT_EQ(b.s.confirmation.status, "measured");
+  const auto first = b.s.confirmation.targets;
+  ASSERT_EQ(first.size(), 4u);
+  auto seeds = plannedPlus(b.s, {kOffsets[1], kOffsets[2], kOffsets[3], kOffsets[0]});
+  seeds.push_back(b.s.targets[0].robot_mm + Eigen::Vector3d(0.0, 0.0, 8.0));  // a stray seed
+  Input second = scanned(b.s, startMeasuring(b), seeds);
+  second.path = "/scans/second";
+  b.feed(second);
+  const Confirmation& c = b.s.confirmation;
+  ASSERT_EQ(c.status, "unmatched") << c.message;
+  EXPECT_EQ(c.source, "/scans/second");
+  EXPECT_EQ(c.rows_source, "/scans/confirmation");
+  ASSERT_EQ(c.targets.size(), first.size());
+  for (std::size_t i = 0; i < first.size(); ++i)
+    EXPECT_EQ(c.targets[i].error.error_robot_mm, first[i].error.error_robot_mm) << i;
+  EXPECT_NE(c.message.find("the errors measured on /scans/confirmation stay"), std::string::npos)
+      << c.message;
+  // Settled: the second scan's own rows.
+  ASSERT_TRUE(b.send(b.command(InputKind::kRejectSeed, {}, {5})).accepted);
+  ASSERT_EQ(c.status, "measured") << c.message;
+  EXPECT_EQ(c.rows_source, "/scans/second");
+  EXPECT_LT((c.targets[0].error.error_robot_mm - kOffsets[1]).norm(), 1e-9);
+}
+
 TEST(ClosedLoop, APlacedSeedWinsOverTheDetectionAndAMissingOneIsReported) {
   Bench b = insertedBench(3);
   // Target 3's seed was not found; target 2's was found 1 mm from where it truly is.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <optional>
@@ -13,6 +14,7 @@
 #include "ignav/compensation/compensation.hpp"
 #include "ignav/config/robot_config.hpp"
 #include "ignav/config/tissue_profiles.hpp"
+#include "ignav/needle_world/rod_world.hpp"
 #include "ignav/registration/robot_phantom.hpp"
 #include "ignav/volume/phantom.hpp"
 #include "session_commands.hpp"
@@ -60,14 +62,37 @@ std::string defaultTruthPath(const std::string& out_dir) {
 struct Landed {
   Eigen::Vector3d tip_mm;
   Eigen::Vector3d direction;  // the stylet's tangent at the tip, unit, into the body
+  Eigen::Vector3d seed_mm;    // where a seed is left (the tip, except where tissue drags)
+  // The rod world's needle as it lies (cannula from the skin, then stylet); empty otherwise.
+  std::vector<Eigen::Vector3d> cannula_mm, stylet_mm;
 };
 
-// Where the needle ends for these joints, in the robot frame: deflected by the hidden tissue, or
-// the nominal forward kinematics without one. Its direction there is the way the tip goes when
-// the stylet is pushed on a little (the same model, so the same deflection).
+// An insertion's number in the rod world: the target and the joints (a second pass with other
+// joints is another insertion, with its own luck).
+std::uint64_t insertionOf(std::uint32_t id, const kinematics::Joints& j) {
+  std::uint64_t h = id;
+  for (double v : {j.theta_c_rad, j.z_c_mm, j.z_s_mm}) {
+    std::uint64_t bits = 0;
+    std::memcpy(&bits, &v, sizeof bits);
+    h = (h ^ bits) * 0x100000001B3ull;
+  }
+  return h;
+}
+
+// Where the needle ends for these joints, in the robot frame: in the rod world, deflected by the
+// hidden tissue, or the nominal forward kinematics without either. In the bicycle world its
+// direction there is the way the tip goes when the stylet is pushed on a little (the same model,
+// so the same deflection).
 Landed land(const kinematics::Kinematics& kinematics,
             const std::optional<compensation::DeflectionModel>& hidden,
-            const kinematics::Joints& joints, std::uint32_t id) {
+            const std::optional<needle_world::RodWorld>& world, const kinematics::Joints& joints,
+            std::uint32_t id) {
+  if (world) {
+    auto needle = needle_world::insertNeedle(*world, kinematics, joints, insertionOf(id, joints));
+    if (!needle) throw CliError{fmt::format("target {}: {}", id, needle.error().message)};
+    return {needle->tip_mm, needle->direction, needle->seed_mm, needle->cannula_mm,
+            needle->stylet_mm};
+  }
   auto tip = [&](const kinematics::Joints& j) -> Eigen::Vector3d {
     if (!hidden) return kinematics.forward(j).tip_mm;
     auto landing = compensation::predictLanding(kinematics, *hidden, j);
@@ -81,6 +106,7 @@ Landed land(const kinematics::Kinematics& kinematics,
   const Eigen::Vector3d step = tip(further) - out.tip_mm;
   out.direction =
       step.norm() > 1e-9 ? step.normalized() : Eigen::Vector3d(-Eigen::Vector3d::UnitZ());
+  out.seed_mm = out.tip_mm;
   return out;
 }
 
@@ -108,6 +134,13 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
                    {"curvature_per_mm", profile->needle.curvature_per_mm},
                    {"wheelbase_mm", profile->needle.wheelbase_mm},
                    {"source", profile->source}};
+  }
+  std::optional<needle_world::RodWorld> world;
+  if (!args.world_path.empty()) {
+    if (hidden) throw CliError{"--world and --hidden-tissue: give one world, not both"};
+    auto loaded = needle_world::loadRodWorld(args.world_path);
+    if (!loaded) throw CliError{"--world: " + loaded.error().message};
+    world = *loaded;
   }
   if (!(args.noise_hu >= 0.0) || !std::isfinite(args.noise_hu)) {
     throw CliError{fmt::format("--noise-hu: {} is not a noise SD (finite, ≥ 0 HU)", args.noise_hu)};
@@ -154,9 +187,12 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
   for (const workflow::Target* t : reached) {
     // The joints it was reached with, whatever the registration or the aim changed since.
     const kinematics::Joints& joints = t->reached_joints;
-    const Landed landed = land(robot.kinematics, hidden, joints, t->id);
+    const Landed landed = land(robot.kinematics, hidden, world, joints, t->id);
+    const bool needle = t->id == args.needle_at;
+    // Where the scan shows it: the tip of a needle still in, else the seed it left.
+    const Eigen::Vector3d landing_mm = needle ? landed.tip_mm : landed.seed_mm;
     volume::PhantomSeed seed;
-    seed.centre_lps_mm = (robot_to_image_true * landed.tip_mm.homogeneous()).head<3>();
+    seed.centre_lps_mm = (robot_to_image_true * landing_mm.homogeneous()).head<3>();
     seed.axis_lps = rotation_true * landed.direction;
     const Eigen::Vector3d ijk = grid.toIjk(seed.centre_lps_mm);
     for (int a = 0; a < 3; ++a) {
@@ -168,39 +204,44 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
             grid.dims[0], grid.dims[1], grid.dims[2])};
       }
     }
-    const bool needle = t->id == args.needle_at;
     json needle_lps = json::array();  // the needle as drawn: cannula, then stylet
     if (needle) {
-      // The needle as the same model bends it (the straight push without a hidden tissue), from
-      // where it enters the tissue (above it the robot holds it, and its markers lie on its axis).
-      const compensation::DeflectionModel straight{{0.0, 20.0, -1}, {}, {}};
-      auto path = compensation::predictPath(robot.kinematics, hidden ? *hidden : straight, joints,
-                                            0.25, 0.0);
-      if (!path) throw CliError{fmt::format("target {}: {}", t->id, path.error().message)};
+      // The needle as its world bends it (the straight push without one), from where it enters
+      // the tissue (above it the robot holds it, and its markers lie on its axis).
+      std::vector<Eigen::Vector3d> cannula_mm = landed.cannula_mm, stylet_mm = landed.stylet_mm;
+      if (!world) {
+        const compensation::DeflectionModel straight{{0.0, 20.0, -1}, {}, {}};
+        auto path = compensation::predictPath(robot.kinematics, hidden ? *hidden : straight, joints,
+                                              0.25, 0.0);
+        if (!path) throw CliError{fmt::format("target {}: {}", t->id, path.error().message)};
+        cannula_mm = path->cannula_mm;
+        stylet_mm = path->stylet_mm;
+      }
       auto toImage = [&](std::vector<Eigen::Vector3d> line) {
         for (auto& p : line)
           p = (robot_to_image_true * p.homogeneous()).head<3>();
         return line;
       };
       const auto& instrument = robot.kinematics.instrument();
-      auto stylet = path->stylet_mm;
-      stylet.insert(stylet.begin(), path->cannula_mm.back());
-      volume::appendWire(spec, toImage(path->cannula_mm), instrument.cannula_outer_diameter_mm);
+      auto stylet = stylet_mm;
+      stylet.insert(stylet.begin(), cannula_mm.back());
+      volume::appendWire(spec, toImage(cannula_mm), instrument.cannula_outer_diameter_mm);
       volume::appendWire(spec, toImage(stylet), instrument.stylet_outer_diameter_mm);
-      for (const auto& line : {toImage(path->cannula_mm), toImage(path->stylet_mm)})
+      for (const auto& line : {toImage(cannula_mm), toImage(stylet_mm)})
         for (const auto& p : line)
           needle_lps.push_back(pointJson(p));
     } else {
       spec.seeds.push_back(seed);
     }
-    const double off_mm = (landed.tip_mm - t->robot_mm).norm();
+    const double off_mm = (landing_mm - t->robot_mm).norm();
     sum_mm += off_mm;
     max_mm = std::max(max_mm, off_mm);
     targets.push_back({{"id", t->id},
                        {"aimed_with", t->compensated ? t->compensated->profile : "nominal"},
                        {"joints", jointsJson(joints)},
                        {"planned_robot_mm", pointJson(t->robot_mm)},
-                       {"landing_robot_mm", pointJson(landed.tip_mm)},
+                       {"landing_robot_mm", pointJson(landing_mm)},
+                       {"tip_robot_mm", pointJson(landed.tip_mm)},
                        {"landing_lps_mm", pointJson(seed.centre_lps_mm)},
                        {"landing_kind", needle ? "tip" : "seed"},
                        {"needle_lps_mm", needle_lps},
@@ -227,6 +268,12 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
                 {"session_id", session.session_id},
                 {"robot", robot.config.name},
                 {"hidden_tissue", hidden_json},
+                {"world", world ? json{{"kind", "rod_in_tissue"},
+                                       {"name", world->name},
+                                       {"source", world->source},
+                                       {"file", args.world_path},
+                                       {"seed", world->seed}}
+                                : json()},
                 {"session_tissue", session.tissue ? json(session.tissue->name) : json()},
                 {"image_to_robot_true", matrixRowsJson(rp->image_to_robot_true)},
                 {"ct",
@@ -264,7 +311,15 @@ std::string confirmationPhantomText(const json& truth) {
       ct["spacing_mm"][2].get<double>(), ct["noise_hu"].get<double>(),
       truth["out_dir"].get<std::string>());
   const json& tissue = truth["hidden_tissue"];
-  out += tissue.is_null()
+  const json& world = truth["world"];
+  out += !world.is_null()
+             ? fmt::format(
+                   "world {} (rod in tissue, {}): physics the server does not model; the "
+                   "session's own profile: {}\n",
+                   world["name"].get<std::string>(), world["file"].get<std::string>(),
+                   truth["session_tissue"].is_null() ? std::string("none")
+                                                     : truth["session_tissue"].get<std::string>())
+         : tissue.is_null()
              ? std::string("no hidden tissue: each seed lies at its joints' nominal tip\n")
              : fmt::format("hidden tissue {} (λ1 {:g}, λ2 {:g}); the session's own profile: {}\n",
                            tissue["name"].get<std::string>(), tissue["lambda1"].get<double>(),

@@ -17,6 +17,7 @@
 #include "study_report.hpp"
 #include "verify_command.hpp"
 #include "volume_commands.hpp"
+#include "world_study.hpp"
 
 namespace {
 
@@ -281,8 +282,11 @@ int main(int argc, char** argv) {
       ->required();
   verify_cmd->add_option("--robot", verify_args.robot_path, "the robot YAML the server ran with")
       ->required();
-  verify_cmd->add_option("--reuse-within", verify_args.reuse_within_mm,
-                         "reuse the session's registration when no marker moved farther (mm)");
+  verify_cmd->add_option("--reuse-sigmas", verify_args.reuse_sigmas,
+                         "reuse the session's registration while no marker moved farther than "
+                         "this many times the markers' localisation error (from their FREs)");
+  verify_cmd->add_option("--min-localisation", verify_args.min_localisation_mm,
+                         "the least localisation error (mm) taken for the markers");
   verify_cmd->add_option("--max-marker-shift", verify_args.max_marker_shift_mm,
                          "refuse a scan whose markers moved farther (mm)");
   verify_cmd->add_flag("--same-frame", verify_args.same_frame,
@@ -316,6 +320,9 @@ int main(int argc, char** argv) {
                       "a tissue profile the server is not told: the needle deflects in it "
                       "(default: none, each seed at its joints' nominal tip)");
   confirm->add_option("--tissues", confirm_args.tissues_path, "tissue profiles (YAML)");
+  confirm->add_option("--world", confirm_args.world_path,
+                      "a rod-in-tissue world (configs/worlds/*.yaml): the needle moves by "
+                      "physics the server does not model, instead of a hidden tissue");
   confirm->add_option("--noise-hu", confirm_args.noise_hu, "the CT's Gaussian noise SD (HU)");
   confirm->add_option("--slice-mm", confirm_args.slice_mm,
                       "slice spacing and thickness (mm; default the phantom's 1.25)");
@@ -333,6 +340,28 @@ int main(int argc, char** argv) {
       "the hidden tissue (extended bicycle model), mapped by the phantom's true robot -> image\n"
       "transform. The truth file holds per target planned_robot_mm, landing_robot_mm,\n"
       "landing_lps_mm and the hidden tissue; `ignav-plan verify SESSION OUT` measures it.\n");
+  ignav::plan::WorldStudyArgs study_args;
+  bool study_json = false;
+  auto* world_study = app.add_subcommand(
+      "world-study",
+      "what compensation buys in a world: random targets aimed as planned, the tissue fitted "
+      "from their errors, the same targets aimed again for it");
+  world_study->add_option("--robot", study_args.robot_path, "the robot YAML");
+  world_study->add_option("--tissues", study_args.tissues_path,
+                          "tissue profiles: the needle the server models");
+  world_study->add_option("--hidden-tissue", study_args.hidden_tissue,
+                          "the bicycle world's tissue (\"\" leaves that world out)");
+  world_study->add_option("--hidden-tissues", study_args.hidden_tissues_path,
+                          "the profiles it is taken from");
+  world_study->add_option("--world", study_args.world_path,
+                          "the rod-in-tissue world (\"\" leaves it out)");
+  world_study->add_option("--targets", study_args.targets, "how many targets (3-1000)");
+  world_study->add_option("--seed", study_args.seed, "the targets' and the noise's seed");
+  world_study->add_option("--localisation", study_args.localisation_mm,
+                          "a seed's localisation error on the confirmation CT (mm RMS)");
+  world_study->add_flag("--fit-curvature", study_args.fit_curvature,
+                        "fit the needle's curvature k with λ1, λ2");
+  world_study->add_flag("--json", study_json, "print JSON");
   ignav::plan::FindFiducialsArgs find_args;
   double min_hu = 0.0;
   auto* find = app.add_subcommand("find-fiducials", "locate marker beads on a CT");
@@ -414,6 +443,11 @@ int main(int argc, char** argv) {
       const auto truth = ignav::plan::confirmationPhantom(confirm_args);
       std::cout << (confirm_json ? truth.dump(2) + "\n"
                                  : ignav::plan::confirmationPhantomText(truth));
+      return 0;
+    }
+    if (*world_study) {
+      const auto result = ignav::plan::worldStudy(study_args);
+      std::cout << (study_json ? result.dump(2) + "\n" : ignav::plan::worldStudyText(result));
       return 0;
     }
     if (*find) {

@@ -198,12 +198,12 @@ json verifySession(const VerifyArgs& args) {
   const std::vector<Eigen::Vector3d> model(robot.feature_points_mm.begin(),
                                            robot.feature_points_mm.end());
   auto confirmed =
-      same_frame
-          ? verification::registerConfirmationByMatrix(*same_frame,
-                                                       robot.config.registration.limits)
-          : verification::registerConfirmation(
-                *session.registration, scan.points, model, robot.config.registration.kind,
-                robot.config.registration.limits, {args.reuse_within_mm, args.max_marker_shift_mm});
+      same_frame ? verification::registerConfirmationByMatrix(*same_frame,
+                                                              robot.config.registration.limits)
+                 : verification::registerConfirmation(
+                       *session.registration, scan.points, model, robot.config.registration.kind,
+                       robot.config.registration.limits,
+                       {args.reuse_sigmas, args.min_localisation_mm, args.max_marker_shift_mm});
   if (!confirmed) throw CliError{args.confirmation_ct + ": " + confirmed.error().message};
   if (scan.seeds.empty()) {
     throw CliError{args.confirmation_ct + ": no seeds found (" + scan.summary + ")"};

@@ -16,7 +16,8 @@ struct VerifyArgs {
   std::string session_dir;
   std::string confirmation_ct;  // DICOM folder/file, .nrrd/.nhdr, .mha/.mhd
   std::string robot_path;       // the robot YAML the server ran with
-  double reuse_within_mm = 1.0;
+  double reuse_sigmas = 3.0;    // verification::ConfirmationLimits
+  double min_localisation_mm = 0.05;
   double max_marker_shift_mm = 20.0;
   bool allow_extra_seeds = false;
   // The scan is in the session's frame (the robot and the patient did not move): register it by

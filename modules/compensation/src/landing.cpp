@@ -9,6 +9,7 @@
 #include <Eigen/Dense>
 
 #include "ignav/compensation/compensation.hpp"
+#include "ignav/kinematics/plane.hpp"
 
 namespace ignav::compensation {
 namespace {
@@ -31,15 +32,7 @@ std::string point(const Eigen::Vector3d& p) {
   return fmt::format("({:.2f}, {:.2f}, {:.2f}) mm", p.x(), p.y(), p.z());
 }
 
-// The plane of θc: y′ along u, z′ along Z (MODEL.md §2, p = Rz(θc)·(0, y′, z′)).
-struct Plane {
-  explicit Plane(double theta_c_rad) : u(-std::sin(theta_c_rad), std::cos(theta_c_rad), 0.0) {}
-  Eigen::Vector2d in(const Eigen::Vector3d& p) const { return {p.dot(u), p.z()}; }
-  Eigen::Vector3d out(const Eigen::Vector2d& p) const {
-    return {p.x() * u.x(), p.x() * u.y(), p.y()};
-  }
-  Eigen::Vector3d u;
-};
+using Plane = kinematics::ThetaPlane;
 
 // The stylet as it leaves a cannula whose tip turned by heading_rad (−Z, i.e. (0, −1), goes to
 // (sin h, −cos h)); unturned when it is carried by translation only.

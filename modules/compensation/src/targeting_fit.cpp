@@ -4,6 +4,8 @@
 #include <cctype>
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -261,6 +263,37 @@ double rms(const std::vector<double>& e) {
   return std::sqrt(s / static_cast<double>(e.size()));
 }
 
+struct Start {
+  Eigen::VectorXd x;
+  std::string what;
+  double rss = 0.0;  // the sum of squares there
+};
+
+// Where the search may start, lowest sum of squares first: the guess, the plain model the extended
+// one extends (λ = 0; with k fitted too, at the plain fit's curvature) and every point of the grid.
+std::vector<Start> startsFor(const Residuals& f, const Eigen::VectorXd& guess, double bicycle_k,
+                             const TargetingFitOptions& options) {
+  Eigen::VectorXd plain = guess;
+  plain[0] = plain[1] = 0.0;
+  if (options.fit_curvature) plain[2] = bicycle_k;
+  std::vector<Start> out;
+  Eigen::VectorXd r;
+  auto consider = [&](const Eigen::VectorXd& x, std::string what) {
+    if (f.evaluate(x, r)) out.push_back({x, std::move(what), r.squaredNorm()});
+  };
+  consider(guess, "the guess");
+  consider(plain, "the plain model");
+  for (const auto& t : deflection::tissueGrid(f.model.needle)) {
+    Eigen::VectorXd x = guess;
+    x[0] = t.lambda1;
+    x[1] = t.lambda2;
+    consider(x, fmt::format("grid ({:.2f}, {:.2f})", t.lambda1, t.lambda2));
+  }
+  std::stable_sort(out.begin(), out.end(),
+                   [](const Start& a, const Start& b) { return a.rss < b.rss; });
+  return out;
+}
+
 }  // namespace
 
 Expected<TargetingFit> fitTissueFromTargeting(const kinematics::Kinematics& kinematics,
@@ -325,22 +358,59 @@ Expected<TargetingFit> fitTissueFromTargeting(const kinematics::Kinematics& kine
   if (const double c = condition(jacobianAt(extended, x0)); !(c < kMaxCondition)) {
     return underdetermined(c);
   }
-  const Solved fit = solve(extended, x0, options.max_evaluations);
-  if (!fit.converged) {
+
+  // The plain bicycle model on the same errors (its curvature free): for comparison, and where k
+  // is fitted too, the start that makes the extended fit at least as good as it.
+  Residuals plain(kinematics, model, records, Kind::kBicycle);
+  Eigen::VectorXd k0(1);
+  k0[0] = model.needle.curvature_per_mm;
+  const Solved bicycle = solve(plain, k0, options.max_evaluations);
+
+  // LM from the lowest start, then from the next ones while they lie below the best end so far
+  // (one above it is unlikely to descend past it), at most grid_starts + 2 runs. The plain model
+  // is among the starts and LM only descends: the fit ends no worse than it.
+  const auto starts = startsFor(extended, x0, bicycle.x[0], options);
+  const auto max_runs = static_cast<std::size_t>(std::max(options.grid_starts, 0)) + 2;
+  std::optional<Solved> fit;
+  std::string won;
+  std::size_t runs = 0;
+  for (const auto& start : starts) {
+    if (runs == max_runs) break;
+    if (fit && fit->converged && !(start.rss < fit->residuals.squaredNorm())) break;
+    Solved run = solve(extended, start.x, options.max_evaluations);
+    ++runs;
+    // A converged end beats one that is not; among equals, the lower sum of squares.
+    const bool better = !fit || (run.converged && !fit->converged) ||
+                        (run.converged == fit->converged &&
+                         run.residuals.squaredNorm() < fit->residuals.squaredNorm());
+    if (better) {
+      fit = std::move(run);
+      won = start.what;
+    }
+  }
+  if (!fit) {
+    return makeError(ErrorCode::kDegenerate,
+                     "no start of the fit lies where the model holds (every one inadmissible)",
+                     "not_converged");
+  }
+  if (!fit->converged) {
     return makeError(
         ErrorCode::kDegenerate,
-        fmt::format("the fit did not converge in {} iterations (λ1 = {:.4g}, "
-                    "λ2 = {:.4g}, RMS {:.3g} mm)",
-                    fit.iterations, fit.x[0], fit.x[1], rms(norms(fit.residuals, records.size()))),
+        fmt::format("the fit did not converge from any of {} starts (from {}: {} iterations, "
+                    "λ1 = {:.4g}, λ2 = {:.4g}, RMS {:.3g} mm)",
+                    runs, won, fit->iterations, fit->x[0], fit->x[1],
+                    rms(norms(fit->residuals, records.size()))),
         "not_converged");
   }
-  if (const double c = condition(fit.jacobian); !(c < kMaxCondition)) return underdetermined(c);
+  if (const double c = condition(fit->jacobian); !(c < kMaxCondition)) return underdetermined(c);
 
   TargetingFit out;
-  out.limit = extended.limitAt(fit.x);
-  out.tissue = {fit.x[0], fit.x[1]};
-  out.curvature_per_mm = options.fit_curvature ? fit.x[2] : model.needle.curvature_per_mm;
-  out.iterations = fit.iterations;
+  out.limit = extended.limitAt(fit->x);
+  out.tissue = {fit->x[0], fit->x[1]};
+  out.curvature_per_mm = options.fit_curvature ? fit->x[2] : model.needle.curvature_per_mm;
+  out.iterations = fit->iterations;
+  out.starts = static_cast<int>(runs);
+  out.start = won;
   deflection::NeedleModel fitted = model.needle;
   fitted.curvature_per_mm = out.curvature_per_mm;
   if (auto ok = deflection::checkAdmissible(fitted, out.tissue); !ok.admissible) {
@@ -350,31 +420,61 @@ Expected<TargetingFit> fitTissueFromTargeting(const kinematics::Kinematics& kine
                                  out.tissue.lambda1, out.tissue.lambda2, ok.reason),
                      "inadmissible");
   }
-  const auto errors = norms(fit.residuals, records.size());
+  const auto errors = norms(fit->residuals, records.size());
   out.rms_mm = rms(errors);
   out.max_error_mm = *std::max_element(errors.begin(), errors.end());
-  const double dof = static_cast<double>(fit.residuals.size() - p);
-  const double sigma2 = fit.residuals.squaredNorm() / dof;
+  const double dof = static_cast<double>(fit->residuals.size() - p);
+  const double sigma2 = fit->residuals.squaredNorm() / dof;
   const Eigen::MatrixXd cov =
       sigma2 *
-      (fit.jacobian.transpose() * fit.jacobian).ldlt().solve(Eigen::MatrixXd::Identity(p, p));
+      (fit->jacobian.transpose() * fit->jacobian).ldlt().solve(Eigen::MatrixXd::Identity(p, p));
   for (Eigen::Index i = 0; i < p; ++i)
     out.standard_errors.push_back(std::sqrt(std::max(0.0, cov(i, i))));
   out.correlation = cov(0, 1) / std::sqrt(cov(0, 0) * cov(1, 1));
 
-  // The plain bicycle model on the same errors (its curvature free), and no model at all.
-  Residuals plain(kinematics, model, records, Kind::kBicycle);
-  Eigen::VectorXd k0(1);
-  k0[0] = model.needle.curvature_per_mm;
-  const Solved bicycle = solve(plain, k0, options.max_evaluations);
   const auto bicycle_errors = norms(bicycle.residuals, records.size());
   out.bicycle_curvature_per_mm = bicycle.x[0];
   out.rms_bicycle_mm = rms(bicycle_errors);
   out.max_error_bicycle_mm = *std::max_element(bicycle_errors.begin(), bicycle_errors.end());
-  std::vector<double> measured;
-  for (const auto& r : records)
-    measured.push_back((r.actual_mm - kinematics.forward(r.joints).tip_mm).norm());
+  std::vector<double> measured, deflection, spread;
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    const auto& r = records[i];
+    const Eigen::Vector3d nominal = kinematics.forward(r.joints).tip_mm;
+    const auto at = 3 * static_cast<Eigen::Index>(i);
+    const Eigen::Vector3d landing = r.actual_mm + fit->residuals.segment<3>(at);
+    const Eigen::MatrixXd j = fit->jacobian.middleRows(at, 3);  // d landing / d parameters
+    measured.push_back((r.actual_mm - nominal).norm());
+    deflection.push_back((landing - nominal).norm());
+    spread.push_back(std::sqrt(std::max(0.0, (j * cov * j.transpose()).trace())));
+  }
   out.rms_no_deflection_mm = rms(measured);
+  out.predicted_deflection_mm = rms(deflection);
+  out.prediction_se_mm = rms(spread);
+  const std::string figures = fmt::format(
+      "λ1 = {:.3g} ± {:.3g}, λ2 = {:.3g} ± {:.3g}; RMS {:.3f} mm fitted, {:.3f} mm with no "
+      "deflection, {:.3f} mm for the plain bicycle model",
+      out.tissue.lambda1, out.standard_errors[0], out.tissue.lambda2, out.standard_errors[1],
+      out.rms_mm, out.rms_no_deflection_mm, out.rms_bicycle_mm);
+  if (!(out.rms_mm < out.rms_no_deflection_mm)) {
+    return makeError(ErrorCode::kDegenerate,
+                     fmt::format("the fitted tissue explains the {} targets' errors no better than "
+                                 "no deflection at all ({}): the errors are not the model's "
+                                 "deflection (noise, motion, or another cause); not offered for "
+                                 "aiming",
+                                 records.size(), figures),
+                     "explains_nothing");
+  }
+  if (!(out.prediction_se_mm <= options.max_prediction_uncertainty * out.predicted_deflection_mm)) {
+    return makeError(
+        ErrorCode::kInvalidArgument,
+        fmt::format("the {} targets do not determine the tissue: the landings it "
+                    "predicts are uncertain by ±{:.3f} mm (1 SE from the parameters' "
+                    "covariance, RMS over the targets), more than {:g} of the {:.3f} "
+                    "mm of deflection it predicts ({}); not offered for aiming",
+                    records.size(), out.prediction_se_mm, options.max_prediction_uncertainty,
+                    out.predicted_deflection_mm, figures),
+        "underdetermined");
+  }
   return out;
 }
 

@@ -93,6 +93,18 @@ Admissibility checkAdmissible(const NeedleModel& needle, const Tissue& tissue) {
   return out;
 }
 
+std::vector<Tissue> tissueGrid(const NeedleModel& needle, int per_axis) {
+  std::vector<Tissue> out;
+  const int n = std::max(per_axis, 2);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      const Tissue t{-0.5 + 2.5 * i / (n - 1), -0.5 + 1.45 * j / (n - 1)};
+      if (checkAdmissible(needle, t).admissible) out.push_back(t);
+    }
+  }
+  return out;
+}
+
 Expected<std::vector<PathSample>> simulate(const NeedleModel& needle, const Tissue& tissue,
                                            double length_mm, double step_mm) {
   if (auto ok = checkInputs(needle, tissue); !ok) return ok.error();

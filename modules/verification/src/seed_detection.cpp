@@ -10,6 +10,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "bright_groups.hpp"
+#include "seed_split.hpp"
 
 namespace ignav::verification {
 namespace {
@@ -61,6 +62,7 @@ Status checkSearch(const SeedSearch& s) {
 struct GroupView {
   std::uint32_t id = 0;
   std::vector<Index3> voxels;
+  std::vector<std::uint32_t> positions;  // each voxel's index into the bright voxels
   Index3 lo, hi;
 };
 
@@ -226,6 +228,62 @@ void judge(const SeedSearch& s, SeedCandidate& c) {
   }
 }
 
+// What a group of touching seeds is rejected for: more metal, length, width or roundness than
+// one seed has.
+bool mayBeTouchingSeeds(const std::string& reason) {
+  return reason == "too_much_metal" || reason == "too_long" || reason == "too_wide" ||
+         reason == "not_elongated";
+}
+
+// The group `merged` (refined and rejected as one) cut at its intensity valleys into seeds, each
+// refined with the others as its neighbours; none unless every part is a seed. `labels` is the
+// bright voxels' grouping, which the parts are written into as new groups from `next_id` on.
+std::vector<SeedCandidate> separateTouching(const volume::Volume& volume, const SeedSearch& search,
+                                            const std::vector<std::uint32_t>& bright,
+                                            std::vector<std::uint32_t>& labels,
+                                            std::uint32_t& next_id, const GroupView& merged,
+                                            const SeedCandidate& as_one) {
+  std::vector<double> values;
+  values.reserve(merged.voxels.size());
+  for (const auto& v : merged.voxels)
+    values.push_back(volume.valueAt(v.x(), v.y(), v.z()));
+  // A core stands for a seed when it rises clear of the noise and of the aliasing along one seed.
+  const double depth = std::max(3.0 * as_one.noise_hu, 0.1 * (as_one.peak_hu - search.min_hu));
+  const auto split = splitAtValleys(merged.voxels, values, search.min_hu, depth);
+  if (!split) return {};
+  std::vector<GroupView> parts(split->parts);
+  for (std::size_t p = 0; p < parts.size(); ++p)
+    parts[p].id = next_id + static_cast<std::uint32_t>(p);
+  for (std::size_t e = 0; e < merged.voxels.size(); ++e) {
+    GroupView& part = parts[split->part_of[e]];
+    part.voxels.push_back(merged.voxels[e]);
+    part.positions.push_back(merged.positions[e]);
+    labels[merged.positions[e]] = part.id;
+  }
+  next_id += static_cast<std::uint32_t>(parts.size());
+  std::vector<SeedCandidate> out;
+  for (auto& part : parts) {
+    part.lo = part.hi = part.voxels.front();
+    for (const auto& v : part.voxels) {
+      part.lo = part.lo.cwiseMin(v);
+      part.hi = part.hi.cwiseMax(v);
+    }
+    SeedCandidate c;
+    c.voxel_count = part.voxels.size();
+    c.extent_mm = (part.hi - part.lo + Index3::Ones())
+                      .cast<double>()
+                      .cwiseProduct(volume.geometry.spacing_mm)
+                      .maxCoeff();
+    refine(volume, search, bright, labels, part, c);
+    judge(search, c);
+    if (!c.reason.empty()) return {};
+    c.touching = parts.size();
+    c.valley_hu = split->level_hu;
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+
 }  // namespace
 
 Expected<SeedDetection> findSeeds(const volume::Volume& volume, const SeedSearch& search) {
@@ -240,7 +298,9 @@ Expected<SeedDetection> findSeeds(const volume::Volume& volume, const SeedSearch
   SeedDetection result;
   result.bright_voxels = groups.bright.size();
   result.groups = group_count;
-  std::size_t markers = 0;
+  std::size_t markers = 0, separated = 0;
+  std::vector<std::uint32_t> labels;  // the grouping with split groups' parts, made when needed
+  auto next_id = static_cast<std::uint32_t>(group_count);
   for (std::size_t q = 0; q < group_count; ++q) {
     GroupView group;
     group.id = static_cast<std::uint32_t>(q);
@@ -251,6 +311,7 @@ Expected<SeedDetection> findSeeds(const volume::Volume& volume, const SeedSearch
     for (std::size_t e = start[q]; e < start[q + 1]; ++e) {
       const Index3 v = groups.voxel(e);
       group.voxels.push_back(v);
+      group.positions.push_back(groups.members[e]);
       mean_ijk += v.cast<double>();
       c.peak_hu = std::max(c.peak_hu, volume.valueAt(v.x(), v.y(), v.z()));
     }
@@ -278,8 +339,20 @@ Expected<SeedDetection> findSeeds(const volume::Volume& volume, const SeedSearch
         ++markers;
       }
     }
-    if (c.reason.empty()) refine(volume, search, groups.bright, groups.group_of, group, c);
+    const bool refined = c.reason.empty();
+    if (refined) refine(volume, search, groups.bright, groups.group_of, group, c);
     judge(search, c);
+    if (refined && mayBeTouchingSeeds(c.reason)) {
+      if (labels.empty()) labels = groups.group_of;
+      auto seeds = separateTouching(volume, search, groups.bright, labels, next_id, group, c);
+      if (!seeds.empty()) {
+        separated += seeds.size();
+        for (auto& seed : seeds)
+          result.seeds.push_back(std::move(seed));
+        continue;
+      }
+      c.rejected += "; no intensity valley parts it into seeds";
+    }
     if (c.reason.empty()) {
       result.seeds.push_back(std::move(c));
     } else if (result.rejected.size() < kMaxRejectedListed) {
@@ -290,11 +363,26 @@ Expected<SeedDetection> findSeeds(const volume::Volume& volume, const SeedSearch
   }
   const std::size_t rejected = result.rejected.size() + result.rejected_not_listed;
   result.summary = fmt::format(
-      "{} seed{} found: {} voxels at or above {:g} HU in {} groups, {} rejected{}",
-      result.seeds.size(), result.seeds.size() == 1 ? "" : "s", result.bright_voxels, search.min_hu,
-      group_count, rejected,
+      "{} seed{} found{}: {} voxels at or above {:g} HU in {} groups, {} rejected{}",
+      result.seeds.size(), result.seeds.size() == 1 ? "" : "s",
+      separated > 0 ? fmt::format(" ({} separated where their images touched)", separated)
+                    : std::string(),
+      result.bright_voxels, search.min_hu, group_count, rejected,
       markers > 0 ? fmt::format(" ({} robot marker{})", markers, markers == 1 ? "" : "s")
                   : std::string());
+  // Why each group that is not a marker was rejected, where it is (the first few).
+  constexpr std::size_t kRejectionsSaid = 4;
+  std::size_t said = 0;
+  for (const auto& r : result.rejected) {
+    if (r.reason == "marker") continue;
+    if (said++ == kRejectionsSaid) {
+      result.summary += "; …";
+      break;
+    }
+    result.summary +=
+        fmt::format("; rejected at LPS ({:.1f}, {:.1f}, {:.1f}): {}", r.centroid_lps_mm.x(),
+                    r.centroid_lps_mm.y(), r.centroid_lps_mm.z(), r.rejected);
+  }
   if (result.seeds.empty()) {
     result.summary += "; lower min_hu or min_metal_hu_mm3 if seeds are in the scan";
   }

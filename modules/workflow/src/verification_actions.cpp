@@ -71,16 +71,37 @@ std::string summaryText(const Confirmation& c) {
   return text;
 }
 
+// The measured rows (targets to rows_source) from one confirmation into another.
+void moveRows(Confirmation& from, Confirmation& to) {
+  to.targets = std::move(from.targets);
+  to.missing_targets = std::move(from.missing_targets);
+  to.extra_seeds = std::move(from.extra_seeds);
+  to.summary = std::move(from.summary);
+  to.text = std::move(from.text);
+  to.rows_source = std::move(from.rows_source);
+}
+
 // The match and the errors from the seeds (less those rejected) and the pairs a person fixed:
 // fixed pairs first, the rest by the optimal assignment. An assignment that needs a person
 // (ambiguous, or more seeds than targets) leaves the status unmatched, with the reason.
 void rematch(Session& s) {
   Confirmation& c = s.confirmation;
+  // A match that needs a person keeps the rows of the last scan that matched, not none.
+  Confirmation kept;
+  moveRows(c, kept);
+  auto keepRows = [&](const std::string& why) {
+    c.status = "unmatched";
+    c.message = why;
+    if (kept.targets.empty() && kept.missing_targets.empty()) return;
+    moveRows(kept, c);
+    c.message += fmt::format("; the errors measured on {} stay until then", c.rows_source);
+  };
   c.targets.clear();
   c.missing_targets.clear();
   c.extra_seeds.clear();
   c.summary.reset();
   c.text.clear();
+  c.rows_source.clear();
   if (!c.registration) return;
   const Eigen::Matrix4d image_to_robot = c.registration->registration.imageToRobot();
   const Eigen::Matrix4d robot_to_image = image_to_robot.inverse();
@@ -109,11 +130,10 @@ void rematch(Session& s) {
   if (!open.empty() && !free.empty()) {
     auto match = verification::matchSeeds(open, free_lps);
     if (!match) {
-      c.status = "unmatched";
-      c.message = fmt::format(
-          "the seeds need a person: {}: {} (reject_seed what is no seed of this plan, or "
+      keepRows(fmt::format(
+          "the seeds of {} need a person: {}: {} (reject_seed what is no seed of this plan, or "
           "place_seed / accept_seed the targets)",
-          match.error().reason, match.error().message);
+          c.source, match.error().reason, match.error().message));
       return;
     }
     for (std::size_t i = 0; i < open.size(); ++i) {
@@ -139,8 +159,7 @@ void rematch(Session& s) {
     auto error =
         verification::targetError({t->id, t->robot_mm}, pair->second.first->lps_mm, image_to_robot);
     if (!error) {  // a finite similarity and finite points: cannot happen
-      c.status = "unmatched";
-      c.message = "target " + std::to_string(t->id) + ": " + error.error().message;
+      keepRows("target " + std::to_string(t->id) + ": " + error.error().message);
       return;
     }
     MeasuredTarget m{*error, pair->second.first->id, pair->second.second, t->reached_joints};
@@ -149,6 +168,7 @@ void rematch(Session& s) {
     errors.push_back(*error);
   }
   if (!errors.empty()) c.summary = verification::summarizeErrors(errors);
+  c.rows_source = c.source;
   c.text = summaryText(c);
   c.message = c.text;
 }
@@ -259,6 +279,9 @@ Refusal adoptConfirmation(Session& s, const Input& in, ActionOutput& out) {
   fresh.registration = std::move(reg).value();
   fresh.detection_summary = in.summary;
   fresh.seeds = in.seeds;
+  // The rows measured so far go along: rematch replaces them, or keeps them (and says so) while
+  // the new scan's match needs a person.
+  moveRows(c, fresh);
   c = std::move(fresh);
   rematch(s);
   c.message = c.registration->message + "; " + c.message;

@@ -102,7 +102,12 @@ struct TargetingRecord {
 struct TargetingFitOptions {
   deflection::Tissue initial{0.2, 0.1};
   bool fit_curvature = false;  // also fit the needle's k
-  int max_evaluations = 400;   // of the residuals, before the fit counts as not converged
+  int max_evaluations = 400;   // of the residuals per start, before a start counts as not converged
+  // Runs of Levenberg–Marquardt beyond two, from the lowest starts (fitTissueFromTargeting).
+  int grid_starts = 3;
+  // A fit whose predicted landings are uncertain (1 SE, RMS over the targets) by more than this
+  // fraction of the deflection it predicts has not determined its parameters: refused.
+  double max_prediction_uncertainty = 0.5;
 };
 
 struct TargetingFit {
@@ -116,7 +121,13 @@ struct TargetingFit {
   double max_error_bicycle_mm = 0.0;
   double bicycle_curvature_per_mm = 0.0;
   double rms_no_deflection_mm = 0.0;  // actual − forward kinematics: the errors as measured
-  int iterations = 0;
+  // What the fitted tissue predicts, RMS over the targets: its landings' distance from forward
+  // kinematics, and their standard error from the parameters' covariance.
+  double predicted_deflection_mm = 0.0;
+  double prediction_se_mm = 0.0;
+  int iterations = 0;  // of the start that won
+  int starts = 0;      // Levenberg–Marquardt runs made
+  std::string start;   // which one won: "the guess", "the plain model", "grid (λ1, λ2)"
   // Non-empty when a parameter ends on the model's admissibility limit (checkAdmissible over
   // γ ∈ [−π/2, 0]): which one, and why. The estimate is then bounded, not determined.
   std::string limit;
@@ -124,9 +135,15 @@ struct TargetingFit {
 // Levenberg–Marquardt on the 3-D residuals actual − predictLanding(joints), each target at its own
 // insertion depth and in its own plane, and for a record with a path, each path point's offset
 // from the nearest point of the predicted path (rms_mm and the maxima are over the landings).
+// Several starts, the lowest end wins: the guess, the plain model it extends (λ = 0, with the
+// curvature the plain fit found when k is fitted too) and the points of deflection::tissueGrid,
+// tried lowest sum of squares first while a start lies below the best end so far (at most
+// grid_starts + 2 runs); so it never ends worse than the model it extends.
 // Refused: non-finite records, fewer residuals than parameters, records that do not determine the
-// parameters (no insertion, all at one depth: reason "underdetermined"), a fit that does not
-// converge ("not_converged") or ends inadmissible.
+// parameters (no insertion, all at one depth, or landings the covariance leaves uncertain by more
+// than max_prediction_uncertainty of the deflection: reason "underdetermined"), a fit that explains
+// the errors no better than no deflection at all ("explains_nothing"), a fit that does not
+// converge from any start ("not_converged") or ends inadmissible. Each refusal gives the figures.
 Expected<TargetingFit> fitTissueFromTargeting(const kinematics::Kinematics& kinematics,
                                               const DeflectionModel& model,
                                               const std::vector<TargetingRecord>& records,

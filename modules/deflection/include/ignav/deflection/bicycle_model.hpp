@@ -34,6 +34,12 @@ struct Admissibility {
 };
 Admissibility checkAdmissible(const NeedleModel& needle, const Tissue& tissue);
 
+// Where a fit of (λ1, λ2) may start: a per_axis × per_axis grid over λ1 ∈ [−0.5, 2] and
+// λ2 ∈ [−0.5, 0.95] (seed 000's tissues lie well inside), less what the model does not admit for
+// this needle. Least squares in λ has local minima (a slow drift is fitted, worse, by a small λ2
+// as well as by the right large one): a fit tries the best of these besides its own guess.
+std::vector<Tissue> tissueGrid(const NeedleModel& needle, int per_axis = 8);
+
 struct PathSample {
   double s_mm = 0.0;  // inserted length (pushed in)
   double z_mm = 0.0;  // depth

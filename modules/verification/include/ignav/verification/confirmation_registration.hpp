@@ -1,8 +1,18 @@
 // The confirmation CT's registration (issue 23, step 1): the robot's markers found on the new
-// scan are compared with those the session registered on. Within `reuse_within_mm` of them the
-// session's registration is reused (the robot and the scanner did not move); farther, but within
-// `max_shift_mm`, the scan is registered anew from its own markers; farther still, or without
-// markers, it is refused: another patient, another frame, or the wrong series.
+// scan are compared with those the session registered on. While no marker moved by more than
+// their localisation can explain, the session's registration is reused (the robot and the scanner
+// did not move); farther, but within `max_shift_mm`, the scan is registered anew from its own
+// markers; farther still, or without markers, it is refused: another patient, another frame, or
+// the wrong series.
+//
+// How far localisation reaches (issue 40): each scan's markers say it themselves. Fitting them to
+// the robot's model leaves a residual (FRE) that only their localisation error (FLE) makes, since
+// the motion is rigid: ⟨FRE²⟩ = (1 − d/3N)·⟨FLE²⟩ for N markers and a transform of d degrees of
+// freedom (Fitzpatrick et al. 1998; d = 6 rigid, 7 with scale). The planning markers' FLE and the
+// new ones' add in quadrature for a marker's difference; a move beyond `reuse_sigmas` of it is
+// motion. A common motion leaves the FRE unchanged, so even 0.8 mm is seen on markers found to
+// 0.05 mm. Three markers estimate the FLE coarsely: it is taken as at least
+// `min_localisation_mm`.
 #pragma once
 
 #include <string>
@@ -16,14 +26,20 @@
 namespace ignav::verification {
 
 struct ConfirmationLimits {
-  double reuse_within_mm = 1.0;  // the paper's markers are localised to a few tenths of a mm
+  double reuse_sigmas = 3.0;
+  double min_localisation_mm = 0.05;  // our markers' localisation (docs/VERIFICATION.md)
   double max_shift_mm = 20.0;
 };
 
 struct ConfirmationRegistration {
   bool reused = false;           // the session's registration, else one from the new markers
   double marker_shift_mm = 0.0;  // the largest move of a marker (LPS) since the planning CT
-  bool by_matrix = false;        // given with the scan: no markers compared (shift NaN)
+  // The markers' localisation error (RMS, 3-D) from each registration's FRE, and the shift a
+  // marker may show without having moved: reuse_sigmas × √(planning² + confirmation²).
+  double planning_localisation_mm = 0.0;
+  double confirmation_localisation_mm = 0.0;
+  double reuse_limit_mm = 0.0;
+  bool by_matrix = false;  // given with the scan: no markers compared (shift NaN)
   registration::Registration registration;
   std::string message;  // for a person: reused or re-registered, the shift, the FRE
 };

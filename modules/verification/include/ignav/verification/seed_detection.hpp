@@ -1,10 +1,11 @@
 // Deposited seeds in a confirmation CT (metal cylinders ~3 mm long, ~0.8 mm wide: the paper's
 // dummies), found automatically: one pass thresholds the volume, bright voxels are grouped by
-// 26-connectivity, and each group gets an intensity-weighted centroid above its local background
-// over the group and a partial-volume shell (sub-voxel), and a principal axis, length and width
-// from the second moments of the weights clear of the noise (less a voxel's own spread). Groups
-// that cannot be a seed (too little or too much metal, too wide or too long, a robot marker) are
-// listed with the reason.
+// 26-connectivity (a group rejected as too much for one seed is cut at its intensity valleys into
+// seeds where it can be), and each group gets an intensity-weighted centroid above its local
+// background over the group and a partial-volume shell (sub-voxel), and a principal axis, length
+// and width from the second moments of the weights clear of the noise (less a voxel's own spread).
+// Groups that cannot be a seed (too little or too much metal, too wide or too long, a robot marker)
+// are listed with the reason.
 #pragma once
 
 #include <cstddef>
@@ -64,6 +65,12 @@ struct SeedCandidate {
   double extent_mm = 0.0;       // largest side of the thresholded group's box
   std::size_t voxel_count = 0;  // voxels at or above min_hu
   double elongation = 0.0;      // variance along the axis / the larger across
+  // Seeds whose images touched form one bright group; it is cut at its intensity valleys
+  // (the threshold raised within it until its cores stand apart) when every part is a seed:
+  // how many seeds the group held (0: the seed was a group of its own) and the level they parted
+  // at.
+  std::size_t touching = 0;
+  double valley_hu = 0.0;
   // Empty for a seed; otherwise a token (too_little_metal, too_much_metal, too_wide, too_short,
   // too_long, not_elongated, marker, no_contrast) and a sentence.
   std::string reason;

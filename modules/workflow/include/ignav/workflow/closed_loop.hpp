@@ -87,6 +87,9 @@ struct Confirmation {
   std::vector<std::uint32_t> extra_seeds;       // seed ids matched to no target
   std::optional<verification::ErrorSummary> summary;
   std::string text;  // mean ± SD, max, min, RMS
+  // The scan the rows above (targets to text) were measured on: `source`, or while this scan's
+  // match needs a person (unmatched), the last one that matched, whose rows stay meanwhile.
+  std::string rows_source;
 };
 
 // A tissue fitted from this session's measured errors (fit_tissue): the profile, usable by
