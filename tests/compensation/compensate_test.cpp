@@ -6,6 +6,8 @@
 #include <iostream>
 #include <random>
 
+#include <Eigen/Geometry>
+
 #include "fixtures.hpp"
 #include "reference.hpp"
 
@@ -143,6 +145,55 @@ TEST(Compensation, StallingIsRefusedNotReportedAsSolved) {
   EXPECT_FALSE(compensate(kin, {agar.needle, {0.0, 1.0}, StyletCarry::kRotated},
                           kin.forward({1.0, 20.0, 20.0}).tip_mm)
                    .ok());
+}
+
+// The rest of an insertion re-aimed from its path (issue 40, step 6). The world: the model's
+// needle carried by a rigid motion the model does not know (3° about the cannula's tip and
+// 0.5 mm aside: play, twist, a shifted mount). The truth of any joints is that motion applied to
+// the model's landing, so the re-aimed joints can be judged without the function's own numbers.
+TEST(Reaim, AMotionSeenOnTheFirstHalfIsTakenOutOfTheRest) {
+  const auto& kin = paperRobot();
+  const DeflectionModel agar = profile("agar");
+  for (const kinematics::Joints aimed : {kinematics::Joints{0.4, 20.0, 30.0}, {3.5, 35.0, 24.0}}) {
+    const Eigen::Vector3d target = predictLanding(kin, agar, aimed)->tip_mm;
+    kinematics::Joints partial = aimed;
+    partial.z_s_mm *= 0.5;
+    const auto half = predictPath(kin, agar, partial, 0.25, 0.0).value();
+    Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+    motion.translate(half.cannula_mm.back());
+    motion.rotate(Eigen::AngleAxisd(3.0 * M_PI / 180, Eigen::Vector3d(1, 2, 0.5).normalized()));
+    motion.translate(-half.cannula_mm.back());
+    motion.pretranslate(Eigen::Vector3d(0.4, -0.3, 0.2));
+    std::vector<Eigen::Vector3d> observed;
+    for (const auto* line : {&half.cannula_mm, &half.stylet_mm})
+      for (const auto& p : *line)
+        observed.push_back(motion * p);
+    const auto reaim = reaimFromPath(kin, agar, partial, observed, target);
+    ASSERT_TRUE(reaim) << reaim.error().message;
+    // Iterated closest points converge linearly: to well below a micrometre.
+    EXPECT_TRUE(reaim->correction.isApprox(motion.matrix(), 1e-5)) << reaim->correction;
+    EXPECT_LT(reaim->path_rms_mm, 1e-4);
+    // Where the re-aimed joints really land, in this world: on the target.
+    const Eigen::Vector3d truth =
+        motion * predictLanding(kin, agar, reaim->aimed.compensated)->tip_mm;
+    EXPECT_LT((truth - target).norm(), 1e-3);
+    // Without re-aiming, the motion's whole effect stays.
+    EXPECT_GT((motion * target - target).norm(), 0.3);
+  }
+}
+
+TEST(Reaim, APathThatShowsNothingIsRefused) {
+  const auto& kin = paperRobot();
+  const DeflectionModel agar = profile("agar");
+  const kinematics::Joints partial{0.4, 20.0, 15.0};
+  const Eigen::Vector3d target = predictLanding(kin, agar, {0.4, 20.0, 30.0})->tip_mm;
+  const std::vector<Eigen::Vector3d> short_path = {{0, 0, -150}, {0, 0, -151}, {0, 0, -152}};
+  auto r = reaimFromPath(kin, agar, partial, short_path, target);
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.error().reason, "path_too_short");
+  std::vector<Eigen::Vector3d> nan_path = {{0, 0, -150}, {0, 0, -155}, {0, 0, -160}, {0, 0, -165}};
+  nan_path[2].x() = std::nan("");
+  EXPECT_FALSE(reaimFromPath(kin, agar, partial, nan_path, target));
 }
 
 }  // namespace

@@ -19,8 +19,17 @@ namespace {
 
 using nlohmann::json;
 
-// Where a seed is left for joints, in the robot frame; `insertion` numbers the try (its luck).
-using World = std::function<Eigen::Vector3d(const kinematics::Joints&, std::uint64_t insertion)>;
+// Where a needle went for joints, robot frame: the seed it leaves and its path from the skin to
+// the tip (what an intermittent CT shows); `insertion` numbers the try (its luck).
+struct Went {
+  Eigen::Vector3d seed_mm;
+  std::vector<Eigen::Vector3d> path_mm;
+};
+using World = std::function<Went(const kinematics::Joints&, std::uint64_t insertion)>;
+// The needle detection's centreline lies within 0.15 mm of the needle (docs/VERIFICATION.md).
+constexpr double kPathNoise_mm = 0.15;
+// Where the insertion stops for its intermittent CT: this share of the stylet's travel.
+constexpr double kPartialShare = 0.5;
 
 json errorsJson(const std::vector<double>& e) {
   double sum = 0.0, sq = 0.0, worst = 0.0;
@@ -49,7 +58,7 @@ json study(const std::string& name, const std::string& kind, const World& world,
   std::vector<double> uncompensated;
   for (std::size_t i = 0; i < planned.size(); ++i) {
     const auto joints = kin.inverse(planned[i])->joints;
-    const Eigen::Vector3d landed = world(joints, i + 1);
+    const Eigen::Vector3d landed = world(joints, i + 1).seed_mm;
     uncompensated.push_back((landed - planned[i]).norm());
     const Eigen::Vector3d measured = landed + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
     records.push_back({fmt::format("T{}", i + 1), planned[i], joints, measured, {}});
@@ -57,11 +66,15 @@ json study(const std::string& name, const std::string& kind, const World& world,
   json out = {{"world", name}, {"kind", kind}, {"targets", planned.size()}};
   out["uncompensated"] = errorsJson(uncompensated);
 
-  compensation::DeflectionModel model;
+  compensation::DeflectionModel model;  // what the server fits: its needle, the tissue unknown
   model.needle = needle;
   compensation::TargetingFitOptions fit_options;
   fit_options.fit_curvature = args.fit_curvature;
   const auto fit = compensation::fitTissueFromTargeting(kin, model, records, fit_options);
+  // What the server aims with: the fitted tissue, or without one as planned (a model that does not
+  // deflect: the needle's own curvature 0, no slip, so its path is the kinematics').
+  compensation::DeflectionModel aim = model;
+  aim.needle.curvature_per_mm = 0.0;
   std::vector<double> compensated;
   std::size_t out_of_reach = 0;
   if (fit) {
@@ -71,8 +84,8 @@ json study(const std::string& name, const std::string& kind, const World& world,
                   {"rms_mm", fit->rms_mm},
                   {"rms_no_deflection_mm", fit->rms_no_deflection_mm},
                   {"rms_bicycle_mm", fit->rms_bicycle_mm}};
-    model.tissue = fit->tissue;
-    model.needle.curvature_per_mm = fit->curvature_per_mm;
+    aim.tissue = fit->tissue;
+    aim.needle.curvature_per_mm = fit->curvature_per_mm;
     out["fit"]["curvature_per_mm"] = fit->curvature_per_mm;
   } else {
     out["fit"] = {{"refused", fit.error().reason}, {"why", fit.error().message}};
@@ -82,16 +95,52 @@ json study(const std::string& name, const std::string& kind, const World& world,
   for (std::size_t i = 0; i < planned.size(); ++i) {
     kinematics::Joints joints = kin.inverse(planned[i])->joints;
     if (fit) {
-      if (auto c = compensation::compensate(kin, model, planned[i])) {
+      if (auto c = compensation::compensate(kin, aim, planned[i])) {
         joints = c->compensated;
       } else {
         ++out_of_reach;
       }
     }
-    compensated.push_back((world(joints, 1000 + i + 1) - planned[i]).norm());
+    compensated.push_back((world(joints, 1000 + i + 1).seed_mm - planned[i]).norm());
   }
   out["compensated"] = errorsJson(compensated);
   out["compensated_out_of_reach"] = out_of_reach;
+
+  // Third pass, re-planned in the middle of each insertion: aimed as in the second, stopped with
+  // half the stylet out, the needle's path on an intermittent CT (with the detection's noise),
+  // the tissue refitted with that path, the rest re-aimed from it (reaimFromPath), then finished:
+  // the same needle, so the same luck as its first half.
+  std::normal_distribution<double> path_noise(0.0, kPathNoise_mm / std::sqrt(3.0));
+  std::vector<double> replanned;
+  std::size_t kept_aim = 0;
+  for (std::size_t i = 0; i < planned.size(); ++i) {
+    kinematics::Joints joints = kin.inverse(planned[i])->joints;
+    if (fit) {
+      if (auto c = compensation::compensate(kin, aim, planned[i])) joints = c->compensated;
+    }
+    const std::uint64_t insertion = 2000 + i + 1;
+    kinematics::Joints partial = joints;
+    partial.z_s_mm *= kPartialShare;
+    Went half = world(partial, insertion);
+    for (auto& p : half.path_mm)
+      p += Eigen::Vector3d(path_noise(rng), path_noise(rng), path_noise(rng));
+    auto with_path = records;
+    with_path.push_back({"partial", planned[i], partial, half.path_mm.back(), half.path_mm});
+    compensation::DeflectionModel refitted = aim;
+    if (auto again = compensation::fitTissueFromTargeting(kin, model, with_path, fit_options)) {
+      refitted.tissue = again->tissue;
+      refitted.needle.curvature_per_mm = again->curvature_per_mm;
+    }
+    auto reaim = compensation::reaimFromPath(kin, refitted, partial, half.path_mm, planned[i]);
+    if (reaim) {
+      joints = reaim->aimed.compensated;
+    } else {
+      ++kept_aim;
+    }
+    replanned.push_back((world(joints, insertion).seed_mm - planned[i]).norm());
+  }
+  out["replanned"] = errorsJson(replanned);
+  out["replanned_kept_aim"] = kept_aim;
   return out;
 }
 
@@ -120,9 +169,12 @@ json worldStudy(const WorldStudyArgs& args) {
     const compensation::DeflectionModel model{hidden->needle, hidden->tissue,
                                               compensation::StyletCarry::kRotated};
     const World bicycle = [&](const kinematics::Joints& j, std::uint64_t) {
-      auto landing = compensation::predictLanding(kin, model, j);
-      if (!landing) throw CliError{"the bicycle world: " + landing.error().message};
-      return Eigen::Vector3d(landing->tip_mm);
+      auto path = compensation::predictPath(kin, model, j, 0.25, 0.0);
+      if (!path) throw CliError{"the bicycle world: " + path.error().message};
+      Went went{path->stylet_mm.empty() ? path->cannula_mm.back() : path->stylet_mm.back(),
+                path->cannula_mm};
+      went.path_mm.insert(went.path_mm.end(), path->stylet_mm.begin(), path->stylet_mm.end());
+      return went;
     };
     worlds.push_back(study(fmt::format("{} (λ1 {:g}, λ2 {:g})", hidden->name,
                                        hidden->tissue.lambda1, hidden->tissue.lambda2),
@@ -134,7 +186,10 @@ json worldStudy(const WorldStudyArgs& args) {
     const World rods = [&](const kinematics::Joints& j, std::uint64_t insertion) {
       auto needle_in = needle_world::insertNeedle(*world, kin, j, insertion);
       if (!needle_in) throw CliError{"the rod world: " + needle_in.error().message};
-      return Eigen::Vector3d(needle_in->seed_mm);
+      Went went{needle_in->seed_mm, needle_in->cannula_mm};
+      went.path_mm.insert(went.path_mm.end(), needle_in->stylet_mm.begin(),
+                          needle_in->stylet_mm.end());
+      return went;
     };
     worlds.push_back(study(world->name, "rod in tissue", rods, kin, needle, args));
   }
@@ -149,9 +204,10 @@ std::string worldStudyText(const json& s) {
   std::string out = fmt::format(
       "{} random targets in tissue (seed {}), seeds measured with {:g} mm RMS localisation "
       "noise; a first pass aimed as planned, the tissue fitted from its errors, a second pass on "
-      "the same targets aimed for the fitted tissue\n\n"
+      "the same targets aimed for the fitted tissue, a third re-planned in the middle of each "
+      "insertion from the needle's path on an intermittent CT\n\n"
       "| world | model | uncompensated mean / worst (mm) | fit | compensated mean / worst (mm) "
-      "|\n|---|---|---|---|---|\n",
+      "| re-planned mid-insertion mean / worst (mm) |\n|---|---|---|---|---|---|\n",
       s["targets"].get<int>(), s["seed"].get<std::uint64_t>(), s["localisation_mm"].get<double>());
   for (const auto& w : s["worlds"]) {
     const json& f = w["fit"];
@@ -163,12 +219,13 @@ std::string worldStudyText(const json& s) {
                           f["rms_mm"].get<double>(), f["rms_no_deflection_mm"].get<double>());
     const auto out_of_reach = w["compensated_out_of_reach"].get<std::size_t>();
     out += fmt::format(
-        "| {} | {} | {:.2f} / {:.2f} | {} | {:.2f} / {:.2f}{} |\n", w["world"].get<std::string>(),
-        w["kind"].get<std::string>(), w["uncompensated"]["mean_mm"].get<double>(),
-        w["uncompensated"]["worst_mm"].get<double>(), fit,
-        w["compensated"]["mean_mm"].get<double>(), w["compensated"]["worst_mm"].get<double>(),
+        "| {} | {} | {:.2f} / {:.2f} | {} | {:.2f} / {:.2f}{} | {:.2f} / {:.2f} |\n",
+        w["world"].get<std::string>(), w["kind"].get<std::string>(),
+        w["uncompensated"]["mean_mm"].get<double>(), w["uncompensated"]["worst_mm"].get<double>(),
+        fit, w["compensated"]["mean_mm"].get<double>(), w["compensated"]["worst_mm"].get<double>(),
         out_of_reach > 0 ? fmt::format(" ({} out of reach once compensated)", out_of_reach)
-                         : std::string());
+                         : std::string(),
+        w["replanned"]["mean_mm"].get<double>(), w["replanned"]["worst_mm"].get<double>());
   }
   return out;
 }

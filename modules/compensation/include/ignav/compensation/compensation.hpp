@@ -88,6 +88,30 @@ Expected<Compensation> compensate(const kinematics::Kinematics& kinematics,
                                   const DeflectionModel& model, const Eigen::Vector3d& target_mm,
                                   const CompensationOptions& options = {});
 
+// The rest of an insertion re-aimed from where the needle is (issue 40, step 6): it stopped part
+// way at `partial` and an intermittent CT shows its shape (`observed_path_mm`, robot frame, from
+// where it enters the tissue to the stylet's tip). What the insertion does beyond the model shows
+// as the rigid motion that carries the model's path for `partial` onto the observed one, fitted
+// by iterated closest points (the observed path thinned to a point a millimetre, each paired with
+// the nearest point of the moved model path, the tips paired with a quarter of the weight,
+// Eigen::umeyama without scale each round). The rest is aimed so that the model's landing,
+// carried by that motion, is the target: the target carried back, compensated as any target is.
+struct Reaim {
+  Eigen::Matrix4d correction = Eigen::Matrix4d::Identity();  // model's path -> observed, robot
+  double tip_offset_mm = 0.0;  // observed tip − the model's, before the correction
+  double path_rms_mm = 0.0;    // observed points vs the corrected model path, over the pairs
+  std::size_t pairs = 0;       // observed points compared
+  Compensation aimed;          // for the target carried back
+  Eigen::Vector3d landing_mm = Eigen::Vector3d::Zero();  // the aimed joints' landing, corrected
+};
+// Errors: non-finite input, a path shorter than 3 mm or than 4 points (nothing to fit a motion
+// to), the model's (as predictPath), compensate's (out of reach, not converged).
+Expected<Reaim> reaimFromPath(const kinematics::Kinematics& kinematics,
+                              const DeflectionModel& model, const kinematics::Joints& partial,
+                              const std::vector<Eigen::Vector3d>& observed_path_mm,
+                              const Eigen::Vector3d& target_mm,
+                              const CompensationOptions& options = {});
+
 // One seed or tip measured after a move: what was planned, the joints used, where it ended.
 struct TargetingRecord {
   std::string id;
