@@ -83,6 +83,7 @@ $ctl verify load "$PWD/$out/confirmation_3" same-frame | tee "$session/verificat
 # server, and a fit it refuses when the model explains nothing (docs/VERIFICATION.md, "Two worlds").
 "$plan" confirmation-phantom "$session" --robot "$robot" --out "$out/confirmation_rod" \
   --world configs/worlds/layered_gel.yaml --noise-hu 8
+echo "(the second pass's joints were aimed for the gel fitted above: in this world that aim is wrong)"
 $ctl verify load "$PWD/$out/confirmation_rod" | tee "$session/verification_rod.txt"
 $ctl verify fit layered_gel_fitted 2>&1 | tee "$session/fit_rod.txt" || true
 echo "== what compensation buys in each world, 24 targets (ignav-plan world-study)"
