@@ -208,7 +208,7 @@ void Reports::writeVerification(const Session& session) const {
       std::string label = "seed " + std::to_string(seed.id);
       std::string description = seed.placed ? "placed by hand" : "detected";
       for (const auto& t : c.targets) {
-        if (t.seed_id != seed.id || c.rows_source != c.source) continue;
+        if (t.seed_id != seed.id || !c.rowsAreThisScans()) continue;
         label = "T" + std::to_string(t.error.target_id);
         description +=
             fmt::format("; {:.2f} mm from target {}", t.error.error_mm, t.error.target_id);

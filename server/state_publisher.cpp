@@ -277,7 +277,7 @@ void StatePublisher::publishVerification(const Session& s) {
     m.placed = seed.placed;
     m.rejected = seed.rejected;
     for (const auto& t : c.targets)  // rows kept from an earlier scan name its seeds, not these
-      if (t.seed_id == seed.id && c.rows_source == c.source) m.target_id = t.error.target_id;
+      if (t.seed_id == seed.id && c.rowsAreThisScans()) m.target_id = t.error.target_id;
     v.seeds.push_back(m);
   }
   for (const auto& t : c.targets) {
@@ -310,7 +310,7 @@ void StatePublisher::publishVerification(const Session& s) {
     v.lateral = statsOf(c.summary->lateral);
     v.depth = statsOf(c.summary->depth);
   }
-  v.summary = c.rows_source == c.source || c.text.empty()
+  v.summary = c.rowsAreThisScans() || c.text.empty()
                   ? c.text
                   : fmt::format("measured on {}: {}", c.rows_source, c.text);
   for (const auto& f : s.fitted_tissues) {

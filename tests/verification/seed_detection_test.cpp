@@ -47,6 +47,19 @@ std::vector<PhantomSeed> randomSeeds(std::size_t count, std::uint64_t seed,
   return seeds;
 }
 
+// A scan of seeds alone with 25 HU of noise, 1.25 mm slices and a 0.3 mm point spread, on an
+// oblique grid for even trials; its noise from the trial.
+PhantomSpec thickNoisySlices(std::uint64_t trial) {
+  PhantomSpec spec;
+  spec.spacing_mm = {0.8, 0.8, 1.25};
+  spec.oblique = trial % 2 == 0;
+  spec.noise_sigma_hu = 25.0;
+  spec.seed_psf_sigma_mm = 0.3;
+  spec.seed = trial;
+  spec.fiducials_lps_mm.clear();
+  return spec;
+}
+
 struct Found {
   double worst_mm = 0.0;
   double worst_axis_deg = 0.0;
@@ -173,13 +186,7 @@ TEST(SeedDetection, NoisyPhantomWithThickSlicesWithinThreeTenths) {
   // CT noise of 25 HU, 1.25 mm slices, a 0.3 mm point spread, an oblique grid.
   double worst = 0.0;
   for (std::uint64_t trial = 1; trial <= 4; ++trial) {
-    PhantomSpec spec;
-    spec.spacing_mm = {0.8, 0.8, 1.25};
-    spec.oblique = trial % 2 == 0;
-    spec.noise_sigma_hu = 25.0;
-    spec.seed_psf_sigma_mm = 0.3;
-    spec.seed = trial;
-    spec.fiducials_lps_mm.clear();
+    PhantomSpec spec = thickNoisySlices(trial);
     spec.seeds = randomSeeds(12, 40 + trial);
     const auto v = render(spec);
     auto d = findSeeds(v);
@@ -254,13 +261,7 @@ TEST(SeedDetection, SeedsWhoseImagesTouchAreBothFound) {
     for (std::uint64_t trial = 1; trial <= 10; ++trial) {
       std::mt19937_64 rng(trial * 31 + static_cast<std::uint64_t>(apart * 10));
       std::normal_distribution<double> g(0.0, 1.0);
-      PhantomSpec spec;
-      spec.spacing_mm = {0.8, 0.8, 1.25};
-      spec.oblique = trial % 2 == 0;
-      spec.noise_sigma_hu = 25.0;
-      spec.seed_psf_sigma_mm = 0.3;
-      spec.seed = trial;
-      spec.fiducials_lps_mm.clear();
+      PhantomSpec spec = thickNoisySlices(trial);
       const auto t = static_cast<double>(trial);
       const Eigen::Vector3d axis = Eigen::Vector3d(g(rng), g(rng), 0.3 * g(rng)).normalized();
       // Apart across the axis, diagonally in the grid where the voxels join most easily.

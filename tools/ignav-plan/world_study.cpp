@@ -92,16 +92,17 @@ json study(const std::string& name, const std::string& kind, const World& world,
   }
   // Second pass on the same targets, fresh luck: aimed for the fitted tissue where there is one
   // (a target the compensation takes out of reach is aimed as planned, as the server does).
+  std::vector<kinematics::Joints> aimed;
   for (std::size_t i = 0; i < planned.size(); ++i) {
-    kinematics::Joints joints = kin.inverse(planned[i])->joints;
+    aimed.push_back(records[i].joints);
     if (fit) {
       if (auto c = compensation::compensate(kin, aim, planned[i])) {
-        joints = c->compensated;
+        aimed.back() = c->compensated;
       } else {
         ++out_of_reach;
       }
     }
-    compensated.push_back((world(joints, 1000 + i + 1).seed_mm - planned[i]).norm());
+    compensated.push_back((world(aimed.back(), 1000 + i + 1).seed_mm - planned[i]).norm());
   }
   out["compensated"] = errorsJson(compensated);
   out["compensated_out_of_reach"] = out_of_reach;
@@ -114,10 +115,7 @@ json study(const std::string& name, const std::string& kind, const World& world,
   std::vector<double> replanned;
   std::size_t kept_aim = 0;
   for (std::size_t i = 0; i < planned.size(); ++i) {
-    kinematics::Joints joints = kin.inverse(planned[i])->joints;
-    if (fit) {
-      if (auto c = compensation::compensate(kin, aim, planned[i])) joints = c->compensated;
-    }
+    kinematics::Joints joints = aimed[i];
     const std::uint64_t insertion = 2000 + i + 1;
     kinematics::Joints partial = joints;
     partial.z_s_mm *= kPartialShare;

@@ -37,9 +37,7 @@ using Plane = kinematics::ThetaPlane;
 // The stylet as it leaves a cannula whose tip turned by heading_rad (−Z, i.e. (0, −1), goes to
 // (sin h, −cos h)); unturned when it is carried by translation only.
 Eigen::Vector2d carried(const Eigen::Vector2d& stylet, double heading_rad, StyletCarry carry) {
-  if (carry != StyletCarry::kRotated) return stylet;
-  const double c = std::cos(heading_rad), s = std::sin(heading_rad);
-  return {c * stylet.x() - s * stylet.y(), s * stylet.x() + c * stylet.y()};
+  return carry == StyletCarry::kRotated ? Plane::turned(stylet, heading_rad) : stylet;
 }
 
 }  // namespace

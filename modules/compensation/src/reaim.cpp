@@ -8,6 +8,7 @@
 #include <Eigen/Geometry>
 
 #include "ignav/compensation/compensation.hpp"
+#include "polyline.hpp"
 
 namespace ignav::compensation {
 namespace {
@@ -15,41 +16,6 @@ namespace {
 constexpr double kPairStep_mm = 1.0;  // observed points kept about every millimetre of arc
 constexpr double kMinPath_mm = 3.0;
 constexpr int kIterations = 100;
-
-double length(const std::vector<Eigen::Vector3d>& line) {
-  double out = 0.0;
-  for (std::size_t i = 1; i < line.size(); ++i)
-    out += (line[i] - line[i - 1]).norm();
-  return out;
-}
-
-// The point of the polyline nearest q.
-Eigen::Vector3d nearestOn(const std::vector<Eigen::Vector3d>& line, const Eigen::Vector3d& q) {
-  Eigen::Vector3d best = line.front();
-  for (std::size_t i = 1; i < line.size(); ++i) {
-    const Eigen::Vector3d a = line[i - 1], ab = line[i] - a;
-    const double len2 = ab.squaredNorm();
-    const double t = len2 > 0.0 ? std::clamp((q - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-    const Eigen::Vector3d p = a + t * ab;
-    if ((p - q).squaredNorm() < (best - q).squaredNorm()) best = p;
-  }
-  return best;
-}
-
-// The observed points about every kPairStep_mm of arc, the tip last.
-std::vector<Eigen::Vector3d> thinned(const std::vector<Eigen::Vector3d>& path) {
-  std::vector<Eigen::Vector3d> out{path.back()};
-  double along = 0.0;
-  for (std::size_t i = path.size() - 1; i-- > 0;) {
-    along += (path[i + 1] - path[i]).norm();
-    if (along >= kPairStep_mm) {
-      out.push_back(path[i]);
-      along = 0.0;
-    }
-  }
-  std::reverse(out.begin(), out.end());
-  return out;
-}
 
 }  // namespace
 
@@ -64,7 +30,7 @@ Expected<Reaim> reaimFromPath(const kinematics::Kinematics& kinematics,
     return makeError(ErrorCode::kInvalidArgument,
                      "re-aim: the observed path and the target must be finite");
   }
-  const double observed_mm = length(observed_path_mm);
+  const double observed_mm = detail::polylineLength(observed_path_mm);
   if (observed_path_mm.size() < 4 || observed_mm < kMinPath_mm) {
     return makeError(ErrorCode::kInvalidArgument,
                      fmt::format("re-aim: the observed path has {} points over {:.2f} mm: at least "
@@ -79,7 +45,8 @@ Expected<Reaim> reaimFromPath(const kinematics::Kinematics& kinematics,
   // The motion by iterated closest points: each observed point paired with the nearest point of
   // the moved model path, the tips paired with the weight of a quarter of the path (a nearly
   // straight needle would otherwise slide along itself), Eigen::umeyama (no scale) each round.
-  const std::vector<Eigen::Vector3d> observed = thinned(observed_path_mm);
+  const std::vector<Eigen::Vector3d> observed =
+      detail::thinnedFromTip(observed_path_mm, kPairStep_mm);
   const auto n = static_cast<Eigen::Index>(observed.size());
   const Eigen::Index tip_weight = std::max<Eigen::Index>(1, n / 4);
   Eigen::Matrix3Xd from(3, n + tip_weight), to(3, n + tip_weight);
@@ -92,7 +59,7 @@ Expected<Reaim> reaimFromPath(const kinematics::Kinematics& kinematics,
     const Eigen::Matrix4d back = motion.inverse();
     for (Eigen::Index k = 0; k < n; ++k) {
       const Eigen::Vector3d q = observed[static_cast<std::size_t>(k)];
-      from.col(k) = nearestOn(line, (back * q.homogeneous()).head<3>());
+      from.col(k) = detail::nearestOnPolyline(line, (back * q.homogeneous()).head<3>());
       to.col(k) = q;
     }
     const Eigen::Matrix4d next = Eigen::umeyama(from, to, false);

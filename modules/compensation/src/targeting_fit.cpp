@@ -13,6 +13,7 @@
 #include <unsupported/Eigen/LevenbergMarquardt>
 
 #include "ignav/compensation/compensation.hpp"
+#include "polyline.hpp"
 
 namespace ignav::compensation {
 namespace {
@@ -47,19 +48,8 @@ constexpr double kPathWeight = 0.05 / 0.15;
 // The records with each path thinned to points kPathSpacing_mm apart along it, from its deep end
 // (the tip, where the tissue shows most).
 std::vector<TargetingRecord> withIndependentPathPoints(std::vector<TargetingRecord> records) {
-  for (auto& r : records) {
-    if (r.path_mm.empty()) continue;
-    std::vector<Eigen::Vector3d> kept{r.path_mm.back()};
-    double along = 0.0;
-    for (std::size_t i = r.path_mm.size() - 1; i-- > 0;) {
-      along += (r.path_mm[i + 1] - r.path_mm[i]).norm();
-      if (along >= kPathSpacing_mm) {
-        kept.push_back(r.path_mm[i]);
-        along = 0.0;
-      }
-    }
-    r.path_mm.assign(kept.rbegin(), kept.rend());
-  }
+  for (auto& r : records)
+    r.path_mm = detail::thinnedFromTip(r.path_mm, kPathSpacing_mm);
   return records;
 }
 
@@ -68,20 +58,6 @@ int pathPoints(const std::vector<TargetingRecord>& records) {
   for (const auto& r : records)
     n += r.path_mm.size();
   return static_cast<int>(n);
-}
-
-// From q to the nearest point of the polyline.
-Eigen::Vector3d offsetToPolyline(const std::vector<Eigen::Vector3d>& line,
-                                 const Eigen::Vector3d& q) {
-  Eigen::Vector3d best = line.front() - q;
-  for (std::size_t i = 1; i < line.size(); ++i) {
-    const Eigen::Vector3d a = line[i - 1], ab = line[i] - a;
-    const double len2 = ab.squaredNorm();
-    const double t = len2 > 0.0 ? std::clamp((q - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-    const Eigen::Vector3d d = a + t * ab - q;
-    if (d.squaredNorm() < best.squaredNorm()) best = d;
-  }
-  return best;
 }
 
 struct Residuals : Eigen::DenseFunctor<double> {
@@ -130,8 +106,9 @@ struct Residuals : Eigen::DenseFunctor<double> {
         line.insert(line.end(), path->stylet_mm.begin(), path->stylet_mm.end());
       }
       for (const auto& q : record.path_mm) {
-        r.segment<3>(at) = path ? Eigen::Vector3d(kPathWeight * offsetToPolyline(line, q))
-                                : Eigen::Vector3d::Constant(kPenalty_mm);
+        r.segment<3>(at) =
+            path ? Eigen::Vector3d(kPathWeight * (detail::nearestOnPolyline(line, q) - q))
+                 : Eigen::Vector3d::Constant(kPenalty_mm);
         at += 3;
       }
     }

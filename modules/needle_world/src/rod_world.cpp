@@ -18,11 +18,6 @@ constexpr double kShapeStep_mm = 0.25;
 
 using Plane = kinematics::ThetaPlane;
 
-Eigen::Vector2d rotated(const Eigen::Vector2d& v, double turn_rad) {  // −Z turns towards +y′
-  const double c = std::cos(turn_rad), s = std::sin(turn_rad);
-  return {c * v.x() - s * v.y(), s * v.x() + c * v.y()};
-}
-
 // The deviation at `along_mm` of a beam sampled every `step` from its start.
 double at(const BeamDeviation& beam, double along_mm, double step) {
   if (beam.lateral_mm.size() < 2 || along_mm <= 0.0) return 0.0;
@@ -118,7 +113,7 @@ Expected<WorldNeedle> insertNeedle(const RodWorld& world, const kinematics::Kine
                                         plane.in(nominal.cannula_mm[nominal.cannula_mm.size() - 2]))
                                            .normalized()
                                      : Eigen::Vector2d(0.0, -1.0);
-  const Eigen::Vector2d heading = rotated(nominal_heading, cannula.tip_angle_rad);
+  const Eigen::Vector2d heading = Plane::turned(nominal_heading, cannula.tip_angle_rad);
   const Eigen::Vector3d axis = plane.out(heading).normalized();
 
   // The stylet: its arc from the real cannula tip, tilted by its play in the bore, pushed aside
@@ -144,8 +139,9 @@ Expected<WorldNeedle> insertNeedle(const RodWorld& world, const kinematics::Kine
     Eigen::Vector2d tangent = next - before;
     tangent = tangent.norm() > 1e-12 ? tangent.normalized() : heading;
     const Eigen::Vector2d inward(-tangent.y(), tangent.x());
-    const Eigen::Vector2d shaped = rotated(q - nominal_cannula_tip, tilt_rad) +
-                                   at(stylet, along_mm, stylet_step) * rotated(inward, tilt_rad);
+    const Eigen::Vector2d shaped =
+        Plane::turned(q - nominal_cannula_tip, tilt_rad) +
+        at(stylet, along_mm, stylet_step) * Plane::turned(inward, tilt_rad);
     const Eigen::Vector3d p = plane.out(cannula_tip + shaped);
     const Eigen::AngleAxisd twist(world.twist_rad_per_mm * along_mm, axis);
     stylet_mm.push_back(out.cannula_tip_mm + twist * (p - out.cannula_tip_mm));

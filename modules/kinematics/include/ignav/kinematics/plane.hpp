@@ -14,6 +14,11 @@ struct ThetaPlane {
   Eigen::Vector3d out(const Eigen::Vector2d& p) const {
     return {p.x() * u.x(), p.x() * u.y(), p.y()};
   }
+  // v turned in the plane by turn_rad: −Z, i.e. (0, −1), goes to (sin t, −cos t), towards +y′.
+  static Eigen::Vector2d turned(const Eigen::Vector2d& v, double turn_rad) {
+    const double c = std::cos(turn_rad), s = std::sin(turn_rad);
+    return {c * v.x() - s * v.y(), s * v.x() + c * v.y()};
+  }
   Eigen::Vector3d u;  // y′
 };
 

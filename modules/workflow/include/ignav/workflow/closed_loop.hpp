@@ -90,6 +90,8 @@ struct Confirmation {
   // The scan the rows above (targets to text) were measured on: `source`, or while this scan's
   // match needs a person (unmatched), the last one that matched, whose rows stay meanwhile.
   std::string rows_source;
+  // The rows are this scan's own (their seed ids name its seeds).
+  bool rowsAreThisScans() const { return rows_source == source; }
 };
 
 // A tissue fitted from this session's measured errors (fit_tissue): the profile, usable by
