@@ -225,6 +225,21 @@ void StatePublisher::publishTarget(const Session& s, std::uint32_t id) {
       m.nominal_landing_robot = toPoint3(c.nominal_landing_robot_mm);
       m.predicted_landing_robot = toPoint3(c.landing_robot_mm);
     }
+    if (t.pause_z_s_mm) m.pause_z_s_mm = *t.pause_z_s_mm;
+    if (t.paused) {
+      m.paused = true;
+      m.paused_joints = {t.paused->theta_c_rad, t.paused->z_c_mm, t.paused->z_s_mm};
+    }
+    if (t.reaimed) {
+      const auto& r = *t.reaimed;
+      const auto& n = t.solution.joints;
+      m.reaimed = true;
+      m.nominal_joints = {n.theta_c_rad, n.z_c_mm, n.z_s_mm};
+      m.previous_joints = {r.before.theta_c_rad, r.before.z_c_mm, r.before.z_s_mm};
+      m.previous_landing_robot = toPoint3(r.before_landing_robot_mm);
+      m.reaimed_landing_robot = toPoint3(r.landing_robot_mm);
+    }
+    m.replan = t.replan;
     m.steps = stepsOf(t.steps);
     m.tre_mm = t.tre_mm;
     m.tre_warning = t.tre_warning;

@@ -92,7 +92,9 @@ TEST(JsonView, TargetIsWhatBrowsersRead) {
     "predicted_deviation_mm": 1.25, "status": "planned", "outside_volume": false,
     "path_warning": "", "path_lps": [[0, 0, 0], [1, 2, 3]], "compensated": false,
     "aim_tissue": "", "nominal_joints": [0, 0, 0], "nominal_landing_robot": [0, 0, 0],
-    "predicted_landing_robot": [0, 0, 0]})");
+    "predicted_landing_robot": [0, 0, 0], "pause_z_s_mm": 0, "paused": false,
+    "paused_joints": [0, 0, 0], "reaimed": false, "previous_joints": [0, 0, 0],
+    "previous_landing_robot": [0, 0, 0], "reaimed_landing_robot": [0, 0, 0], "replan": ""})");
   EXPECT_EQ(json(aTarget()), expected);
 }
 

@@ -83,12 +83,15 @@ std::uint64_t insertionOf(std::uint32_t id, const kinematics::Joints& j) {
 // hidden tissue, or the nominal forward kinematics without either. In the bicycle world its
 // direction there is the way the tip goes when the stylet is pushed on a little (the same model,
 // so the same deflection).
+// `insertion` (0: these joints' own) names the try otherwise: an insertion stopped part-way and
+// finished (as aimed, or re-aimed) is the same needle, with the luck of its first half.
 Landed land(const kinematics::Kinematics& kinematics,
             const std::optional<compensation::DeflectionModel>& hidden,
             const std::optional<needle_world::RodWorld>& world, const kinematics::Joints& joints,
-            std::uint32_t id) {
+            std::uint32_t id, std::uint64_t insertion = 0) {
   if (world) {
-    auto needle = needle_world::insertNeedle(*world, kinematics, joints, insertionOf(id, joints));
+    auto needle = needle_world::insertNeedle(*world, kinematics, joints,
+                                             insertion != 0 ? insertion : insertionOf(id, joints));
     if (!needle) throw CliError{fmt::format("target {}: {}", id, needle.error().message)};
     return {needle->tip_mm, needle->direction, needle->seed_mm, needle->cannula_mm,
             needle->stylet_mm};
@@ -153,13 +156,16 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
                    ": the session was never registered: no target of it was placed in the robot's "
                    "frame, so there is no seed to deposit"};
   }
+  // The reached targets, and one whose insertion stopped part-way (pause_at) when the scan is of
+  // its needle there: an intermittent CT.
   std::vector<const workflow::Target*> reached;
   for (const auto& t : session.targets) {
-    if (t.reached) reached.push_back(&t);
+    if (t.reached || (t.paused && t.id == args.needle_at)) reached.push_back(&t);
   }
   if (reached.empty()) {
     throw CliError{args.session_dir +
-                   ": no target of this session was reached: there is no seed to deposit"};
+                   ": no target of this session was reached (or is stopped part-way at "
+                   "--needle-at): there is no seed or needle to show"};
   }
 
   // The same phantom as the server's `phantom:` scan: the robot where it was, its markers too.
@@ -180,14 +186,19 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
   if (args.needle_at != 0 &&
       std::none_of(reached.begin(), reached.end(),
                    [&](const workflow::Target* t) { return t->id == args.needle_at; })) {
-    throw CliError{fmt::format("--needle-at {}: no reached target has that id", args.needle_at)};
+    throw CliError{
+        fmt::format("--needle-at {}: no reached or paused target has that id", args.needle_at)};
   }
   json targets = json::array();
   double sum_mm = 0.0, max_mm = 0.0;
+  std::size_t landed_count = 0;
   for (const workflow::Target* t : reached) {
-    // The joints it was reached with, whatever the registration or the aim changed since.
-    const kinematics::Joints& joints = t->reached_joints;
-    const Landed landed = land(robot.kinematics, hidden, world, joints, t->id);
+    // The joints it was reached with, whatever the registration or the aim changed since; or
+    // where its insertion stopped.
+    const bool paused = !t->reached;
+    const kinematics::Joints& joints = paused ? *t->paused : t->reached_joints;
+    const std::uint64_t insertion = t->paused ? insertionOf(t->id, *t->paused) : 0;
+    const Landed landed = land(robot.kinematics, hidden, world, joints, t->id, insertion);
     const bool needle = t->id == args.needle_at;
     // Where the scan shows it: the tip of a needle still in, else the seed it left.
     const Eigen::Vector3d landing_mm = needle ? landed.tip_mm : landed.seed_mm;
@@ -234,8 +245,11 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
       spec.seeds.push_back(seed);
     }
     const double off_mm = (landing_mm - t->robot_mm).norm();
-    sum_mm += off_mm;
-    max_mm = std::max(max_mm, off_mm);
+    if (!paused) {  // a needle stopped part-way has not landed yet
+      sum_mm += off_mm;
+      max_mm = std::max(max_mm, off_mm);
+      ++landed_count;
+    }
     targets.push_back({{"id", t->id},
                        {"aimed_with", t->compensated ? t->compensated->profile : "nominal"},
                        {"joints", jointsJson(joints)},
@@ -247,6 +261,15 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
                        {"needle_lps_mm", needle_lps},
                        {"seed_axis_lps", pointJson(seed.axis_lps)},
                        {"landing_off_plan_mm", off_mm}});
+    if (paused) {
+      // Where the insertion would land if it went on as aimed now: what a re-aim is judged by.
+      const kinematics::Joints aimed = t->commandedJoints();
+      const Landed finished = land(robot.kinematics, hidden, world, aimed, t->id, insertion);
+      targets.back()["paused"] = true;
+      targets.back()["aimed_joints"] = jointsJson(aimed);
+      targets.back()["finished_landing_robot_mm"] = pointJson(finished.seed_mm);
+      targets.back()["finished_off_plan_mm"] = (finished.seed_mm - t->robot_mm).norm();
+    }
   }
 
   const std::string truth_path =
@@ -285,7 +308,8 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
                   {"markers_lps_mm", json::array()}}},
                 {"targets", targets},
                 {"landing_off_plan_mm",
-                 {{"mean", sum_mm / static_cast<double>(reached.size())}, {"max", max_mm}}}};
+                 {{"mean", landed_count ? sum_mm / static_cast<double>(landed_count) : 0.0},
+                  {"max", max_mm}}}};
   for (const auto& m : spec.fiducials_lps_mm)
     truth["ct"]["markers_lps_mm"].push_back(pointJson(m));
   std::ofstream out(truth_path, std::ios::trunc);

@@ -30,6 +30,7 @@ constexpr Alias kAliases[] = {
     {"targets clear", "clear_targets"},
     {"targets lock", "lock_plan"},
     {"targets unlock", "unlock_plan"},
+    {"targets pause", "pause_at"},         // stop part-way: MM (or none) ID
     {"verify load", "load_confirmation"},  // waits for the measurement; `same-frame`
     {"verify place", "place_seed"},
     {"verify accept", "accept_seed"},
@@ -37,6 +38,8 @@ constexpr Alias kAliases[] = {
     {"verify fit", "fit_tissue"},
     {"verify aim", "use_tissue"},
     {"verify discard", "discard_tissue"},
+    {"verify scan", "scan_needle"},  // waits for the search and the re-aim; `same-frame`
+    {"verify reaim", "reaim"},
 };
 
 const commands::InputSpec& rowOf(const Alias& alias) {

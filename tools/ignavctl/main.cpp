@@ -1,10 +1,10 @@
 // ignavctl: a human and scripted client of ignav-server over DDS.
 //   ignavctl status | load PATH|phantom | fiducials auto | fiducials set P1 P2 P3
-//   ignavctl targets add X,Y,Z | rm ID | ls | clear | lock | unlock
+//   ignavctl targets add X,Y,Z | rm ID | ls | clear | lock | unlock | pause MM|none ID
 //   ignavctl slice --view axial --lps X,Y,Z --out s.png | watch | run script.yaml
 //   ignavctl approval | approve [--yes] [--plan N --digest HEX] | motion | emergency-stop
 //   ignavctl verify [load PATH [same-frame] | place ID X,Y,Z | accept ID | reject SEED | fit NAME
-//                    | aim NAME | discard NAME]
+//                    | aim NAME | discard NAME | scan PATH [same-frame] | reaim]
 //   ignavctl replay SESSION [--speed 1|10|max] [--until SEQ]
 //   ignavctl robots (the servers on the domain); --robot ID picks one where several share it
 //   ignavctl doctor (participants, robots, round trips, clock offsets, what looks wrong)

@@ -112,4 +112,12 @@ Refusal fitTissue(Session& s, const Input& in, ActionOutput& out);
 Refusal useTissue(Session& s, const Input& in, ActionOutput& out);
 Refusal discardTissue(Session& s, const Input& in, ActionOutput& out);
 
+// ---- Actions: re-planning during an insertion (replan_actions.cpp) ----
+
+Refusal pauseAt(Session& s, const Input& in, ActionOutput& out);
+Refusal startNeedleScan(Session& s, const Input& in, ActionOutput& out);
+Refusal adoptNeedleScan(Session& s, const Input& in, ActionOutput& out);
+Refusal noteNeedleScanFailure(Session& s, const Input& in, ActionOutput& out);
+Refusal adoptReaim(Session& s, const Input& in, ActionOutput& out);
+
 }  // namespace ignav::workflow::detail

@@ -46,6 +46,18 @@ std::optional<BackgroundJob> confirmationMeasurement(const Session& s) {
       [job = std::move(*job)](const JobContext&) { return measureConfirmation(job); }};
 }
 
+std::optional<BackgroundJob> needleScan(const Session& s) {
+  auto job = pendingNeedleScan(s);
+  if (!job) return std::nullopt;
+  return BackgroundJob{JobKind::kNeedleScan, job->scan.job, job->scan.source,
+                       [job = std::move(*job)](const JobContext&) { return scanNeedle(job); }};
+}
+
+std::string staleNeedleScan(const Session& s, const Input& in) {
+  return fmt::format("intermittent CT search #{} ({}) is not the one awaited (#{}): ignored",
+                     in.job, in.path, s.scanning_needle);
+}
+
 std::string staleMeasurement(const Session& s, const Input& in) {
   return fmt::format("confirmation CT measurement #{} ({}) is not the one awaited (#{}): ignored",
                      in.job, in.path, s.confirmation.measuring);
@@ -63,6 +75,9 @@ const std::vector<JobKindSpec> kJobKinds = {
      InputKind::kConfirmationMeasured, InputKind::kConfirmationFailed,
      [](const Session& s) { return s.confirmation.measuring; }, confirmationMeasurement,
      staleMeasurement},
+    {JobKind::kNeedleScan, "intermittent CT search", InputKind::kNeedleScanned,
+     InputKind::kNeedleScanFailed, [](const Session& s) { return s.scanning_needle; }, needleScan,
+     staleNeedleScan},
 };
 
 }  // namespace

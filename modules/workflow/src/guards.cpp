@@ -37,7 +37,8 @@ bool retractionEnded(const Session& s, const Input&) {
 // The last move to a target ended: with every other target reached and the stylet home there
 // (a target at zs = 0), no retraction is left to approve.
 bool nothingLeftAfterArrival(const Session& s, const Input&) {
-  return s.motion && s.robot &&
+  // A motion that stops part-way reaches nothing.
+  return s.motion && s.robot && !s.motion->request().pause_z_s_mm &&
          nothingLeftToMove(s, moveEnd(*s.motion), s.motion->request().target_id);
 }
 

@@ -15,6 +15,50 @@ namespace {
 
 using nlohmann::json;
 
+json vec3(const Eigen::Vector3d& p) {
+  return {p.x(), p.y(), p.z()};
+}
+json jointsJson(const kinematics::Joints& j) {
+  return {j.theta_c_rad, j.z_c_mm, j.z_s_mm};
+}
+
+Eigen::Vector3d vec3From(const json& j, const char* field) {
+  if (!j.is_array() || j.size() != 3) {
+    throw std::invalid_argument(std::string(field) + ": not 3 numbers");
+  }
+  const Eigen::Vector3d p(j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>());
+  if (!p.allFinite()) throw std::invalid_argument(std::string(field) + ": not finite");
+  return p;
+}
+kinematics::Joints jointsFrom(const json& j, const char* field) {
+  const Eigen::Vector3d v = vec3From(j, field);
+  return {v.x(), v.y(), v.z()};
+}
+
+// needle_scanned's re-aim: what the job computed, so that replay never runs it again.
+json reaimJson(const ReaimProposal& r) {
+  json aims = json::array();
+  for (const auto& a : r.aims) {
+    aims.push_back({{"target", a.target_id},
+                    {"how", a.how},
+                    {"before", jointsJson(a.before)},
+                    {"joints", jointsJson(a.joints)},
+                    {"before_landing", vec3(a.before_landing_robot_mm)},
+                    {"landing", vec3(a.landing_robot_mm)}});
+  }
+  return {{"target", r.target_id},
+          {"source", r.source},
+          {"paused", jointsJson(r.paused)},
+          {"tip_lps", vec3(r.tip_lps_mm)},
+          {"tip_robot", vec3(r.tip_robot_mm)},
+          {"tip_offset_mm", r.tip_offset_mm},
+          {"path_rms_mm", r.path_rms_mm},
+          {"path_points", r.path_points},
+          {"model", r.model},
+          {"message", r.message},
+          {"aims", aims}};
+}
+
 json journalRecord(const Input& in, const Session& after) {
   json points = json::array();
   for (const auto& p : in.points)
@@ -57,6 +101,7 @@ json journalRecord(const Input& in, const Session& after) {
     }
     record["seeds"] = seeds;
   }
+  if (in.reaim) record["reaim"] = reaimJson(*in.reaim);
   if (!in.error.empty()) record["error"] = in.error;
   if (in.job != 0) record["job"] = in.job;
   if (!in.summary.empty()) record["summary"] = in.summary;
@@ -238,6 +283,39 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
       e.input.matrix = matrix;
     }
     if (r.contains("controller")) e.input.controller = readingFromJson(r.at("controller"));
+    if (r.contains("reaim")) {
+      const json& j = r.at("reaim");
+      ReaimProposal p;
+      p.job = e.input.job;
+      p.target_id = integer<std::uint32_t>(j.at("target"), "reaim.target");
+      p.source = j.at("source").get<std::string>();
+      p.paused = jointsFrom(j.at("paused"), "reaim.paused");
+      p.tip_lps_mm = vec3From(j.at("tip_lps"), "reaim.tip_lps");
+      p.tip_robot_mm = vec3From(j.at("tip_robot"), "reaim.tip_robot");
+      p.tip_offset_mm = j.at("tip_offset_mm").get<double>();
+      p.path_rms_mm = j.at("path_rms_mm").get<double>();
+      p.path_points = integer<std::size_t>(j.at("path_points"), "reaim.path_points");
+      p.model = j.at("model").get<std::string>();
+      p.message = j.at("message").get<std::string>();
+      for (const auto& a : j.at("aims")) {
+        ReaimedAim aim;
+        aim.target_id = integer<std::uint32_t>(a.at("target"), "reaim.aims.target");
+        aim.how = a.at("how").get<std::string>();
+        if (aim.how != "path" && aim.how != "refit") {
+          throw std::invalid_argument("reaim.aims.how: '" + aim.how +
+                                      "' is neither path nor refit");
+        }
+        aim.before = jointsFrom(a.at("before"), "reaim.aims.before");
+        aim.joints = jointsFrom(a.at("joints"), "reaim.aims.joints");
+        aim.before_landing_robot_mm = vec3From(a.at("before_landing"), "reaim.aims.before_landing");
+        aim.landing_robot_mm = vec3From(a.at("landing"), "reaim.aims.landing");
+        p.aims.push_back(aim);
+      }
+      if (p.aims.empty() || p.aims.front().target_id != p.target_id) {
+        throw std::invalid_argument("reaim.aims: the paused target's aim must come first");
+      }
+      e.input.reaim = std::move(p);
+    }
     if (r.contains("tissue")) {
       const json& t = r.at("tissue");
       config::TissueProfile profile;

@@ -52,6 +52,51 @@ std::vector<planning::PlannedTarget> unreached(const Session& s) {
   return out;
 }
 
+// Where the next motion to `t` ends: part-way when it is to stop first (pause_at) and has not.
+std::optional<double> pendingPause(const Target& t) {
+  if (!t.pause_z_s_mm || t.paused || *t.pause_z_s_mm >= t.commandedJoints().z_s_mm) {
+    return std::nullopt;
+  }
+  return t.pause_z_s_mm;
+}
+
+std::string jointsText(const kinematics::Joints& j) {
+  return fmt::format("θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm", j.theta_c_rad * kRadToDeg, j.z_c_mm,
+                     j.z_s_mm);
+}
+
+std::string pointText(const Eigen::Vector3d& p) {
+  return fmt::format("({:.3f}, {:.3f}, {:.3f})", p.x(), p.y(), p.z());
+}
+
+// What the operator approves for a target: the joints, and what they depart from.
+std::string aimText(const Target& t) {
+  const auto& j = t.commandedJoints();
+  // A registration given as a matrix has no fiducials to estimate the TRE from.
+  const std::string tre = std::isnan(t.tre_mm) ? std::string("TRE unknown (registered by matrix)")
+                                               : fmt::format("expected TRE {:.2f} mm", t.tre_mm);
+  std::string where = fmt::format("T{} ({}, {})", t.id, jointsText(j), tre);
+  if (t.reaimed) {  // nominal, previously aimed and re-aimed, each with its predicted landing
+    const auto& r = *t.reaimed;
+    where += fmt::format(
+        ", re-aimed from {} (nominal {}; previously aimed {}, predicted to land {} mm robot, "
+        "{:.2f} mm from the target; re-aimed lands {} mm robot, {:.4f} mm from it)",
+        r.how == "path" ? "this needle's path on the intermittent CT"
+                        : "the tissue refitted with a needle's path",
+        jointsText(t.solution.joints), jointsText(r.before), pointText(r.before_landing_robot_mm),
+        (r.before_landing_robot_mm - t.robot_mm).norm(), pointText(r.landing_robot_mm),
+        (r.landing_robot_mm - t.robot_mm).norm());
+  } else if (t.compensated) {  // the operator approves the aim, and sees what it departs from
+    const auto& c = *t.compensated;
+    where += fmt::format(
+        ", compensated for tissue '{}' (nominal {} would land {:.2f} mm off; predicted landing "
+        "{} mm robot, {:.4f} mm from the target)",
+        c.profile, jointsText(t.solution.joints), (c.nominal_landing_robot_mm - t.robot_mm).norm(),
+        pointText(c.landing_robot_mm), c.residual_mm);
+  }
+  return where;
+}
+
 // The final retraction from `position`: the stylet home, cannula where it is.
 struct Retraction {
   kinematics::Joints from, to;
@@ -74,6 +119,8 @@ std::string canonicalText(const MotionScope& scope, const MotionRequest& r) {
                          : fmt::format("ignav motion request v2\nrobot {}\nsession {} {}\n",
                                        scope.robot_id, scope.session_id, scope.session_uuid);
   text += fmt::format("plan {}\ntarget {}\nfrom {}\n", r.plan_id, r.target_id, stepsText(r.from));
+  // Only a motion that stops part-way says so: the texts of every other stay as they were.
+  if (r.pause_z_s_mm) text += fmt::format("pause stylet {:.6f} mm\n", *r.pause_z_s_mm);
   for (const auto& m : r.moves) {
     text += fmt::format("move {} {}\n", planning::toString(m.kind), stepsText(m.steps));
   }
@@ -115,30 +162,39 @@ Expected<std::optional<MotionRequest>> nextRequest(const Session& s, double time
   const auto todo = unreached(s);
   std::string where;
   if (!todo.empty()) {
-    auto plan = planning::planInsertion(robot.kinematics, robot.transmission, {todo.front()}, start,
-                                        s.policy.limits);
-    if (!plan) return plan.error();
     const Target& t = *std::find_if(s.targets.begin(), s.targets.end(),
                                     [&](const Target& x) { return x.id == todo.front().id; });
+    planning::PlannedTarget goal = todo.front();
+    r.pause_z_s_mm = pendingPause(t);
+    if (r.pause_z_s_mm) goal.joints.z_s_mm = *r.pause_z_s_mm;
     r.target_id = t.id;
-    r.moves = plan->motions.front().moves;
+    if (t.paused && !r.pause_z_s_mm) {
+      // The insertion goes on from where it stopped: where the cannula stays (to the step), only
+      // the stylet moves; a re-aim that turns or moves the cannula draws the stylet in first.
+      kinematics::Joints in_place = start;
+      in_place.z_s_mm = goal.joints.z_s_mm;
+      const auto direct = robot.transmission.move(start, goal.joints).steps;
+      if (direct == robot.transmission.move(start, in_place).steps) {
+        const auto kind = goal.joints.z_s_mm >= start.z_s_mm ? planning::MoveKind::kDeployStylet
+                                                             : planning::MoveKind::kRetractStylet;
+        r.moves.push_back({kind, start, goal.joints, direct, 0.0});
+      }
+    }
+    if (r.moves.empty()) {
+      auto plan = planning::planInsertion(robot.kinematics, robot.transmission, {goal}, start,
+                                          s.policy.limits);
+      if (!plan) return plan.error();
+      r.moves = plan->motions.front().moves;
+    }
     r.tre_mm = t.tre_mm;
-    const auto& j = t.commandedJoints();
-    // A registration given as a matrix has no fiducials to estimate the TRE from.
-    const std::string tre = std::isnan(t.tre_mm) ? std::string("TRE unknown (registered by matrix)")
-                                                 : fmt::format("expected TRE {:.2f} mm", t.tre_mm);
-    where = fmt::format("T{} (θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm, {})", t.id,
-                        j.theta_c_rad * kRadToDeg, j.z_c_mm, j.z_s_mm, tre);
-    if (t.compensated) {  // the operator approves the aim, and sees what it departs from
-      const auto& c = *t.compensated;
-      const auto& n = t.solution.joints;
-      where += fmt::format(
-          ", compensated for tissue '{}' (nominal θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm would "
-          "land {:.2f} mm off; predicted landing ({:.3f}, {:.3f}, {:.3f}) mm robot, {:.4f} mm "
-          "from the target)",
-          c.profile, n.theta_c_rad * kRadToDeg, n.z_c_mm, n.z_s_mm,
-          (c.nominal_landing_robot_mm - t.robot_mm).norm(), c.landing_robot_mm.x(),
-          c.landing_robot_mm.y(), c.landing_robot_mm.z(), c.residual_mm);
+    where = aimText(t);
+    if (r.pause_z_s_mm) {
+      where = fmt::format(
+          "part-way to {}: the stylet stops {:.3f} mm out (pause_at) for an intermittent CT "
+          "(scan_needle); the rest is approved of its own",
+          where, *r.pause_z_s_mm);
+    } else if (t.paused) {
+      where = "the rest of the insertion to " + where;
     }
   } else {
     const Retraction back = retraction(robot, s.position);

@@ -127,8 +127,15 @@ Refusal endRetraction(Session& s, const Input& in, ActionOutput& out) {
 Refusal arriveAtTarget(Session& s, const Input& in, ActionOutput& out) {
   if (auto refused = checkArrived(s, in)) return refused;
   const std::uint32_t target = s.motion->request().target_id;
+  const std::optional<double> pause = s.motion->request().pause_z_s_mm;
   endMotion(s, in, out.effects);
-  if (Target* t = findTarget(s, target)) {
+  Target* paused = pause ? findTarget(s, target) : nullptr;
+  if (paused) {  // stopped part-way: the rest waits for an approval of its own
+    kinematics::Joints at = paused->commandedJoints();
+    at.z_s_mm = *pause;
+    paused->paused = at;
+    out.effects.targets_changed.push_back(target);
+  } else if (Target* t = findTarget(s, target)) {
     t->reached = true;
     t->reached_s = in.time_s;
     t->reached_joints = t->commandedJoints();

@@ -114,6 +114,15 @@ const std::vector<ReplyCodeSpec> kCodes = {
      "the fit does not converge, or no needle model is configured (server.yaml tissue:)"},
     {C::kBadName, "bad_name",
      "a tissue profile's name that is not 1-64 letters, digits, '_' or '-'"},
+    {C::kBadDepth, "bad_depth",
+     "`pause_at`: a depth that is not a number of mm more than 0 and less than the target's "
+     "stylet depth (or none)"},
+    {C::kNotPaused, "not_paused",
+     "`scan_needle` with no needle stopped part-way (pause_at, then its motion approved), or a "
+     "re-aim for an insertion that is no longer paused"},
+    {C::kNoReaim, "no_reaim",
+     "`reaim` with no re-aim proposed (scan_needle first), or one that would break the plan (a "
+     "joint out of range, the rotation limit): the message says which"},
     {C::kJournalFailed, "journal_failed",
      "the session journal cannot be written (disk full, I/O error): nothing was done, and every "
      "later change is refused until the server is restarted; `Health.journal` says why "

@@ -8,6 +8,7 @@
 #include <limits>
 
 #include <fmt/format.h>
+#include <Eigen/Geometry>
 
 #include "ignav/workflow/reducer.hpp"
 
@@ -98,6 +99,10 @@ void evaluate(const Session& s, Target& t) {
   fresh.reached_s = t.reached_s;
   fresh.reached_joints = t.reached_joints;
   if (t.reached) fresh.compensated = t.compensated;  // as it was reached
+  fresh.pause_z_s_mm = t.pause_z_s_mm;               // a plan choice
+  fresh.paused = t.paused;                           // where the needle has been
+  fresh.replan = t.replan;
+  if (t.reached) fresh.reaimed = t.reaimed;  // as it was reached
   t = fresh;
   const auto outside = checkInsideCt(s, t.lps_mm);
   t.outside_volume = outside.has_value();
@@ -215,6 +220,29 @@ std::string staleDetection(const Session& s, const Input& in) {
   }
   return fmt::format("marker detection #{} on {} ignored, nothing registered: {}", in.job,
                      in.path.empty() ? "an unnamed CT" : in.path, why);
+}
+
+std::vector<compensation::TargetingRecord> measuredRecords(const Session& s) {
+  std::vector<compensation::TargetingRecord> records;
+  const Confirmation& c = s.confirmation;
+  if (!c.registration) return records;
+  const Eigen::Matrix4d image_to_robot = c.registration->registration.imageToRobot();
+  for (const auto& m : c.targets) {
+    compensation::TargetingRecord record{"T" + std::to_string(m.error.target_id),
+                                         m.error.planned_robot_mm,
+                                         m.joints,
+                                         m.error.actual_robot_mm,
+                                         {}};
+    // Where the scan still shows the needle, its centreline too (a tip moved or accepted by a
+    // person keeps it: the path is the needle's, wherever the click put the tip).
+    for (const auto& seed : c.seeds) {
+      if (seed.id != m.seed_id) continue;
+      for (const auto& p : seed.path_lps_mm)
+        record.path_mm.push_back((image_to_robot * p.homogeneous()).head<3>());
+    }
+    records.push_back(std::move(record));
+  }
+  return records;
 }
 
 void adoptPolicy(Session& s, ApprovalPolicy policy) {

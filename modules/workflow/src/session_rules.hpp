@@ -45,4 +45,8 @@ std::string staleDetection(const Session& s, const Input& in);
 
 void adoptPolicy(Session& s, ApprovalPolicy policy);
 
+// The confirmation CT's measured rows as a tissue fit takes them (robot frame; a tip's needle
+// path with it). Empty without a measured scan.
+std::vector<compensation::TargetingRecord> measuredRecords(const Session& s);
+
 }  // namespace ignav::workflow::detail

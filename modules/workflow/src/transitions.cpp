@@ -189,6 +189,18 @@ std::vector<Transition> buildTable() {
     t.push_back({p, I::kConfirmationFailed, always, p, noteConfirmationFailure, "scan refused"});
   }
   t.push_back({P::kPlanning, I::kUseTissue, always, P::kPlanning, useTissue, "aim for a tissue"});
+  // Re-planning during an insertion (issue 40): a stop part-way is planned with the plan; the
+  // needle stopped there is scanned and re-aimed before the rest is approved. The scan's outcome
+  // may end anywhere (it re-aims only an insertion still paused where it was scanned).
+  t.push_back({P::kPlanning, I::kPauseAt, always, P::kPlanning, pauseAt, "stop part-way"});
+  t.push_back({P::kAtTarget, I::kScanNeedle, always, P::kAtTarget, startNeedleScan,
+               "search the paused needle"});
+  t.push_back({P::kAtTarget, I::kReaim, always, P::kAtTarget, adoptReaim, "re-aimed"});
+  for (Phase p : kAllPhases) {
+    if (p == P::kStartup) continue;
+    t.push_back({p, I::kNeedleScanned, always, p, adoptNeedleScan, "re-aim proposed"});
+    t.push_back({p, I::kNeedleScanFailed, always, p, noteNeedleScanFailure, "scan refused"});
+  }
   // resume returns to the phase the first interruption left (a move in flight: plan_locked, to be
   // approved again), or to done when nothing is left to move. Interruptions taken while
   // interrupted (manual after stop, emergency in manual) keep that phase (issue 27).

@@ -380,23 +380,7 @@ Refusal fitTissue(Session& s, const Input& in, ActionOutput& out) {
   }
   compensation::DeflectionModel model;
   model.needle = s.tissue->needle;
-  std::vector<compensation::TargetingRecord> records;
-  const Eigen::Matrix4d image_to_robot = c.registration->registration.imageToRobot();
-  for (const auto& m : c.targets) {
-    compensation::TargetingRecord record{"T" + std::to_string(m.error.target_id),
-                                         m.error.planned_robot_mm,
-                                         m.joints,
-                                         m.error.actual_robot_mm,
-                                         {}};
-    // Where the scan still shows the needle, its centreline too (a tip moved or accepted by a
-    // person keeps it: the path is the needle's, wherever the click put the tip).
-    for (const auto& seed : c.seeds) {
-      if (seed.id != m.seed_id) continue;
-      for (const auto& p : seed.path_lps_mm)
-        record.path_mm.push_back((image_to_robot * p.homogeneous()).head<3>());
-    }
-    records.push_back(std::move(record));
-  }
+  const std::vector<compensation::TargetingRecord> records = measuredRecords(s);
   auto fit = compensation::fitTissueFromTargeting(s.robot->kinematics, model, records);
   if (!fit) return Rejection{ReplyCode::kFitFailed, "the fit: " + fit.error().message};
   FittedTissue fitted;

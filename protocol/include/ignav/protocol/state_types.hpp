@@ -121,6 +121,14 @@ struct TargetState {
   JointValues nominal_joints{};
   Point3 nominal_landing_robot;
   Point3 predicted_landing_robot;
+  double pause_z_s_mm = 0.0;  // pause_at's stylet depth; 0: inserted all the way at once
+  bool paused = false;
+  JointValues paused_joints{};
+  bool reaimed = false;
+  JointValues previous_joints{};
+  Point3 previous_landing_robot;
+  Point3 reaimed_landing_robot;
+  std::string replan;
 };
 template <>
 struct Fields<TargetState> {
@@ -137,7 +145,9 @@ struct Fields<TargetState> {
       IGNAV_FIELD(status), IGNAV_FIELD(outside_volume), IGNAV_FIELD(path_warning),
       IGNAV_FIELD(path_lps), IGNAV_FIELD(compensated), IGNAV_FIELD(aim_tissue),
       IGNAV_FIELD(nominal_joints), IGNAV_FIELD(nominal_landing_robot),
-      IGNAV_FIELD(predicted_landing_robot));
+      IGNAV_FIELD(predicted_landing_robot), IGNAV_FIELD(pause_z_s_mm), IGNAV_FIELD(paused),
+      IGNAV_FIELD(paused_joints), IGNAV_FIELD(reaimed), IGNAV_FIELD(previous_joints),
+      IGNAV_FIELD(previous_landing_robot), IGNAV_FIELD(reaimed_landing_robot), IGNAV_FIELD(replan));
 };
 IGNAV_TOPIC_OF(TargetState, topic::kTarget, Qos::kState);
 

@@ -48,6 +48,9 @@ enum class InputKind {
   kFitTissue,
   kUseTissue,
   kDiscardTissue,
+  kPauseAt,
+  kScanNeedle,
+  kReaim,
   kConfigLoaded,
   kVolumeLoaded,
   kVolumeLoadFailed,
@@ -58,6 +61,8 @@ enum class InputKind {
   kServerRestarted,
   kConfirmationMeasured,
   kConfirmationFailed,
+  kNeedleScanned,
+  kNeedleScanFailed,
 };
 
 // Who may give a command: each role may do what the one before it may, and more. Commands travel
@@ -100,6 +105,11 @@ struct Arguments {
   constexpr Arguments name(const char* is) const {  // a name, not a file, in Command.path
     Arguments a = path(is);
     a.path_word = "NAME";
+    return a;
+  }
+  constexpr Arguments millimetres(const char* is) const {  // a number of mm in Command.path
+    Arguments a = path(is);
+    a.path_word = "MM";
     return a;
   }
   constexpr Arguments serverFile(const char* is) const {
@@ -287,6 +297,27 @@ inline constexpr InputSpec kInputRows[] = {
      "forget a fitted tissue (a fit judged wrong): use_tissue no longer offers it and "
      "tissues_fitted.yaml drops it; the plan's aim, if it is this one, returns to none (with the "
      "plan open; a locked plan is refused)"},
+    {I::kPauseAt, "pause_at", 28, R::kPlanner, kCommand,
+     kNone.withIds(1, "a target not reached yet")
+         .millimetres("the stylet's depth to stop at (mm, more than 0 and less than the "
+                      "target's; none: go all the way)"),
+     "stop this target's insertion part-way, the stylet out by MM, for an intermittent CT "
+     "(scan_needle) and a re-aim (reaim); the rest is a motion approved of its own"},
+    {I::kScanNeedle, "scan_needle", 29, R::kPlanner, kCommand,
+     kNone
+         .serverFile("a server-side intermittent CT with the needle in: DICOM folder or file, "
+                     ".nrrd/.nhdr, .mha/.mhd")
+         .optionalMatrix("the scan's image -> robot transform (row-major 4x4, p_robot = M * "
+                         "p_lps): the needle in touches the markers on its axis, so give the "
+                         "session's registration (or one computed elsewhere); without it the "
+                         "markers are found and compared"),
+     "with the needle stopped part-way (pause_at): find its shape and tip on the scan, refit the "
+     "tissue with that path and propose re-aimed joints for the rest of this insertion and the "
+     "targets after it, in the background (TargetState.replan shows the proposal)"},
+    {I::kReaim, "reaim", 30, R::kPlanner, kCommand, kNone,
+     "adopt the re-aim scan_needle proposed: the targets it names are aimed with its joints, and "
+     "the approval request shows nominal, previously aimed and re-aimed joints with their "
+     "predicted landings"},
     {I::kConfigLoaded, "config_loaded", kNoWireKind, R::kApprover, kServer, kNone,
      "the server started with a valid robot config"},
     {I::kVolumeLoaded, "volume_loaded", kNoWireKind, R::kApprover, kServer, kNone,
@@ -307,6 +338,12 @@ inline constexpr InputSpec kInputRows[] = {
      "the server loaded a confirmation CT and found the robot's markers and the seeds on it"},
     {I::kConfirmationFailed, "confirmation_failed", kNoWireKind, R::kApprover, kServer, kNone,
      "a confirmation CT could not be loaded or its markers were not found: why"},
+    {I::kNeedleScanned, "needle_scanned", kNoWireKind, R::kApprover, kServer, kNone,
+     "the server found the paused needle on an intermittent CT and computed the re-aim it "
+     "proposes"},
+    {I::kNeedleScanFailed, "needle_scan_failed", kNoWireKind, R::kApprover, kServer, kNone,
+     "an intermittent CT could not be loaded, registered, or show the paused needle, or no re-aim "
+     "came of it: why"},
 };
 
 static_assert(inEnumOrder(kInputRows, &InputSpec::kind),

@@ -26,7 +26,7 @@ namespace ignav::workflow {
 
 // In the order the job thread prefers them when several are queued (a CT before what is found on
 // it).
-enum class JobKind { kVolumeLoad, kMarkerDetection, kConfirmationMeasurement };
+enum class JobKind { kVolumeLoad, kMarkerDetection, kConfirmationMeasurement, kNeedleScan };
 
 // What the job thread gives every run besides its snapshot: the session folder (for files a job
 // leaves for people, such as the built-in phantom's DICOM series) and where to say how far it is.

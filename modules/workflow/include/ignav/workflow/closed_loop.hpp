@@ -17,6 +17,7 @@
 #include "ignav/compensation/compensation.hpp"
 #include "ignav/config/robot_config.hpp"
 #include "ignav/config/tissue_profiles.hpp"
+#include "ignav/registration/point_registration.hpp"
 #include "ignav/verification/confirmation_registration.hpp"
 #include "ignav/verification/targeting_error.hpp"
 
@@ -108,5 +109,65 @@ struct FittedTissue {
 // confirmation_failed with the reason).
 struct Input;
 Input measureConfirmation(const ConfirmationJob& job);
+
+// ---- Re-planning during an insertion (issue 40; the job: src/needle_scan.cpp) ----
+
+// One target aimed again from what an intermittent CT showed.
+struct ReaimedAim {
+  std::uint32_t target_id = 0;
+  std::string how;  // "path": this insertion, from its needle's path; "refit": a later one
+  kinematics::Joints before;  // what it was aimed with (compensated, or nominal)
+  kinematics::Joints joints;  // re-aimed
+  // Predicted landings (robot frame) in the model the re-aim used (for "path", carried by the
+  // motion the path showed): of the joints before, and of the re-aimed ones.
+  Eigen::Vector3d before_landing_robot_mm = Eigen::Vector3d::Zero();
+  Eigen::Vector3d landing_robot_mm = Eigen::Vector3d::Zero();
+};
+
+// What scan_needle found and proposes (needle_scanned); reaim adopts it.
+struct ReaimProposal {
+  std::uint64_t job = 0;                                 // the scan_needle that asked
+  std::string source;                                    // the intermittent CT
+  std::uint32_t target_id = 0;                           // the insertion stopped part-way
+  kinematics::Joints paused;                             // where its needle stopped, as commanded
+  Eigen::Vector3d tip_lps_mm = Eigen::Vector3d::Zero();  // the stylet's tip found on the scan
+  Eigen::Vector3d tip_robot_mm = Eigen::Vector3d::Zero();
+  double tip_offset_mm = 0.0;    // found tip − the model's, before the correction
+  double path_rms_mm = 0.0;      // found path vs the corrected model path
+  std::size_t path_points = 0;   // path points compared
+  std::string model;             // the model the re-aim used, in words (refitted, or why not)
+  std::vector<ReaimedAim> aims;  // this insertion first, then later targets in plan order
+  std::string message;           // for a person: all of the above
+  bool adopted = false;          // reaim took it
+};
+
+// What the server loads, searches and computes off the event thread (scan_needle).
+struct NeedleScanJob {
+  ConfirmationJob scan;  // the CT, the robot, a given registration
+  std::optional<registration::Registration> session_registration;  // to compare the markers with
+  std::uint32_t target_id = 0;
+  Eigen::Vector3d target_robot_mm = Eigen::Vector3d::Zero();
+  kinematics::Joints paused;  // where the needle stopped
+  kinematics::Joints aimed;   // what the insertion was aimed with
+  // The targets after it, not reached yet, in plan order: id, robot point, present aim.
+  struct Later {
+    std::uint32_t id = 0;
+    Eigen::Vector3d robot_mm = Eigen::Vector3d::Zero();
+    kinematics::Joints aimed;
+  };
+  std::vector<Later> later;
+  // The model the plan aims with (its tissue, or none: the kinematics' path), the needle a refit
+  // uses, and the targeting errors measured so far (confirmation rows) the refit adds the path to.
+  std::optional<config::TissueProfile> aim_tissue;
+  std::optional<config::TissueProfile> tissue;
+  std::vector<compensation::TargetingRecord> records;
+};
+// The job: the scan measured as load_confirmation measures one, registered, the paused needle's
+// tip chosen, the tissue refitted with its path, the rest re-aimed. needle_scanned (with
+// Input::reaim) or needle_scan_failed (why).
+Input scanNeedle(const NeedleScanJob& job);
+// Its second half, from what measureConfirmation found on the scan (confirmation_measured, or
+// confirmation_failed whose reason it passes on).
+Input proposeReaim(const NeedleScanJob& job, const Input& measured);
 
 }  // namespace ignav::workflow

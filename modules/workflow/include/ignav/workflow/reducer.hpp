@@ -84,6 +84,9 @@ Input detectFiducials(const FiducialDetectionJob& job);
 // The confirmation CT measurement `session` awaits (Confirmation::measuring), to run again after a
 // crash; none when it awaits none. measureConfirmation() (closed_loop.hpp) runs it.
 std::optional<ConfirmationJob> pendingConfirmation(const Session& session);
+// The intermittent CT search `session` awaits (Session::scanning_needle), from the insertion
+// paused now; scanNeedle() (closed_loop.hpp) runs it.
+std::optional<NeedleScanJob> pendingNeedleScan(const Session& session);
 
 // The session journal: one JSON object per line, per accepted input that changes the session:
 //   {"v": 2, "revision": N, "t": Unix seconds, "input": "add_target", "phase": after,

@@ -69,6 +69,10 @@ enum class ReplyCode {
   kUnknownTissue,
   kFitFailed,
   kBadName,
+  // Re-planning during an insertion (issue 40).
+  kBadDepth,
+  kNotPaused,
+  kNoReaim,
   // The server.
   kJournalFailed,
   kInternal,

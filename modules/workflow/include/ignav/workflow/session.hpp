@@ -115,8 +115,10 @@ struct Input {
   std::string robot_id;
   std::string session_uuid;
   // kConfirmationMeasured: the seeds found on the confirmation CT (`points`: the robot's markers
-  // there, in the model's order; `path`: the scan; `summary`: what the search found).
+  // there, in the model's order; `path`: the scan; `summary`: what the search found). Also
+  // kNeedleScanned's, with the re-aim the scan led to.
   std::vector<FoundSeed> seeds;
+  std::optional<ReaimProposal> reaim;
   // What the controller said just before this input (approve, resume, reset_emergency, home and
   // the controller's own inputs): the reducer judges the robot by it, and replay sees the same.
   std::optional<actuation::ControllerStatus> controller;
@@ -176,6 +178,14 @@ struct Target {
   // Aiming with a tissue profile and the compensated pose is out of reach (or the model does not
   // converge): why. The target is then unreachable for this plan.
   std::string compensation_refusal;
+  // Re-planning during the insertion (issue 40): the stylet depth its motion stops at first
+  // (pause_at; the rest is approved of its own), where it stopped, and the aim scan_needle's
+  // re-aim gave it (reaim). A plan choice and where the needle has been: kept whatever is
+  // evaluated again; a re-aim is dropped when the target is (its joints answer another plan).
+  std::optional<double> pause_z_s_mm;
+  std::optional<kinematics::Joints> paused;
+  std::optional<ReaimedAim> reaimed;
+  std::string replan;   // for a person: the last intermittent CT's outcome or the re-aim taken
   std::string message;  // person-readable reachability
   // "planned" | "reached" | "unreachable" | "unregistered" | "outside_volume"
   std::string status() const;
@@ -183,8 +193,14 @@ struct Target {
   bool plannable() const {
     return registered && solution.reachable() && compensation_refusal.empty();
   }
-  // The joints the plan moves to: the compensated ones with a tissue profile, else the nominal.
+  // The joints the plan moves to: re-aimed ones, else the compensated ones with a tissue profile,
+  // else the nominal.
   const kinematics::Joints& commandedJoints() const {
+    if (reaimed) return reaimed->joints;
+    return compensated ? compensated->joints : solution.joints;
+  }
+  // The joints the aim had before any re-aim (compensated or nominal).
+  const kinematics::Joints& aimedJoints() const {
     return compensated ? compensated->joints : solution.joints;
   }
 };
@@ -197,6 +213,9 @@ struct MotionRequest {
   std::uint32_t target_id = 0;  // 0: the final retraction of the stylet
   actuation::Steps from;        // absolute motor position the moves start from
   std::vector<planning::JointMove> moves;
+  // The insertion stops part-way (pause_at): the stylet's depth there. The target is then not
+  // reached but paused; the digest covers it.
+  std::optional<double> pause_z_s_mm;
   double duration_s = 0.0;  // with the controller's profile
   double tre_mm = 0.0;      // expected registration error at the target
   double issued_s = 0.0;
@@ -297,6 +316,12 @@ struct Session {
   // The closed loop (issue 23): the confirmation CT and its errors, the tissues fitted from them,
   // and the profile the plan aims with (use_tissue; none: nominal joints).
   Confirmation confirmation;
+  // Re-planning during an insertion (issue 40): the intermittent CT being searched (its job, 0:
+  // none; the scan; a given registration) and the last re-aim proposed.
+  std::uint64_t scanning_needle = 0;
+  std::string scanning_source;
+  std::optional<Eigen::Matrix4d> scanning_matrix;
+  std::optional<ReaimProposal> reaim;
   std::vector<FittedTissue> fitted_tissues;
   std::optional<config::TissueProfile> aim_tissue;
   actuation::Steps position;  // last verified absolute motor position (zero = home)

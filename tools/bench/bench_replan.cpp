@@ -1,0 +1,149 @@
+// Commands answered while an intermittent CT is searched (issue 40; tools/bench/bench_replan.sh
+// starts the server): the robot's first insertion stops part-way (pause_at), ignav-plan writes
+// the world's intermittent CT of the needle there, then `scan_needle` runs ROUNDS times while a
+// second client sends `ping` every 5 ms and times each round trip. Prints the job's duration and
+// the pings' median, p95, p99 and worst in milliseconds, during the searches and idle before.
+//   bench_replan DOMAIN DDS_CONFIG_XML SESSION_DIR IGNAV_PLAN_EXE [ROUNDS]
+#include <atomic>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <Eigen/LU>
+
+#include "bench_support.hpp"
+#include "ignav/protocol/client.hpp"
+
+namespace {
+
+using ignav::bench::Clock;
+using ignav::bench::sinceMs;
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+// Pings from a client of its own every 5 ms until stopped; the round trips (ms).
+class Pinger {
+ public:
+  Pinger(std::uint32_t domain, const std::string& xml) {
+    thread_ = std::thread([this, domain, xml] {
+      ignav::protocol::Client c(domain, xml, "bench-ping", nullptr,
+                                ignav::protocol::chooseRobot(domain, xml, nullptr, "", 10s));
+      if (!c.waitForServer(10s)) return;
+      ready_ = true;
+      while (!stop_) {
+        const auto t = Clock::now();
+        c.send("ping");
+        const double ms = sinceMs(t);
+        if (recording_) samples_.push_back(ms);
+        std::this_thread::sleep_for(5ms);
+      }
+    });
+    while (!ready_)
+      std::this_thread::sleep_for(10ms);
+  }
+  ~Pinger() {
+    stop_ = true;
+    thread_.join();
+  }
+  void record(bool on) { recording_ = on; }
+  // Only between record(false) and the next record(true).
+  std::vector<double> take() {
+    std::vector<double> out;
+    out.swap(samples_);
+    return out;
+  }
+
+ private:
+  std::atomic<bool> stop_{false}, ready_{false}, recording_{false};
+  std::vector<double> samples_;
+  std::thread thread_;
+};
+
+void print(const char* name, const std::vector<double>& v) {
+  if (v.empty()) {
+    std::printf("%-40s no samples\n", name);
+    return;
+  }
+  std::printf("%-40s median %7.2f ms   p95 %7.2f   p99 %7.2f   worst %7.2f   (n %zu)\n", name,
+              ignav::bench::percentile(v, 50), ignav::bench::percentile(v, 95),
+              ignav::bench::percentile(v, 99), *std::max_element(v.begin(), v.end()), v.size());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 5) {
+    std::fprintf(stderr,
+                 "usage: bench_replan DOMAIN DDS_CONFIG_XML SESSION_DIR IGNAV_PLAN_EXE [ROUNDS]\n");
+    return 2;
+  }
+  const auto domain = static_cast<std::uint32_t>(std::stoul(argv[1]));
+  const std::string xml = ignav::protocol::readConfigFile(argv[2]);
+  const std::string session = argv[3];
+  const std::string plan_exe = argv[4];
+  const int rounds = argc > 5 ? std::stoi(argv[5]) : 10;
+  ignav::protocol::Client c(domain, xml, "operator", nullptr,
+                            ignav::protocol::chooseRobot(domain, xml, nullptr, "", 10s));
+  if (!c.waitForServer(10s)) {
+    std::fprintf(stderr, "no server on domain %u\n", domain);
+    return 3;
+  }
+  if (!ignav::bench::loadAndRegister(c, "phantom:")) return 4;
+  const Eigen::Matrix4d image_to_robot =
+      ignav::protocol::matrixFromState(c.state()["registration"]["image_to_robot"]);
+  const Eigen::Vector3d lps =
+      (image_to_robot.inverse() * Eigen::Vector4d(8, 12, -175, 1)).head<3>();
+  const auto added = c.send("add_target", {"", {lps}, {}});
+  if (!added.accepted) return 5;
+  const std::string id = std::to_string(added.target_id);
+  c.waitFor([&](const json& s) { return s["targets"].contains(id); }, 10s);
+  const double full_mm = c.state()["targets"][id]["joints"][2].get<double>();
+  if (!c.send("pause_at", {std::to_string(full_mm / 2), {}, {added.target_id}}).accepted) return 6;
+  if (!c.send("lock_plan").accepted) return 7;
+  c.waitFor([](const json& s) { return s["approval"]["status"] == "pending"; }, 10s);
+  const json shown = c.state()["approval"];
+  if (!c.approve(shown["plan_id"], shown["digest"]).accepted) return 8;
+  c.waitFor([&](const json& s) { return s["targets"][id]["paused"] == true; }, 60s);
+
+  // The world's intermittent CT of the needle where it stopped (the agar of configs/tissues.yaml
+  // bends it; the server is not told).
+  const std::string scan = session + ".intermittent";
+  const std::string make = plan_exe + " confirmation-phantom " + session +
+                           " --robot configs/robots/torabi2014.yaml --out " + scan +
+                           " --needle-at " + id + " --hidden-tissue agar --noise-hu 8 > /dev/null";
+  if (std::system(make.c_str()) != 0) {
+    std::fprintf(stderr, "%s failed\n", make.c_str());
+    return 9;
+  }
+
+  Pinger pinger(domain, xml);
+  pinger.record(true);
+  std::this_thread::sleep_for(2s);
+  pinger.record(false);
+  const auto idle = pinger.take();
+  std::vector<double> jobs_ms;
+  std::string last;
+  pinger.record(true);
+  for (int r = 0; r < rounds; ++r) {
+    const auto t = Clock::now();
+    const auto sent = c.send("scan_needle", {scan, {}, {}, image_to_robot});
+    if (!sent.accepted) {
+      std::fprintf(stderr, "scan_needle refused: %s\n", sent.message.c_str());
+      return 10;
+    }
+    const auto outcome = c.waitForJobOutcome(sent.job, 300s);
+    jobs_ms.push_back(sinceMs(t));
+    last = outcome.status + ": " + outcome.message;
+    if (outcome.status != "done") break;
+  }
+  pinger.record(false);
+  const auto during = pinger.take();
+  std::printf("intermittent CT search and re-aim: %s\n", last.c_str());
+  print("scan_needle -> its outcome", jobs_ms);
+  print("ping -> reply, idle", idle);
+  print("ping -> reply, while the CT is searched", during);
+  std::system(("rm -rf " + scan + " " + scan + "_truth.json").c_str());
+  return 0;
+}
