@@ -3,7 +3,7 @@
 // the world's intermittent CT of the needle there, then `scan_needle` runs ROUNDS times while a
 // second client sends `ping` every 5 ms and times each round trip. Prints the job's duration and
 // the pings' median, p95, p99 and worst in milliseconds, during the searches and idle before.
-//   bench_replan DOMAIN DDS_CONFIG_XML SESSION_DIR IGNAV_PLAN_EXE [ROUNDS]
+//   bench_replan DOMAIN DDS_CONFIG_XML SESSION_DIR IGNAV_PLAN_EXE [ROUNDS] [SLICE_MM]
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
@@ -84,6 +84,8 @@ int main(int argc, char** argv) {
   const std::string session = argv[3];
   const std::string plan_exe = argv[4];
   const int rounds = argc > 5 ? std::stoi(argv[5]) : 10;
+  // Thin slices make a large scan, whose search takes long enough to measure commands during it.
+  const std::string slice_mm = argc > 6 ? argv[6] : "0.25";
   ignav::protocol::Client c(domain, xml, "operator", nullptr,
                             ignav::protocol::chooseRobot(domain, xml, nullptr, "", 10s));
   if (!c.waitForServer(10s)) {
@@ -112,7 +114,8 @@ int main(int argc, char** argv) {
   const std::string scan = session + ".intermittent";
   const std::string make = plan_exe + " confirmation-phantom " + session +
                            " --robot configs/robots/torabi2014.yaml --out " + scan +
-                           " --needle-at " + id + " --hidden-tissue agar --noise-hu 8 > /dev/null";
+                           " --needle-at " + id + " --hidden-tissue agar --noise-hu 8 --slice-mm " +
+                           slice_mm + " > /dev/null";
   if (std::system(make.c_str()) != 0) {
     std::fprintf(stderr, "%s failed\n", make.c_str());
     return 9;

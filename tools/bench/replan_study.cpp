@@ -151,11 +151,16 @@ int main(int argc, char** argv) {
     const auto sent = c.send("scan_needle", {scan, {}, {}, image_to_robot});
     if (!sent.accepted) return 9;
     const auto outcome = c.waitForJobOutcome(sent.job, 300s);
-    if (outcome.status == "done") {
-      if (!c.send("reaim").accepted) ++refused;
-    } else {
+    std::string refusal = outcome.status == "done" ? "" : outcome.message;
+    if (refusal.empty()) {
+      const auto taken = c.send("reaim");
+      if (!taken.accepted) refusal = taken.error_code + ": " + taken.message;
+    }
+    std::fprintf(stderr, "T%u: %s\n", id,
+                 refusal.empty() ? outcome.message.c_str() : refusal.c_str());
+    if (!refusal.empty()) {
       ++refused;
-      last_refusal = outcome.message;
+      last_refusal = refusal;
       // scan_needle ended the request from the stop (any change does): the rest as aimed.
       if (!c.send("request_approval").accepted) return 12;
     }

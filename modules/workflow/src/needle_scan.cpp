@@ -7,7 +7,9 @@
 #include <fmt/format.h>
 #include <Eigen/Geometry>
 
+#include <cmath>
 #include <limits>
+#include <optional>
 
 #include "ignav/workflow/background_jobs.hpp"
 #include "ignav/workflow/reducer.hpp"
@@ -21,6 +23,40 @@ namespace {
 constexpr double kTipSearch_mm = 10.0;
 
 constexpr double kRadToDeg = 180.0 / M_PI;
+
+// A refitted tissue aims a pose only where it determines the landing there: the landing's
+// standard error from the fit's covariance at most this. One needle's path seldom determines two
+// slip parameters (λ1 ± 2 to ± 100 on the phantom), and aiming with such a fit turned a 0.12 mm
+// mean into 0.51 mm over 20 targets (docs/VERIFICATION.md); the aim's model, corrected by the
+// path, is used instead.
+constexpr double kMaxLandingSe_mm = 0.2;
+
+// The landing of `joints` in `model`, uncertain by `fit`'s covariance of λ1, λ2: √trace(J Σ Jᵀ),
+// J by central differences. Infinite where the model cannot say (a perturbed λ inadmissible).
+double landingSe_mm(const kinematics::Kinematics& kin, const compensation::DeflectionModel& model,
+                    const compensation::TargetingFit& fit, const kinematics::Joints& joints) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const double s1 = fit.standard_errors.at(0), s2 = fit.standard_errors.at(1);
+  const double rho = std::isfinite(fit.correlation) ? fit.correlation : 0.0;
+  Eigen::Matrix2d covariance;
+  covariance << s1 * s1, rho * s1 * s2, rho * s1 * s2, s2 * s2;
+  if (!covariance.allFinite()) return kInf;
+  constexpr double kStep = 1e-4;
+  Eigen::Matrix<double, 3, 2> jacobian;
+  for (int p = 0; p < 2; ++p) {
+    Eigen::Vector3d ends[2];
+    for (int side = 0; side < 2; ++side) {
+      compensation::DeflectionModel moved = model;
+      double& lambda = p == 0 ? moved.tissue.lambda1 : moved.tissue.lambda2;
+      lambda += side == 0 ? kStep : -kStep;
+      auto landing = compensation::predictLanding(kin, moved, joints);
+      if (!landing) return kInf;
+      ends[side] = landing->tip_mm;
+    }
+    jacobian.col(p) = (ends[0] - ends[1]) / (2.0 * kStep);
+  }
+  return std::sqrt((jacobian * covariance * jacobian.transpose()).trace());
+}
 
 std::string jointsText(const kinematics::Joints& j) {
   return fmt::format("θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm", j.theta_c_rad * kRadToDeg, j.z_c_mm,
@@ -143,8 +179,8 @@ Input proposeReaim(const NeedleScanJob& job, const Input& measured) {
   // The tissue refitted with this path and the errors measured so far; without a needle model,
   // or when the fit is refused, the aim's model stays.
   ReaimProposal proposal;
-  compensation::DeflectionModel model = aim;
-  bool refitted = false;
+  compensation::DeflectionModel model = aim, refit_model = aim;
+  std::optional<compensation::TargetingFit> refit;
   const std::string aim_words = job.aim_tissue
                                     ? fmt::format("the aim's tissue '{}'", job.aim_tissue->name)
                                     : std::string("the kinematics' path (no tissue aimed for)");
@@ -158,15 +194,27 @@ Input proposeReaim(const NeedleScanJob& job, const Input& measured) {
     needle.needle = job.tissue->needle;
     auto fit = compensation::fitTissueFromTargeting(kin, needle, records);
     if (fit) {
-      model.needle = job.tissue->needle;
-      model.needle.curvature_per_mm = fit->curvature_per_mm;
-      model.tissue = fit->tissue;
-      refitted = true;
-      proposal.model = fmt::format(
-          "the tissue refitted with this path and {} measured target(s): λ1 {:.3f} ± {:.3f}, λ2 "
-          "{:.3f} ± {:.3f}, RMS {:.3f} mm",
+      refit_model.needle = job.tissue->needle;
+      refit_model.needle.curvature_per_mm = fit->curvature_per_mm;
+      refit_model.tissue = fit->tissue;
+      refit = *fit;
+      const std::string figures = fmt::format(
+          "refitted with this path and {} measured target(s): λ1 {:.3f} ± {:.3f}, λ2 {:.3f} ± "
+          "{:.3f}, RMS {:.3f} mm",
           job.records.size(), fit->tissue.lambda1, fit->standard_errors.at(0), fit->tissue.lambda2,
           fit->standard_errors.at(1), fit->rms_mm);
+      const double se_mm = landingSe_mm(kin, refit_model, *fit, job.aimed);
+      if (se_mm <= kMaxLandingSe_mm) {
+        model = refit_model;
+        proposal.model =
+            fmt::format("the tissue {} (its landing here ± {:.2f} mm)", figures, se_mm);
+      } else {
+        proposal.model = fmt::format(
+            "{} (the tissue {} leaves this landing {})", aim_words, figures,
+            std::isfinite(se_mm)
+                ? fmt::format("uncertain by ± {:.2f} mm, more than {:.2f}", se_mm, kMaxLandingSe_mm)
+                : std::string("undetermined (a λ on the model's admissibility limit)"));
+      }
     } else {
       proposal.model = aim_words + " (the refit was refused: " + fit.error().message + ")";
     }
@@ -197,9 +245,17 @@ Input proposeReaim(const NeedleScanJob& job, const Input& measured) {
   }
   proposal.aims.push_back(here);
   std::string later_words;
-  if (refitted) {
+  if (refit) {
     for (const auto& t : job.later) {
-      auto c = compensation::compensate(kin, model, t.robot_mm);
+      // Each later target only where the refit determines its landing.
+      const double se_mm = landingSe_mm(kin, refit_model, *refit, t.aimed);
+      if (!(se_mm <= kMaxLandingSe_mm)) {
+        later_words += fmt::format(
+            "; T{} keeps its aim (the refit's landing there is {})", t.id,
+            std::isfinite(se_mm) ? fmt::format("± {:.2f} mm", se_mm) : std::string("undetermined"));
+        continue;
+      }
+      auto c = compensation::compensate(kin, refit_model, t.robot_mm);
       if (!c) {
         later_words += fmt::format("; T{} keeps its aim ({})", t.id, c.error().message);
         continue;
@@ -210,7 +266,7 @@ Input proposeReaim(const NeedleScanJob& job, const Input& measured) {
       a.before = t.aimed;
       a.joints = c->compensated;
       a.landing_robot_mm = c->compensated_landing_mm;
-      if (auto before = compensation::predictLanding(kin, model, t.aimed)) {
+      if (auto before = compensation::predictLanding(kin, refit_model, t.aimed)) {
         a.before_landing_robot_mm = before->tip_mm;
       }
       proposal.aims.push_back(a);
