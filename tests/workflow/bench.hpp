@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "ignav/actuation/controller.hpp"
+#include "ignav/config/tissue_profiles.hpp"
 #include "ignav/registration/robot_phantom.hpp"
 #include "ignav/workflow/effect_order.hpp"
 #include "ignav/workflow/reducer.hpp"
@@ -27,6 +28,17 @@ constexpr double kSpeed = 20000.0;  // steps/s: ten times the default, so moves 
 constexpr double kAcceleration = 200000.0;
 
 using test::paperRobot;
+
+// A tissue profile with configs/tissues.yaml's needle and these slip parameters.
+inline config::TissueProfile tissueProfile(const std::string& name, double lambda1,
+                                           double lambda2) {
+  auto profiles = config::loadTissueProfiles(IGNAV_SOURCE_DIR "/configs/tissues.yaml");
+  config::TissueProfile p;
+  p.name = name;
+  p.needle = profiles.value().needle;
+  p.tissue = {lambda1, lambda2};
+  return p;
+}
 
 inline ApprovalPolicy policy() {
   ApprovalPolicy p;

@@ -27,14 +27,7 @@ const std::vector<kinematics::Joints> kJoints = {{30 * kDeg, 10, 25},  {-60 * kD
                                                  {150 * kDeg, 5, 35},  {90 * kDeg, 15, 20},
                                                  {200 * kDeg, 25, 28}, {-120 * kDeg, 30, 15}};
 
-config::TissueProfile profile(const std::string& name, double lambda1, double lambda2) {
-  auto profiles = config::loadTissueProfiles(IGNAV_SOURCE_DIR "/configs/tissues.yaml");
-  config::TissueProfile p;
-  p.name = name;
-  p.needle = profiles.value().needle;
-  p.tissue = {lambda1, lambda2};
-  return p;
-}
+constexpr auto* profile = &rig::tissueProfile;
 
 // A session that moved to `count` targets and retracted: done.
 Bench insertedBench(std::size_t count, std::optional<config::TissueProfile> tissue = {}) {

@@ -26,14 +26,7 @@ constexpr double kDeg = M_PI / 180.0;
 const std::vector<kinematics::Joints> kJoints = {
     {30 * kDeg, 10, 26}, {90 * kDeg, 20, 30}, {150 * kDeg, 5, 35}};
 
-config::TissueProfile profile(const std::string& name, double lambda1, double lambda2) {
-  auto profiles = config::loadTissueProfiles(IGNAV_SOURCE_DIR "/configs/tissues.yaml");
-  config::TissueProfile p;
-  p.name = name;
-  p.needle = profiles.value().needle;
-  p.tissue = {lambda1, lambda2};
-  return p;
-}
+constexpr auto* profile = &rig::tissueProfile;
 
 compensation::DeflectionModel modelOf(const config::TissueProfile& p) {
   compensation::DeflectionModel m;

@@ -60,11 +60,6 @@ std::optional<double> pendingPause(const Target& t) {
   return t.pause_z_s_mm;
 }
 
-std::string jointsText(const kinematics::Joints& j) {
-  return fmt::format("θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm", j.theta_c_rad * kRadToDeg, j.z_c_mm,
-                     j.z_s_mm);
-}
-
 std::string pointText(const Eigen::Vector3d& p) {
   return fmt::format("({:.3f}, {:.3f}, {:.3f})", p.x(), p.y(), p.z());
 }
@@ -112,6 +107,11 @@ Retraction retraction(const config::Robot& robot, const actuation::Steps& positi
 }
 
 }  // namespace
+
+std::string jointsText(const kinematics::Joints& j) {
+  return fmt::format("θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm", j.theta_c_rad * kRadToDeg, j.z_c_mm,
+                     j.z_s_mm);
+}
 
 std::string canonicalText(const MotionScope& scope, const MotionRequest& r) {
   std::string text = scope.session_uuid.empty()

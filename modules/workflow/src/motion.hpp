@@ -80,6 +80,9 @@ std::optional<Rejection> checkPosition(const Session& s, const actuation::Steps&
 // "motor 2 reads 1200 steps, expected 1180 (+20)" for the first motor that differs.
 std::string describeMismatch(const actuation::Steps& reading, const actuation::Steps& expected);
 
+// "θc 30.00°, zc 10.000 mm, zs 26.000 mm": joints as the approval requests and re-aims show them.
+std::string jointsText(const kinematics::Joints& joints);
+
 // The text the digest covers: robot, session, plan id, target, start position and every
 // increment. A session journaled before issue 38 has no robot id or random id: its text is v1.
 std::string canonicalText(const MotionScope& scope, const MotionRequest& request);

@@ -13,16 +13,17 @@
 
 #include "ignav/workflow/background_jobs.hpp"
 #include "ignav/workflow/reducer.hpp"
+#include "motion.hpp"
 #include "session_rules.hpp"
 
 namespace ignav::workflow {
 namespace {
 
+using detail::jointsText;
+
 // A needle tip on the scan farther than this from where the model puts the paused one's is
 // another needle (or none of this insertion): the scan is refused rather than re-aimed from it.
 constexpr double kTipSearch_mm = 10.0;
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 // A refitted tissue aims a pose only where it determines the landing there: the landing's
 // standard error from the fit's covariance at most this. One needle's path seldom determines two
@@ -56,11 +57,6 @@ double landingSe_mm(const kinematics::Kinematics& kin, const compensation::Defle
     jacobian.col(p) = (ends[0] - ends[1]) / (2.0 * kStep);
   }
   return std::sqrt((jacobian * covariance * jacobian.transpose()).trace());
-}
-
-std::string jointsText(const kinematics::Joints& j) {
-  return fmt::format("θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm", j.theta_c_rad * kRadToDeg, j.z_c_mm,
-                     j.z_s_mm);
 }
 
 // What the plan aims with: the aim's tissue, or none (a model that does not deflect: the needle's

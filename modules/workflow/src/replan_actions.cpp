@@ -37,11 +37,6 @@ Rejection notPaused(const Session& s) {
                                                    "not paused")};
 }
 
-std::string jointsText(const kinematics::Joints& j) {
-  return fmt::format("θc {:.2f}°, zc {:.3f} mm, zs {:.3f} mm", j.theta_c_rad * kRadToDeg, j.z_c_mm,
-                     j.z_s_mm);
-}
-
 }  // namespace
 
 Refusal pauseAt(Session& s, const Input& in, ActionOutput& out) {
