@@ -86,6 +86,32 @@ $ctl verify load "$PWD/$out/confirmation_3" same-frame | tee "$session/verificat
 echo "(the second pass's joints were aimed for the gel fitted above: in this world that aim is wrong)"
 $ctl verify load "$PWD/$out/confirmation_rod" | tee "$session/verification_rod.txt"
 $ctl verify fit layered_gel_fitted 2>&1 | tee "$session/fit_rod.txt" || true
+echo "== re-planning mid-insertion in that world (docs/VERIFICATION.md): stop, scan, re-aim, finish"
+# One target aimed as planned, stopped with 12 mm of stylet out; the world's intermittent CT of
+# the needle there (with its answer for finishing as aimed); the server searches it, refits and
+# re-aims on its job thread; the approval shows nominal, previous and re-aimed joints.
+$ctl run configs/demo/replan.yaml --out-dir "$session"
+rod="--world configs/worlds/layered_gel.yaml --noise-hu 8"
+paused=$($ctl --json targets ls | python3 -c 'import json,sys; s=sys.stdin.read(); t=json.loads(s[s.find("{"):]); print(next(v["id"] for v in t.values() if v.get("paused")))')
+# shellcheck disable=SC2086
+"$plan" confirmation-phantom "$session" --robot "$robot" --out "$out/intermittent_rod" $rod \
+  --needle-at "$paused"
+$ctl verify scan "$PWD/$out/intermittent_rod" same-frame | tee "$session/replan_scan.txt"
+$ctl verify reaim
+$ctl approval | tee "$session/replan_approval.txt"
+$ctl run configs/demo/finish.yaml --out-dir "$session"
+# shellcheck disable=SC2086
+"$plan" confirmation-phantom "$session" --robot "$robot" --out "$out/confirmation_replan" $rod
+$ctl verify load "$PWD/$out/confirmation_replan" | tee "$session/verification_replan.txt"
+python3 - "$out" "$paused" <<'PY'
+import json, sys
+out, paused = sys.argv[1], int(sys.argv[2])
+aimed = [t for t in json.load(open(f"{out}/intermittent_rod_truth.json"))["targets"] if t["id"] == paused][0]
+landed = [t for t in json.load(open(f"{out}/confirmation_replan_truth.json"))["targets"] if t["id"] == paused][0]
+print(f"in the rod world: T{paused} would have landed {aimed['finished_off_plan_mm']:.2f} mm off as "
+      f"aimed; re-aimed from its needle's path it landed {landed['landing_off_plan_mm']:.2f} mm off "
+      f"(the world's truth; the server's measurement is above)")
+PY
 echo "== what compensation buys in each world, 24 targets (ignav-plan world-study)"
 "$plan" world-study | tee "$session/world_study.md"
 echo

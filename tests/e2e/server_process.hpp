@@ -207,6 +207,11 @@ inline std::uint32_t plannedTarget(protocol::Client& c, const Eigen::Vector3d& r
       10s);
   const auto added = c.send("add_target", {"", {lpsOf(c.state(), robot_mm)}, {}});
   EXPECT_TRUE(added.accepted) << added.message;
+  // Its state travels apart from the reply: callers read it next (under load it came later).
+  const std::string id = std::to_string(added.target_id);
+  c.waitFor(
+      [&](const nlohmann::json& s) { return s.contains("targets") && s["targets"].contains(id); },
+      10s);
   return added.target_id;
 }
 

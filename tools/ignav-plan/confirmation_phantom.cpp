@@ -251,7 +251,10 @@ json confirmationPhantom(const ConfirmationPhantomArgs& args) {
       ++landed_count;
     }
     targets.push_back({{"id", t->id},
-                       {"aimed_with", t->compensated ? t->compensated->profile : "nominal"},
+                       {"aimed_with", paused           ? "paused"
+                                      : t->reaimed     ? "re-aimed"
+                                      : t->compensated ? t->compensated->profile
+                                                       : "nominal"},
                        {"joints", jointsJson(joints)},
                        {"planned_robot_mm", pointJson(t->robot_mm)},
                        {"landing_robot_mm", pointJson(landing_mm)},

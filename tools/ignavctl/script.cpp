@@ -134,7 +134,11 @@ int runScript(Client& client, const std::string& path, const std::string& out_di
     client.poll();
     if (step.contains("send")) {
       CommandArgs args;
-      if (step.contains("path")) args.path = step["path"];
+      if (step.contains("path")) {
+        // YAML gives `path: 12` (pause_at's depth) as a number: the command takes its text.
+        const json& given = step["path"];
+        args.path = given.is_string() ? given.get<std::string>() : given.dump();
+      }
       for (const auto& p : step.value("points", json::array())) {
         args.points.push_back(jsonPoint(p));
       }

@@ -299,8 +299,8 @@ inline constexpr InputSpec kInputRows[] = {
      "plan open; a locked plan is refused)"},
     {I::kPauseAt, "pause_at", 28, R::kPlanner, kCommand,
      kNone.withIds(1, "a target not reached yet")
-         .millimetres("the stylet's depth to stop at (mm, more than 0 and less than the "
-                      "target's; none: go all the way)"),
+         .millimetres("the stylet's depth to stop at (mm, more than 0 and at least 1 mm short "
+                      "of the target's; none: go all the way)"),
      "stop this target's insertion part-way, the stylet out by MM, for an intermittent CT "
      "(scan_needle) and a re-aim (reaim); the rest is a motion approved of its own"},
     {I::kScanNeedle, "scan_needle", 29, R::kPlanner, kCommand,
@@ -313,7 +313,8 @@ inline constexpr InputSpec kInputRows[] = {
                          "markers are found and compared"),
      "with the needle stopped part-way (pause_at): find its shape and tip on the scan, refit the "
      "tissue with that path and propose re-aimed joints for the rest of this insertion and the "
-     "targets after it, in the background (TargetState.replan shows the proposal)"},
+     "targets after it, in the background (TargetState.replan shows the proposal; the request "
+     "for the rest as aimed ends, request_approval renews it)"},
     {I::kReaim, "reaim", 30, R::kPlanner, kCommand, kNone,
      "adopt the re-aim scan_needle proposed: the targets it names are aimed with its joints, and "
      "the approval request shows nominal, previously aimed and re-aimed joints with their "
