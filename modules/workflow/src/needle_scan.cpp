@@ -93,27 +93,22 @@ std::optional<NeedleScanJob> pendingNeedleScan(const Session& s) {
   job.aim_tissue = s.aim_tissue;
   job.tissue = s.tissue;
   job.records = detail::measuredRecords(s);
-  bool found = false;
-  for (const auto& t : s.targets) {
-    if (t.reached) continue;
-    if (!found) {  // the insertion under way is the first not reached, in plan order
-      if (!t.paused) return std::nullopt;
-      job.target_id = t.id;
-      job.target_robot_mm = t.robot_mm;
-      job.paused = *t.paused;
-      job.aimed = t.commandedJoints();
-      found = true;
-    } else if (t.plannable()) {
+  const Target* paused = detail::pausedInsertion(s);
+  if (!paused) return std::nullopt;
+  job.target_id = paused->id;
+  job.target_robot_mm = paused->robot_mm;
+  job.paused = *paused->paused;
+  job.aimed = paused->commandedJoints();
+  for (const auto& t : s.targets) {  // after it in plan order: every target not reached
+    if (!t.reached && t.id != paused->id && t.plannable()) {
       job.later.push_back({t.id, t.robot_mm, t.commandedJoints()});
     }
   }
-  if (!found) return std::nullopt;
   return job;
 }
 
 Input scanNeedle(const NeedleScanJob& job) {
-  if (!job.scan.robot) return failed(job, "no robot to search the markers of");
-  return proposeReaim(job, measureConfirmation(job.scan));
+  return proposeReaim(job, measureConfirmation(job.scan));  // it refuses a job without a robot
 }
 
 Input proposeReaim(const NeedleScanJob& job, const Input& measured) {
@@ -124,19 +119,8 @@ Input proposeReaim(const NeedleScanJob& job, const Input& measured) {
 
   // The scan's registration: the markers compared with the session's (reused while they moved no
   // more than their localisation explains), or the transform given with the scan.
-  Expected<verification::ConfirmationRegistration> reg = Error{};
-  if (job.scan.image_to_robot) {
-    reg = verification::registerConfirmationByMatrix(*job.scan.image_to_robot,
-                                                     robot.config.registration.limits);
-  } else if (job.session_registration) {
-    const std::vector<Eigen::Vector3d> model(robot.feature_points_mm.begin(),
-                                             robot.feature_points_mm.end());
-    reg = verification::registerConfirmation(*job.session_registration, measured.points, model,
-                                             robot.config.registration.kind,
-                                             robot.config.registration.limits);
-  } else {
-    return failed(job, "the session has no registration to compare the scan with");
-  }
+  const auto reg = detail::registerScan(robot, job.session_registration, measured.points,
+                                        job.scan.image_to_robot);
   if (!reg) return failed(job, reg.error().reason + ": " + reg.error().message);
   const Eigen::Matrix4d image_to_robot = reg->registration.imageToRobot();
   auto toRobot = [&](const Eigen::Vector3d& lps) {

@@ -19,15 +19,6 @@ constexpr double kRadToDeg = 180.0 / M_PI;
 // A stop closer than this to the target's depth leaves no rest worth re-aiming.
 constexpr double kMinRest_mm = 1.0;
 
-// The insertion under way: the first target not reached, in plan order, when it stopped part-way.
-Target* pausedInsertion(Session& s) {
-  for (auto& t : s.targets) {
-    if (t.reached) continue;
-    return t.paused ? &t : nullptr;
-  }
-  return nullptr;
-}
-
 Rejection notPaused(const Session& s) {
   return Rejection{ReplyCode::kNotPaused,
                    fmt::format("no insertion is stopped part-way ({}): set pause_at on a target "
@@ -94,15 +85,7 @@ Refusal startNeedleScan(Session& s, const Input& in, ActionOutput& out) {
     return Rejection{ReplyCode::kNotRegistered,
                      "the session has no registration to compare the intermittent CT with"};
   }
-  if (in.matrix) {
-    auto given =
-        registration::registrationFromMatrix(*in.matrix, s.robot->config.registration.limits);
-    if (!given) {
-      Rejection why = registrationRefusal(given.error());
-      why.message = "the intermittent CT's matrix: " + why.message;
-      return why;
-    }
-  }
+  if (auto bad = checkGivenMatrix(s, in.matrix, "the intermittent CT's matrix")) return bad;
   s.scanning_needle = s.revision + 1;  // this step's
   s.scanning_source = in.path;
   s.scanning_matrix = in.matrix;
@@ -173,15 +156,15 @@ Refusal adoptReaim(Session& s, const Input& in, ActionOutput& out) {
     out.effects.targets_changed.push_back(t->id);
   }
   // The rotation limit holds for the joints now aimed at, in the plan's order.
-  std::vector<planning::PlannedTarget> todo;
+  std::vector<planning::PlannedTarget> remaining;
   std::vector<std::size_t> order;
   for (const auto& t : s.targets) {
     if (t.reached) continue;
-    order.push_back(todo.size());
-    todo.push_back({t.id, t.commandedJoints()});
+    order.push_back(remaining.size());
+    remaining.push_back({t.id, t.commandedJoints()});
   }
   const auto ordering =
-      planning::evaluateOrder(todo, order, currentJoints(robot, s.position), s.policy.limits);
+      planning::evaluateOrder(remaining, order, currentJoints(robot, s.position), s.policy.limits);
   if (ordering.total_rotation_rad > s.policy.limits.max_total_rotation_rad + 1e-12) {
     return Rejection{ReplyCode::kNoReaim,
                      fmt::format("re-aimed, the cannula would turn {:.1f}° in all, more than "

@@ -222,6 +222,44 @@ std::string staleDetection(const Session& s, const Input& in) {
                      in.path.empty() ? "an unnamed CT" : in.path, why);
 }
 
+std::optional<Rejection> checkGivenMatrix(const Session& s,
+                                          const std::optional<Eigen::Matrix4d>& matrix,
+                                          const std::string& what) {
+  if (!matrix) return std::nullopt;
+  auto given = registration::registrationFromMatrix(*matrix, s.robot->config.registration.limits);
+  if (given) return std::nullopt;
+  Rejection why = registrationRefusal(given.error());
+  why.message = what + ": " + why.message;
+  return why;
+}
+
+Expected<verification::ConfirmationRegistration> registerScan(
+    const config::Robot& robot, const std::optional<registration::Registration>& session,
+    const std::vector<Eigen::Vector3d>& markers_lps_mm,
+    const std::optional<Eigen::Matrix4d>& given) {
+  const auto& limits = robot.config.registration.limits;
+  if (given) return verification::registerConfirmationByMatrix(*given, limits);
+  if (!session) {
+    return makeError(ErrorCode::kInvalidArgument,
+                     "the session has no registration to compare the scan with", "not_registered");
+  }
+  const std::vector<Eigen::Vector3d> model(robot.feature_points_mm.begin(),
+                                           robot.feature_points_mm.end());
+  return verification::registerConfirmation(*session, markers_lps_mm, model,
+                                            robot.config.registration.kind, limits);
+}
+
+const Target* pausedInsertion(const Session& s) {
+  for (const auto& t : s.targets) {
+    if (!t.reached) return t.paused ? &t : nullptr;
+  }
+  return nullptr;
+}
+
+Target* pausedInsertion(Session& s) {
+  return const_cast<Target*>(pausedInsertion(static_cast<const Session&>(s)));
+}
+
 std::vector<compensation::TargetingRecord> measuredRecords(const Session& s) {
   std::vector<compensation::TargetingRecord> records;
   const Confirmation& c = s.confirmation;

@@ -45,6 +45,23 @@ std::string staleDetection(const Session& s, const Input& in);
 
 void adoptPolicy(Session& s, ApprovalPolicy policy);
 
+// A scan's registration given with its command (load_confirmation, scan_needle), checked as
+// set_registration checks one, before any work: why not ("`what`: ..."), or nullopt.
+std::optional<Rejection> checkGivenMatrix(const Session& s,
+                                          const std::optional<Eigen::Matrix4d>& matrix,
+                                          const std::string& what);
+// A confirmation or intermittent CT registered: by the transform given with it, else its markers
+// (`markers_lps_mm`, in the model's order) compared with the session's registration.
+Expected<verification::ConfirmationRegistration> registerScan(
+    const config::Robot& robot, const std::optional<registration::Registration>& session,
+    const std::vector<Eigen::Vector3d>& markers_lps_mm,
+    const std::optional<Eigen::Matrix4d>& given);
+
+// The insertion under way when it stopped part-way (pause_at): the first target not reached, in
+// plan order, if it is paused; else none.
+const Target* pausedInsertion(const Session& s);
+Target* pausedInsertion(Session& s);
+
 // The confirmation CT's measured rows as a tissue fit takes them (robot frame; a tip's needle
 // path with it). Empty without a measured scan.
 std::vector<compensation::TargetingRecord> measuredRecords(const Session& s);

@@ -223,16 +223,7 @@ Refusal startConfirmation(Session& s, const Input& in, ActionOutput& out) {
     return Rejection{ReplyCode::kNotRegistered,
                      "the session has no registration to compare the confirmation CT with"};
   }
-  if (in.matrix) {
-    // Checked now, as set_registration checks it: a bad transform is refused before any work.
-    auto given =
-        registration::registrationFromMatrix(*in.matrix, s.robot->config.registration.limits);
-    if (!given) {
-      Rejection why = registrationRefusal(given.error());
-      why.message = "the confirmation CT's matrix: " + why.message;
-      return why;
-    }
-  }
+  if (auto bad = checkGivenMatrix(s, in.matrix, "the confirmation CT's matrix")) return bad;
   c.measuring = s.revision + 1;  // this step's
   c.measuring_source = in.path;
   c.measuring_matrix = in.matrix;
@@ -253,18 +244,7 @@ Refusal adoptConfirmation(Session& s, const Input& in, ActionOutput& out) {
     refuse("the session's registration is gone (a CT loaded meanwhile)");
     return std::nullopt;
   }
-  const auto& robot = *s.robot;
-  const std::vector<Eigen::Vector3d> model(robot.feature_points_mm.begin(),
-                                           robot.feature_points_mm.end());
-  Expected<verification::ConfirmationRegistration> reg = Error{};
-  if (c.measuring_matrix) {
-    reg = verification::registerConfirmationByMatrix(*c.measuring_matrix,
-                                                     robot.config.registration.limits);
-  } else {
-    reg = verification::registerConfirmation(*s.registration, in.points, model,
-                                             robot.config.registration.kind,
-                                             robot.config.registration.limits);
-  }
+  auto reg = registerScan(*s.robot, s.registration, in.points, c.measuring_matrix);
   if (!reg) {
     refuse(reg.error().reason + ": " + reg.error().message);
     return std::nullopt;
