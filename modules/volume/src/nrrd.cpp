@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <limits>
 #include <new>
@@ -496,7 +497,12 @@ Status detail::readRaster(const RasterSource& source, const std::string& what,
   }
 }
 
-Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progress) {
+namespace {
+
+// readNrrd, and readNrrdLayers when `layers` is given: then a first axis that lists components
+// (dimension 4, its space direction "none") is taken, and key:=value pairs are kept there.
+Expected<Volume> readNrrdImage(const std::string& path, const ProgressCallback& progress,
+                               NrrdLayers* layers) {
   const std::string& what = path;
   std::ifstream in(path, std::ios::binary);
   if (!in) return fail(ErrorCode::kIo, what, "cannot open the file");
@@ -522,7 +528,10 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
     }
     if (line[0] == '#') continue;
     const auto colon = line.find(':');
-    if (colon != std::string::npos && colon + 1 < line.size() && line[colon + 1] == '=') continue;
+    if (colon != std::string::npos && colon + 1 < line.size() && line[colon + 1] == '=') {
+      if (layers) layers->key_values.emplace_back(line.substr(0, colon), line.substr(colon + 2));
+      continue;
+    }
     if (colon == std::string::npos || colon + 1 >= line.size() || line[colon + 1] != ' ') {
       return fail(ErrorCode::kFormat, what, "malformed header line '" + printable(line) + "'");
     }
@@ -535,10 +544,14 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
   if (!parseInt64(*dimension, dim)) {
     return fail(ErrorCode::kFormat, what, "dimension '" + *dimension + "' is not an integer");
   }
-  if (dim != 3) {
+  if (dim != 3 && !(layers && dim == 4)) {
     return fail(ErrorCode::kUnsupported, what,
-                "dimension " + std::to_string(dim) + " (only scalar 3D volumes are supported)");
+                "dimension " + std::to_string(dim) +
+                    (layers ? " (3D volumes, or 3D with a first axis of layers, are supported)"
+                            : " (only scalar 3D volumes are supported)"));
   }
+  const std::size_t axes = static_cast<std::size_t>(dim);
+  const std::size_t first_space_axis = axes - 3;  // 1: the first axis lists components
   const std::string* type_field = fields.find({"type"});
   if (type_field == nullptr) return missingField(what, "type");
   ScalarType type{};
@@ -571,22 +584,37 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
   const std::string* sizes = fields.find({"sizes"});
   if (sizes == nullptr) return missingField(what, "sizes");
   const auto size_words = words(*sizes);
-  if (size_words.size() != 3) {
-    return fail(ErrorCode::kFormat, what, "sizes '" + *sizes + "' must list 3 axes");
+  if (size_words.size() != axes) {
+    return fail(ErrorCode::kFormat, what,
+                "sizes '" + *sizes + "' must list " + std::to_string(axes) + " axes");
   }
-  for (int a = 0; a < 3; ++a) {
+  int components = 1;
+  for (std::size_t a = 0; a < axes; ++a) {
     std::int64_t s = 0;
-    if (!parseInt64(size_words[static_cast<std::size_t>(a)], s) || s <= 0 ||
-        s > std::numeric_limits<int>::max()) {
+    if (!parseInt64(size_words[a], s) || s <= 0 || s > std::numeric_limits<int>::max()) {
       return fail(ErrorCode::kFormat, what, "sizes '" + *sizes + "' must be positive integers");
     }
-    g.dims[static_cast<std::size_t>(a)] = static_cast<int>(s);
+    if (a < first_space_axis) {
+      if (s > 255) {
+        return fail(ErrorCode::kUnsupported, what,
+                    "sizes '" + *sizes + "': more than 255 layers on the first axis");
+      }
+      components = static_cast<int>(s);
+    } else {
+      g.dims[a - first_space_axis] = static_cast<int>(s);
+    }
   }
   if (const std::string* kinds = fields.find({"kinds"})) {
-    for (const auto& k : words(*kinds)) {
-      if (lower(k) != "domain" && lower(k) != "space") {
+    const auto kind_words = words(*kinds);
+    for (std::size_t a = 0; a < kind_words.size(); ++a) {
+      const std::string k = lower(kind_words[a]);
+      if (a < first_space_axis ? (k == "domain" || k == "space")
+                               : (k != "domain" && k != "space")) {
         return fail(ErrorCode::kUnsupported, what,
-                    "kinds '" + *kinds + "': only scalar volumes (domain axes) are supported");
+                    "kinds '" + *kinds +
+                        (layers ? "': the spatial axes must be domain axes (a first axis may list "
+                                  "layers)"
+                                : "': only scalar volumes (domain axes) are supported"));
       }
     }
   }
@@ -605,10 +633,14 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
     }
   }
   if (const std::string* directions = fields.find({"space directions"})) {
-    const auto items = vectorItems(*directions);
+    auto items = vectorItems(*directions);
+    if (first_space_axis > 0 && !items.empty() && lower(items.front()) == "none") {
+      items.erase(items.begin());
+    }
     if (items.size() != 3) {
       return fail(ErrorCode::kFormat, what,
-                  "space directions '" + *directions + "' must hold 3 vectors");
+                  "space directions '" + *directions + "' must hold 3 vectors" +
+                      (first_space_axis > 0 ? " after 'none' for the layers" : ""));
     }
     for (int a = 0; a < 3; ++a) {
       Eigen::Vector3d v;
@@ -703,61 +735,61 @@ Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progr
     if (source.byte_skip < 0) return fail(ErrorCode::kIo, what, "cannot locate the data");
   }
   in.close();
+  // The layers are read as a first axis `components` times longer: the raster is one stream.
+  if (components > 1 && g.voxelCount() > kMaxVoxels / static_cast<std::size_t>(components)) {
+    return fail(ErrorCode::kUnsupported, what, "more voxels than any volume may hold");
+  }
+  const Geometry spatial = g;
+  g.dims[0] *= components;
   if (auto s = detail::readRaster(source, what, progress, volume); !s.ok()) return s.error();
+  g = spatial;
+  if (layers) layers->components = components;
   volume.description = fs::path(path).filename().string();
   return volume;
 }
 
-Status writeNrrd(const Volume& volume, const std::string& path, NrrdEncoding encoding) {
-  const Geometry& g = volume.geometry;
-  if (auto s = g.validate(path); !s.ok()) {
-    return makeError(ErrorCode::kInvalidArgument, s.error().message);
-  }
-  const std::size_t n = g.voxelCount();
-  if (volume.voxels.size() != n) {
-    return fail(ErrorCode::kInvalidArgument, path,
-                "volume holds " + std::to_string(volume.voxels.size()) + " voxels but its " +
-                    "geometry declares " + std::to_string(n));
-  }
-  if (!std::isfinite(volume.value_scale) || !std::isfinite(volume.value_offset)) {
-    return fail(ErrorCode::kInvalidArgument, path, "value scale or offset is not finite");
-  }
-  // int16 when physical values are exactly int16 (scale 1, integral offset, in range);
-  // otherwise double, which holds v * scale + offset exactly enough to read back losslessly.
-  bool as_int16 =
-      volume.value_scale == 1.0 && volume.value_offset == std::round(volume.value_offset);
-  if (as_int16 && !volume.voxels.empty()) {
-    const auto [lo, hi] = std::minmax_element(volume.voxels.begin(), volume.voxels.end());
-    as_int16 = *lo + volume.value_offset >= -32768.0 && *hi + volume.value_offset <= 32767.0;
-  }
-  std::ostringstream h;
-  h << "NRRD0004\n"
-    << "# Complete NRRD file format specification at:\n"
-    << "# http://teem.sourceforge.net/nrrd/format.html\n"
-    << "type: " << (as_int16 ? "short" : "double") << "\n"
-    << "dimension: 3\n"
-    << "space: left-posterior-superior\n"
-    << "sizes: " << g.dims[0] << " " << g.dims[1] << " " << g.dims[2] << "\n"
-    << "space directions:";
-  for (int a = 0; a < 3; ++a) {
-    const Eigen::Vector3d c = g.direction.col(a) * g.spacing_mm[a];
-    h << " (" << fmt(c.x()) << "," << fmt(c.y()) << "," << fmt(c.z()) << ")";
-  }
-  h << "\nkinds: domain domain domain\n"
-    << "endian: " << (hostIsBigEndian() ? "big" : "little") << "\n"
-    << "encoding: " << (encoding == NrrdEncoding::kGzip ? "gzip" : "raw") << "\n"
-    << "space origin: (" << fmt(g.origin_lps_mm.x()) << "," << fmt(g.origin_lps_mm.y()) << ","
-    << fmt(g.origin_lps_mm.z()) << ")\n\n";
+}  // namespace
 
-  // Write to a sibling temporary and rename, so a failed write never leaves half a file.
+Expected<Volume> readNrrd(const std::string& path, const ProgressCallback& progress) {
+  return readNrrdImage(path, progress, nullptr);
+}
+
+Expected<NrrdLayers> readNrrdLayers(const std::string& path) {
+  NrrdLayers layers;
+  auto volume = readNrrdImage(path, {}, &layers);
+  if (!volume) return volume.error();
+  if (volume->value_scale != 1.0 || volume->value_offset != std::round(volume->value_offset) ||
+      std::abs(volume->value_offset) > 32767.0) {
+    return fail(ErrorCode::kUnsupported, path,
+                "voxel values are not integer labels (8- or 16-bit integers are)");
+  }
+  layers.geometry = volume->geometry;
+  const auto offset = static_cast<int>(volume->value_offset);
+  layers.values.resize(volume->voxels.size());
+  for (std::size_t i = 0; i < volume->voxels.size(); ++i) {
+    const int v = volume->voxels[i] + offset;
+    if (v < -32768 || v > 32767) {
+      return fail(ErrorCode::kUnsupported, path, "a label value lies outside 16 bits");
+    }
+    layers.values[i] = static_cast<std::int16_t>(v);
+  }
+  return layers;
+}
+
+namespace {
+
+// Writes header + n values (bytes_per_value each, made by fill a chunk at a time) to a sibling
+// temporary, gzip-compressed or raw, then renames it: a failed write never leaves half a file.
+Status writeAttachedNrrd(
+    const std::string& path, const std::string& header, std::size_t n, std::size_t bytes_per_value,
+    bool gzip,
+    const std::function<void(std::size_t first, std::size_t count, std::uint8_t* out)>& fill) {
   const std::string tmp = path + ".part";
   std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
   if (!out) return fail(ErrorCode::kIo, path, "cannot create '" + tmp + "'");
-  const std::string header = h.str();
   out.write(header.data(), static_cast<std::streamsize>(header.size()));
 
   z_stream zs{};
-  const bool gzip = encoding == NrrdEncoding::kGzip;
   // 15 + 16: gzip wrapper, as Slicer writes.
   if (gzip && deflateInit2(&zs, Z_DEFAULT_COMPRESSION, Z_DEFLATED, 15 + 16, 8,
                            Z_DEFAULT_STRATEGY) != Z_OK) {
@@ -765,21 +797,12 @@ Status writeNrrd(const Volume& volume, const std::string& path, NrrdEncoding enc
   }
   std::vector<std::uint8_t> chunk;
   std::vector<std::uint8_t> zout(std::size_t{1} << 20);
-  const std::size_t per_chunk = std::size_t{1} << 18;  // voxels per chunk
+  const std::size_t per_chunk = std::size_t{1} << 18;  // values per chunk
   bool ok = true;
   for (std::size_t first = 0; ok && first < n; first += per_chunk) {
     const std::size_t count = std::min(per_chunk, n - first);
-    chunk.resize(count * (as_int16 ? 2 : 8));
-    for (std::size_t i = 0; i < count; ++i) {
-      const std::int16_t s = volume.voxels[first + i];
-      if (as_int16) {
-        const auto v = static_cast<std::int16_t>(s + static_cast<int>(volume.value_offset));
-        std::memcpy(chunk.data() + 2 * i, &v, 2);
-      } else {
-        const double v = s * volume.value_scale + volume.value_offset;
-        std::memcpy(chunk.data() + 8 * i, &v, 8);
-      }
-    }
+    chunk.resize(count * bytes_per_value);
+    fill(first, count, chunk.data());
     const bool last = first + count >= n;
     if (!gzip) {
       out.write(reinterpret_cast<const char*>(chunk.data()),
@@ -811,6 +834,117 @@ Status writeNrrd(const Volume& volume, const std::string& path, NrrdEncoding enc
     return fail(ErrorCode::kIo, path, "cannot rename the temporary file: " + ec.message());
   }
   return Ok{};
+}
+
+std::string spaceLines(const Geometry& g) {
+  std::string out = "space directions:";
+  for (int a = 0; a < 3; ++a) {
+    const Eigen::Vector3d c = g.direction.col(a) * g.spacing_mm[a];
+    out += " (" + fmt(c.x()) + "," + fmt(c.y()) + "," + fmt(c.z()) + ")";
+  }
+  return out;
+}
+
+}  // namespace
+
+Status writeNrrd(const Volume& volume, const std::string& path, NrrdEncoding encoding) {
+  const Geometry& g = volume.geometry;
+  if (auto s = g.validate(path); !s.ok()) {
+    return makeError(ErrorCode::kInvalidArgument, s.error().message);
+  }
+  const std::size_t n = g.voxelCount();
+  if (volume.voxels.size() != n) {
+    return fail(ErrorCode::kInvalidArgument, path,
+                "volume holds " + std::to_string(volume.voxels.size()) + " voxels but its " +
+                    "geometry declares " + std::to_string(n));
+  }
+  if (!std::isfinite(volume.value_scale) || !std::isfinite(volume.value_offset)) {
+    return fail(ErrorCode::kInvalidArgument, path, "value scale or offset is not finite");
+  }
+  // int16 when physical values are exactly int16 (scale 1, integral offset, in range);
+  // otherwise double, which holds v * scale + offset exactly enough to read back losslessly.
+  bool as_int16 =
+      volume.value_scale == 1.0 && volume.value_offset == std::round(volume.value_offset);
+  if (as_int16 && !volume.voxels.empty()) {
+    const auto [lo, hi] = std::minmax_element(volume.voxels.begin(), volume.voxels.end());
+    as_int16 = *lo + volume.value_offset >= -32768.0 && *hi + volume.value_offset <= 32767.0;
+  }
+  std::ostringstream h;
+  h << "NRRD0004\n"
+    << "# Complete NRRD file format specification at:\n"
+    << "# http://teem.sourceforge.net/nrrd/format.html\n"
+    << "type: " << (as_int16 ? "short" : "double") << "\n"
+    << "dimension: 3\n"
+    << "space: left-posterior-superior\n"
+    << "sizes: " << g.dims[0] << " " << g.dims[1] << " " << g.dims[2] << "\n"
+    << spaceLines(g) << "\nkinds: domain domain domain\n"
+    << "endian: " << (hostIsBigEndian() ? "big" : "little") << "\n"
+    << "encoding: " << (encoding == NrrdEncoding::kGzip ? "gzip" : "raw") << "\n"
+    << "space origin: (" << fmt(g.origin_lps_mm.x()) << "," << fmt(g.origin_lps_mm.y()) << ","
+    << fmt(g.origin_lps_mm.z()) << ")\n\n";
+
+  return writeAttachedNrrd(
+      path, h.str(), n, as_int16 ? 2 : 8, encoding == NrrdEncoding::kGzip,
+      [&](std::size_t first, std::size_t count, std::uint8_t* out) {
+        for (std::size_t i = 0; i < count; ++i) {
+          const std::int16_t s = volume.voxels[first + i];
+          if (as_int16) {
+            const auto v = static_cast<std::int16_t>(s + static_cast<int>(volume.value_offset));
+            std::memcpy(out + 2 * i, &v, 2);
+          } else {
+            const double v = s * volume.value_scale + volume.value_offset;
+            std::memcpy(out + 8 * i, &v, 8);
+          }
+        }
+      });
+}
+
+Status writeNrrdLayers(const NrrdLayers& image, const std::string& path) {
+  const Geometry& g = image.geometry;
+  if (auto s = g.validate(path); !s.ok()) {
+    return makeError(ErrorCode::kInvalidArgument, s.error().message);
+  }
+  if (image.components < 1 || image.components > 255) {
+    return fail(ErrorCode::kInvalidArgument, path, "1 to 255 layers are written");
+  }
+  const std::size_t n = g.voxelCount() * static_cast<std::size_t>(image.components);
+  if (image.values.size() != n) {
+    return fail(ErrorCode::kInvalidArgument, path,
+                "holds " + std::to_string(image.values.size()) + " values, its geometry and " +
+                    "layers declare " + std::to_string(n));
+  }
+  for (const auto v : image.values) {
+    if (v < 0 || v > 255) return fail(ErrorCode::kInvalidArgument, path, "a label exceeds 8 bits");
+  }
+  const bool layered = image.components > 1;
+  std::ostringstream h;
+  h << "NRRD0004\n"
+    << "# Complete NRRD file format specification at:\n"
+    << "# http://teem.sourceforge.net/nrrd/format.html\n"
+    << "type: unsigned char\n"
+    << "dimension: " << (layered ? 4 : 3) << "\n"
+    << "space: left-posterior-superior\n"
+    << "sizes: ";
+  if (layered) h << image.components << " ";
+  h << g.dims[0] << " " << g.dims[1] << " " << g.dims[2] << "\n";
+  std::string directions = spaceLines(g);
+  if (layered) directions.insert(std::string("space directions:").size(), " none");
+  h << directions << "\nkinds: " << (layered ? "list " : "") << "domain domain domain\n"
+    << "encoding: gzip\n"
+    << "space origin: (" << fmt(g.origin_lps_mm.x()) << "," << fmt(g.origin_lps_mm.y()) << ","
+    << fmt(g.origin_lps_mm.z()) << ")\n";
+  for (const auto& [key, value] : image.key_values) {
+    if (key.find_first_of(":\n") != std::string::npos || value.find('\n') != std::string::npos) {
+      return fail(ErrorCode::kInvalidArgument, path, "header key '" + key + "' cannot be written");
+    }
+    h << key << ":=" << value << "\n";
+  }
+  h << "\n";
+  return writeAttachedNrrd(path, h.str(), n, 1, true,
+                           [&](std::size_t first, std::size_t count, std::uint8_t* out) {
+                             for (std::size_t i = 0; i < count; ++i)
+                               out[i] = static_cast<std::uint8_t>(image.values[first + i]);
+                           });
 }
 
 Expected<Volume> readVolumeFile(const std::string& path, const ProgressCallback& progress) {

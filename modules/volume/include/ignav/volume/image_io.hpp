@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ignav/core/expected.hpp"
@@ -23,6 +24,21 @@ enum class NrrdEncoding { kRaw, kGzip };
 // physical value is an integer in int16 range (value_scale 1, integral offset), else float.
 Status writeNrrd(const Volume& volume, const std::string& path,
                  NrrdEncoding encoding = NrrdEncoding::kGzip);
+
+// A NRRD of integer labels whose first axis may list layers (a Slicer .seg.nrrd keeps overlapping
+// segments in layers so), with its key:=value pairs (Slicer's Segment0_Name, ...), for the
+// segmentation readers (modules/anatomy). `values` holds `components` labels per voxel of
+// `geometry`, the layer fastest, then i, j, k.
+struct NrrdLayers {
+  Geometry geometry;
+  int components = 1;
+  std::vector<std::int16_t> values;
+  std::vector<std::pair<std::string, std::string>> key_values;  // in the header's order
+};
+Expected<NrrdLayers> readNrrdLayers(const std::string& path);
+// Attached gzip NRRD of unsigned 8-bit labels (values 0-255), a list axis first when there is
+// more than one layer, with the key:=value pairs (keys without ':' or line breaks).
+Status writeNrrdLayers(const NrrdLayers& image, const std::string& path);
 
 // By extension: .nrrd .nhdr -> readNrrd, .mha .mhd -> readMetaImage (case-insensitive).
 // Anything else (a DICOM folder or .dcm) is kUnsupported for now.

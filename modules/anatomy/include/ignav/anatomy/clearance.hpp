@@ -1,0 +1,39 @@
+// The whole needle against a structure (issue 41): the cannula's straight and deflected part and
+// the stylet's arc, each with its outer radius, and how close their surface comes to the
+// structure's.
+#pragma once
+
+#include <limits>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ignav/anatomy/distance_field.hpp"
+
+namespace ignav::anatomy {
+
+// A polyline of constant outer radius (the cannula, then the stylet).
+struct NeedlePiece {
+  std::vector<Eigen::Vector3d> centreline_lps_mm;
+  double radius_mm = 0.0;
+};
+using NeedleBody = std::vector<NeedlePiece>;
+
+struct ClosestApproach {
+  // From the needle's surface to the structure's: negative when the needle enters it (by that
+  // depth). +inf for an empty body.
+  double distance_mm = std::numeric_limits<double>::infinity();
+  Eigen::Vector3d needle_lps_mm = Eigen::Vector3d::Zero();     // on the centreline
+  Eigen::Vector3d structure_lps_mm = Eigen::Vector3d::Zero();  // the nearest surface point
+  std::size_t piece = 0;                                       // which piece
+  double arc_mm = 0.0;                                         // along the body from its start
+};
+
+// The closest approach: the centreline sampled at most `step_mm` apart where it comes near the
+// structure (strides as long as the distance allows where it is far), then the closest sample
+// refined by golden section along the polyline. The distance field is 1-Lipschitz, so the strides
+// skip nothing closer than what was found.
+ClosestApproach closestApproach(const NeedleBody& body, const DistanceField& field,
+                                double step_mm = 0.1);
+
+}  // namespace ignav::anatomy

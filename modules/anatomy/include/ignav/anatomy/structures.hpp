@@ -1,0 +1,85 @@
+// The patient's structures (issue 41): segmentations of the session's CT, each a binary mask on
+// the CT's own voxel grid with a name, a colour and a role. Read from 3D Slicer's .seg.nrrd
+// (binary labelmap layers) or from a NRRD/MetaImage label map with a Slicer colour table naming
+// its labels. Values only.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "ignav/core/expected.hpp"
+#include "ignav/volume/volume.hpp"
+
+namespace ignav::anatomy {
+
+// What the plan does with a structure: aims into it (target), keeps the needle a margin away
+// from it (avoid), or only shows it (shown).
+enum class Role { kTarget, kAvoid, kShown };
+const char* toString(Role role);  // "target" | "avoid" | "shown"
+std::optional<Role> roleNamed(std::string_view name);
+
+// A binary mask on a box of voxels: `geometry` is the box (its origin the first voxel's centre),
+// `inside` holds 1 for the structure's voxels, i fastest.
+struct Mask {
+  volume::Geometry geometry;
+  std::vector<std::uint8_t> inside;
+
+  std::size_t index(int i, int j, int k) const {
+    return static_cast<std::size_t>(i) +
+           static_cast<std::size_t>(geometry.dims[0]) *
+               (static_cast<std::size_t>(j) +
+                static_cast<std::size_t>(geometry.dims[1]) * static_cast<std::size_t>(k));
+  }
+  std::size_t count() const;  // voxels inside
+  double volume_cm3() const;
+};
+
+struct Structure {
+  std::string name;
+  std::array<double, 3> colour_rgb{0.5, 0.5, 0.5};  // 0-1, as Slicer writes Segment0_Color
+  Mask mask;                                        // cropped to the structure's voxels
+  Role role = Role::kShown;
+  double margin_mm = 0.0;  // avoid: how close the needle's surface may come
+};
+
+struct StructureSet {
+  std::string source;  // the file read
+  std::vector<Structure> structures;
+  // By name, ignoring case; nullptr when none is so named.
+  const Structure* find(std::string_view name) const;
+  Structure* find(std::string_view name);
+};
+
+// The box of `grid` holding every voxel that is set, as a mask on that box; an error naming
+// `what` when none is set.
+Expected<Mask> cropMask(const volume::Geometry& grid, const std::vector<std::uint8_t>& inside,
+                        const std::string& what);
+
+// A 3D Slicer segmentation (.seg.nrrd): 3D, or 4D with a first axis of layers (overlapping
+// segments); each segment's name, colour, label value and layer from its Segment<N>_* fields.
+// Empty segments, labels out of range, missing names are refused, naming the segment.
+Expected<StructureSet> readSegNrrd(const std::string& path);
+// Writes every structure as one segment on `grid` (each mask's voxels must lie on it), a layer
+// per structure where they overlap, as Slicer reads it.
+Status writeSegNrrd(const StructureSet& set, const volume::Geometry& grid, const std::string& path);
+
+// A label map (.nrrd/.nhdr/.mha/.mhd: 0 background, each other value a structure) named by a
+// 3D Slicer colour table (lines "LABEL NAME R G B A", 0-255 colours, '#' comments): every label
+// present must be named there.
+Expected<StructureSet> readLabelMap(const std::string& path, const std::string& colour_table);
+
+// By name: *.seg.nrrd -> readSegNrrd; another .nrrd/.nhdr/.mha/.mhd -> readLabelMap with the
+// colour table beside it (<stem>.ctbl or <stem>.txt).
+Expected<StructureSet> readStructures(const std::string& path);
+
+// A set made on this CT: every mask's axes and spacing the CT's, its voxels on the CT's voxel
+// centres (within 1 % of a voxel) and inside the CT. Otherwise an error saying which structure
+// and how it differs (reason "other_ct").
+Status checkOnCt(const StructureSet& set, const volume::Geometry& ct, const std::string& ct_name);
+
+}  // namespace ignav::anatomy
