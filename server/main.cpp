@@ -51,6 +51,10 @@ int main(int argc, char** argv) {
                  "a controller reply (or connection) that takes longer is a fault (galil; "
                  "overrides the config)");
   std::vector<std::string> approvers;
+  std::string site;
+  app.add_option("--site", site,
+                 "the site's roles for the patient's structures (configs/sites/*.yaml; 'none': "
+                 "none); overrides server.yaml site:");
   std::string tissue;
   app.add_option("--tissue", tissue,
                  "tissue profile for deflection predictions (configs/tissues.yaml; 'none' is "
@@ -150,6 +154,10 @@ int main(int argc, char** argv) {
     if (controller_timeout) options.controller.timeout_ms = *controller_timeout;
     if (!approvers.empty()) options.approvers = approvers;
     if (!tissue.empty()) options.tissue_name = tissue;
+    if (site == "none")
+      options.site_path.clear();
+    else if (!site.empty())
+      options.site_path = site;
     if (!replay.empty()) {
       options.replay_session = replay;
       options.replay_until = until;

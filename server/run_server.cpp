@@ -97,6 +97,14 @@ int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
     }
     options.tissue = std::move(profile).value();
   }
+  if (!options.site_path.empty()) {
+    auto site = anatomy::readSite(options.site_path);
+    if (!site) {
+      spdlog::error("{}", site.error().message);
+      return 2;
+    }
+    options.site = std::move(site).value();
+  }
   if (!options.replay_session.empty()) {
     // Read only: a torn last record is left out, not cut off the file.
     const fs::path dir(options.replay_session);

@@ -190,6 +190,7 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
     config_loaded.kind = InputKind::kConfigLoaded;
     config_loaded.policy = approvalPolicy(options_);
     config_loaded.tissue = options_.tissue;
+    config_loaded.site = options_.site;
     config_loaded.robot_id = options_.robot_id;
     config_loaded.session_uuid = newSessionUuid();
     step(config_loaded);

@@ -152,10 +152,10 @@ ServerOptions loadServerOptions(const std::string& path) {
     const std::string key = kv.first.Scalar();
     if (key != "robot_id" && key != "robot_config" && key != "dds" && key != "session_root" &&
         key != "controller" && key != "approval" && key != "planning" && key != "tissue" &&
-        key != "security" && key != "openigtlink") {
+        key != "site" && key != "security" && key != "openigtlink") {
       throw ConfigError(path + ": server." + key +
                         ": unknown key; expected robot_id, robot_config, dds, session_root, "
-                        "controller, approval, planning, tissue, security, openigtlink");
+                        "controller, approval, planning, tissue, site, security, openigtlink");
     }
   }
   try {
@@ -220,6 +220,7 @@ ServerOptions loadServerOptions(const std::string& path) {
         }
       }
     }
+    if (s["site"]) o.site_path = resolve(base, valueOf<std::string>(s["site"], path, "site"));
     if (const YAML::Node t = s["tissue"]) {
       for (const auto& kv : t) {
         const std::string key = kv.first.Scalar();

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "ignav/anatomy/site.hpp"
 #include "ignav/config/tissue_profiles.hpp"
 #include "ignav/protocol/config.hpp"
 #include "ignav/protocol/security.hpp"
@@ -63,8 +64,11 @@ struct ServerOptions {
   std::string tissue_profiles;                  // configs/tissues.yaml
   std::string tissue_name;                      // "" = no deflection prediction
   std::optional<config::TissueProfile> tissue;  // loaded by runServer
-  std::size_t max_targets = 100;                // per insertion, at most 100 (paper §V)
-  double max_total_rotation_deg = 360.0;        // the cannula's rotation over one insertion
+  // The site's roles for the patient's structures (configs/sites/*.yaml); "": none.
+  std::string site_path;
+  std::optional<anatomy::Site> site;      // loaded by runServer
+  std::size_t max_targets = 100;          // per insertion, at most 100 (paper §V)
+  double max_total_rotation_deg = 360.0;  // the cannula's rotation over one insertion
   std::string robot_config;
   // This robot's name on the DDS domain: the server's topics are in its partition (topics.hpp),
   // so several robots share a domain; two servers with one id never both serve (DEPLOYMENT.md).

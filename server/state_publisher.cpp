@@ -38,6 +38,7 @@ StatePublisher::StatePublisher(const protocol::Participant& p, std::string contr
       approval_(p),
       motion_(p),
       verification_(p),
+      structures_(p),
       job_outcome_(p),
       controller_name_(std::move(controller_name)),
       session_dir_(session_dir.string()),
@@ -58,6 +59,7 @@ void StatePublisher::publishEffects(const Session& s, const workflow::Effects& e
     publishTarget(s, id);
   if (e.approval_changed) publishApproval(s);
   if (e.confirmation_changed || e.robot_changed) publishVerification(s);
+  if (e.structures_changed) publishStructures(s);
   if (e.motion_changed || !e.controller.empty()) publishMotion(s, r.controller, r.lifecycle);
   if (e.workflow_changed) publishWorkflow(s);
   if (e.job_outcome) publishJobOutcome(*e.job_outcome);
@@ -67,8 +69,42 @@ void StatePublisher::publishJobOutcome(const workflow::JobOutcome& o) {
   job_outcome_.write({o.job, o.kind, o.input, o.status, o.message, o.revision});
 }
 
+void StatePublisher::publishStructures(const Session& s) {
+  const auto& st = s.structures;
+  protocol::StructuresState m;
+  m.status = st.status;
+  m.source = st.source;
+  m.message = st.message;
+  m.site = s.site ? s.site->name : "";
+  if (st.loaded.set) {
+    const auto& set = st.loaded.set->structures;
+    for (std::size_t n = 0; n < set.size(); ++n) {
+      const auto& structure = set[n];
+      const auto& g = structure.mask.geometry;
+      // The box of the voxels' centres, as LPS corners.
+      Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+      for (int c = 0; c < 8; ++c) {
+        const Eigen::Vector3d corner = g.toLps(Eigen::Vector3d(
+            (c & 1) ? g.dims[0] - 1 : 0, (c & 2) ? g.dims[1] - 1 : 0, (c & 4) ? g.dims[2] - 1 : 0));
+        lo = lo.cwiseMin(corner);
+        hi = hi.cwiseMax(corner);
+      }
+      const auto& role = st.roles.at(n);
+      m.structures.push_back({structure.name,
+                              structure.colour_rgb,
+                              anatomy::toString(role.role),
+                              role.margin_mm,
+                              structure.mask.count(),
+                              structure.mask.volume_cm3(),
+                              {lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z()}});
+    }
+  }
+  structures_.write(m);
+}
+
 void StatePublisher::publishEverything(const Session& s, const Readings& r) {
   publishVerification(s);
+  publishStructures(s);
   publishRobot(s);
   publishVolume(s, r.load_progress);
   publishRegistration(s);
@@ -240,6 +276,13 @@ void StatePublisher::publishTarget(const Session& s, std::uint32_t id) {
       m.reaimed_landing_robot = toPoint3(r.landing_robot_mm);
     }
     m.replan = t.replan;
+    for (const auto& c : t.clearances) {
+      m.clearances.push_back({c.structure, c.distance_mm, c.margin_mm, c.uncertainty_mm, c.part,
+                              toPoint3(c.needle_lps_mm), toPoint3(c.structure_lps_mm),
+                              c.reachedBeyond, c.tooClose()});
+    }
+    m.clearance_refusal = t.clearance_refusal;
+    m.clearance_override = t.clearance_override;
     m.steps = stepsOf(t.steps);
     m.tre_mm = t.tre_mm;
     m.tre_warning = t.tre_warning;

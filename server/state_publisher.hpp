@@ -60,6 +60,7 @@ class StatePublisher {
                      const char* lifecycle);
   void publishHealth(const workflow::Session& s, const HealthFacts& facts);
   void publishVerification(const workflow::Session& s);
+  void publishStructures(const workflow::Session& s);
   void publishJobOutcome(const workflow::JobOutcome& outcome);
 
  private:
@@ -74,6 +75,7 @@ class StatePublisher {
   protocol::TopicWriter<protocol::ApprovalState> approval_;
   protocol::TopicWriter<protocol::MotionState> motion_;
   protocol::TopicWriter<protocol::VerificationState> verification_;
+  protocol::TopicWriter<protocol::StructuresState> structures_;
   protocol::TopicWriter<protocol::JobOutcome> job_outcome_;
   const std::string controller_name_;
   const std::string session_dir_;

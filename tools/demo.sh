@@ -46,6 +46,7 @@ $ctl run configs/demo/plan.yaml --out-dir "$session"
 echo
 $ctl status
 echo
+$ctl structures ls | tee "$session/structures.txt"
 $ctl targets ls | tee "$session/summary.txt"
 $ctl motion | tee -a "$session/summary.txt"
 echo

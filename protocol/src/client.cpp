@@ -77,6 +77,7 @@ struct Client::Impl {
   TopicReader<ApprovalState> approval;
   TopicReader<MotionState> motion;
   TopicReader<VerificationState> verification;
+  TopicReader<StructuresState> structures;
   TopicReader<JobOutcome> job_outcomes;
   std::map<std::uint64_t, JobOutcome> outcomes_seen;  // by job, the newest 64
   WaitSet waitset;
@@ -109,6 +110,7 @@ struct Client::Impl {
         approval(participant),
         motion(participant),
         verification(participant),
+        structures(participant),
         job_outcomes(participant),
         waitset(participant) {
     waitset.attach(replies.handle());
@@ -320,6 +322,7 @@ std::vector<std::string> Client::poll() {
   note("health", drainInto(impl_->health, mirror_.health, state_, "health"));
   note("verification",
        drainInto(impl_->verification, mirror_.verification, state_, "verification"));
+  note("structures", drainInto(impl_->structures, mirror_.structures, state_, "structures"));
   return changed;
 }
 
@@ -343,10 +346,11 @@ std::vector<std::string> Client::missingState() const {
   const StateMirror& m = mirror_;
   std::vector<std::string> missing;
   const std::pair<bool, const char*> topics[] = {
-      {m.workflow.has_value(), "workflow"}, {m.robot.has_value(), "robot"},
-      {m.volume.has_value(), "volume"},     {m.registration.has_value(), "registration"},
-      {m.approval.has_value(), "approval"}, {m.motion.has_value(), "motion"},
-      {m.health.has_value(), "health"},     {m.verification.has_value(), "verification"}};
+      {m.workflow.has_value(), "workflow"},    {m.robot.has_value(), "robot"},
+      {m.volume.has_value(), "volume"},        {m.registration.has_value(), "registration"},
+      {m.approval.has_value(), "approval"},    {m.motion.has_value(), "motion"},
+      {m.health.has_value(), "health"},        {m.verification.has_value(), "verification"},
+      {m.structures.has_value(), "structures"}};
   for (const auto& [held, name] : topics)
     if (!held) missing.emplace_back(name);
   if (m.workflow) {

@@ -320,6 +320,8 @@ template class Reader<ignav_msg_ApprovalState>;
 template class Writer<ignav_msg_MotionState>;
 template class Reader<ignav_msg_MotionState>;
 template class Writer<ignav_msg_VerificationState>;
+template class Writer<ignav_msg_StructuresState>;
+template class Reader<ignav_msg_StructuresState>;
 template class Reader<ignav_msg_VerificationState>;
 
 }  // namespace ignav::protocol

@@ -233,7 +233,7 @@ TEST_F(Structures, ABadSiteFileNamesTheEntry) {
   EXPECT_NE(readSite(path("s.yaml")).error().message.find("role 'dodge'"), std::string::npos);
   std::ofstream(path("s.yaml"))
       << "structures:\n  - {name: urethra, role: avoid, margin_mm: .nan}\n";
-  EXPECT_NE(readSite(path("s.yaml")).error().message.find("outside 0-50 mm"), std::string::npos);
+  EXPECT_NE(readSite(path("s.yaml")).error().message.find("outside 0-10 mm"), std::string::npos);
 }
 
 }  // namespace

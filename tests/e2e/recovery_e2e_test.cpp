@@ -115,7 +115,8 @@ TEST(RecoveryE2E, AServiceRestartedAfterACrashContinuesItsSessionAndACleanStopEn
            {"session_root: ../out/sessions", "session_root: " + (root / "sessions").string()},
            {"robot_config: robots/", "robot_config: " IGNAV_SOURCE_DIR "/configs/robots/"},
            {"config: dds/", "config: " IGNAV_SOURCE_DIR "/configs/dds/"},
-           {"profiles: tissues.yaml", "profiles: " IGNAV_SOURCE_DIR "/configs/tissues.yaml"}}) {
+           {"profiles: tissues.yaml", "profiles: " IGNAV_SOURCE_DIR "/configs/tissues.yaml"},
+           {"site: sites/", "site: " IGNAV_SOURCE_DIR "/configs/sites/"}}) {
     const auto at = yaml.find(from);
     ASSERT_NE(at, std::string::npos) << from;
     yaml.replace(at, from.size(), to);

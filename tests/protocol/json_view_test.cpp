@@ -94,7 +94,8 @@ TEST(JsonView, TargetIsWhatBrowsersRead) {
     "aim_tissue": "", "nominal_joints": [0, 0, 0], "nominal_landing_robot": [0, 0, 0],
     "predicted_landing_robot": [0, 0, 0], "pause_z_s_mm": 0, "paused": false,
     "paused_joints": [0, 0, 0], "reaimed": false, "previous_joints": [0, 0, 0],
-    "previous_landing_robot": [0, 0, 0], "reaimed_landing_robot": [0, 0, 0], "replan": ""})");
+    "previous_landing_robot": [0, 0, 0], "reaimed_landing_robot": [0, 0, 0], "replan": "",
+    "clearances": [], "clearance_refusal": "", "clearance_override": ""})");
   EXPECT_EQ(json(aTarget()), expected);
 }
 

@@ -76,6 +76,7 @@ class Bench {
     Input loaded = internal(InputKind::kVolumeLoaded);
     loaded.job = s.ct_revision;
     loaded.loaded.volume = ignav::test::phantomCtGrid(*paperRobot());
+    loaded.loaded.source = "phantom:";  // as the server names it
     feed(loaded);
     auto rp = registration::makeRobotPhantom(paperRobot()->kinematics,
                                              paperRobot()->config.registration.scan);

@@ -30,8 +30,11 @@ constexpr Alias kAliases[] = {
     {"targets clear", "clear_targets"},
     {"targets lock", "lock_plan"},
     {"targets unlock", "unlock_plan"},
-    {"targets pause", "pause_at"},         // stop part-way: MM (or none) ID
-    {"verify load", "load_confirmation"},  // waits for the measurement; `same-frame`
+    {"targets pause", "pause_at"},               // stop part-way: MM (or none) ID
+    {"targets override", "override_clearance"},  // ID REASON...
+    {"structures load", "load_structures"},
+    {"structures role", "structure_role"},  // NAME ROLE [MARGIN_MM]
+    {"verify load", "load_confirmation"},   // waits for the measurement; `same-frame`
     {"verify place", "place_seed"},
     {"verify accept", "accept_seed"},
     {"verify reject", "reject_seed"},
@@ -97,7 +100,8 @@ protocol::CommandArgs commandArgs(const commands::InputSpec& spec,
     if (next >= words.size()) throw UsageError("usage: " + usage);
     return words[next++];
   };
-  if (a.path_is) out.path = take();
+  const bool text_last = commands::isText(a);
+  if (a.path_is && !text_last) out.path = take();
   auto count = [&](std::size_t n, std::size_t others) {
     // "Any number" takes what the fields after it leave.
     return n == commands::kAnyCount ? words.size() - std::min(words.size(), next + others) : n;
@@ -118,6 +122,11 @@ protocol::CommandArgs commandArgs(const commands::InputSpec& spec,
   for (std::size_t i = 0, n = count(a.points, matrix_words); i < n; ++i)
     out.points.push_back(triple(take()));
   if (a.matrix_is && (!a.matrix_optional || next < words.size())) out.matrix = matrix16(take());
+  if (text_last) {
+    if (next >= words.size()) throw UsageError("usage: " + usage);
+    for (; next < words.size(); ++next)
+      out.path += (out.path.empty() ? "" : " ") + words[next];
+  }
   if (next != words.size()) throw UsageError("too many arguments; usage: " + usage);
   return out;
 }

@@ -1,5 +1,7 @@
 #include "printers.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -54,6 +56,28 @@ void printTargets(const protocol::StateMirror& state) {
                 t->joints[0] * 180.0 / M_PI, t->joints[1], t->joints[2], t->tre_mm);
     if (t->status != "planned" || !t->path_warning.empty())
       std::printf("     %s\n", t->message.c_str());
+    for (const auto& c : t->clearances) {
+      std::printf("     %-12s %s%6.2f mm at the %-7s margin %.1f mm, uncertainty %.2f mm%s\n",
+                  c.structure.c_str(), c.beyond_reach ? ">" : " ", c.distance_mm, c.part.c_str(),
+                  c.margin_mm, c.uncertainty_mm, c.too_close ? "  TOO CLOSE" : "");
+    }
+    if (!t->clearance_override.empty())
+      std::printf("     clearance overridden: %s\n", t->clearance_override.c_str());
+  }
+}
+
+void printStructures(const protocol::StateMirror& state) {
+  if (!state.structures || state.structures->status == "none") {
+    std::cout << "no structures are loaded (structures load PATH)\n";
+    return;
+  }
+  const protocol::StructuresState& s = *state.structures;
+  std::cout << "structures " << s.status << " (" << s.source << ")"
+            << (s.site.empty() ? "" : "; site: " + s.site) << ": " << s.message << "\n";
+  for (const auto& x : s.structures) {
+    const std::string margin = x.role == "avoid" ? fmt::format("{:g} mm", x.margin_mm) : "";
+    std::printf("  %-14s %-7s %7s %10llu voxels %8.2f cm³\n", x.name.c_str(), x.role.c_str(),
+                margin.c_str(), static_cast<unsigned long long>(x.voxels), x.volume_cm3);
   }
 }
 

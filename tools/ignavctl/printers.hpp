@@ -12,9 +12,10 @@ namespace ignav::ctl {
 // `round_trip_ms` (< 0: not measured) is from writing the command to taking its reply.
 void printReply(const protocol::Reply& r, bool as_json, double round_trip_ms = -1.0);
 
-void printStatus(const protocol::StateMirror& state);    // `ignavctl status`
-void printTargets(const protocol::StateMirror& state);   // `ignavctl targets ls`
-void printApproval(const protocol::StateMirror& state);  // the pending request, or that none is
-void printMotion(const protocol::StateMirror& state);    // `ignavctl motion`
+void printStatus(const protocol::StateMirror& state);      // `ignavctl status`
+void printTargets(const protocol::StateMirror& state);     // `ignavctl targets ls`
+void printStructures(const protocol::StateMirror& state);  // `ignavctl structures ls`
+void printApproval(const protocol::StateMirror& state);    // the pending request, or that none is
+void printMotion(const protocol::StateMirror& state);      // `ignavctl motion`
 
 }  // namespace ignav::ctl

@@ -82,6 +82,41 @@ int detectFiducials(Server& s, const AliasCall& call, double wait_s) {
   return registered ? 0 : kExitRejected;
 }
 
+// Accepted when the load starts; waits for the structure load's outcome, then lists them.
+int loadStructures(Server& s, const AliasCall& call, double wait_s) {
+  protocol::CommandArgs args = call.args;
+  if (args.path == "phantom") args.path = "phantom:";
+  protocol::Reply r;
+  const auto outcome = s.sendAndAwaitJob(call.row.name, args, wait_s, &r);
+  if (!outcome) return kExitRejected;
+  s.client.waitUntil([](const protocol::StateMirror& m) { return m.structures.has_value(); },
+                     std::chrono::seconds(5));
+  if (s.as_json) {
+    std::cout << json{{"accepted", true},           {"message", r.message},
+                      {"request_id", r.request_id}, {"revision", r.revision},
+                      {"outcome", *outcome},        {"structures", *s.client.mirror().structures}}
+                     .dump()
+              << "\n";
+  } else if (outcome->status == "done") {
+    printStructures(s.client.mirror());
+  } else {
+    std::cout << "structures " << outcome->status << ": " << outcome->message << "\n";
+  }
+  return outcome->status == "done" ? 0 : kExitRejected;
+}
+
+// Not a command: the structures as the state shows them.
+int listStructures(Server& s) {
+  if (!s.present) return s.notYetKnown();
+  s.client.poll();
+  if (s.as_json) {
+    std::cout << s.client.state()["structures"].dump(2) << "\n";
+  } else {
+    printStructures(s.client.mirror());
+  }
+  return 0;
+}
+
 // Not a command: the targets as the state shows them.
 int listTargets(Server& s) {
   if (!s.present) return s.notYetKnown();
@@ -122,6 +157,23 @@ void addAliasCommands(CLI::App& app, Action& chosen) {
                   [words = wordsOf(targets, targets_usage), targets_usage]() -> Work {
                     if (*words == std::vector<std::string>{"ls"}) return listTargets;
                     return [call = aliasCall("targets", *words, targets_usage)](Server& s) {
+                      return sendCall(s, call);
+                    };
+                  });
+
+  const std::string structures_usage = aliasUsage("structures") + " | ls";
+  auto* structures = app.add_subcommand("structures", structures_usage);
+  auto structures_wait_s = std::make_shared<double>(300.0);
+  structures->add_option("--wait-s", *structures_wait_s,
+                         "load: how long to wait for the load (default 300)");
+  onServerReadNow(structures, chosen,
+                  [words = wordsOf(structures, structures_usage), structures_usage,
+                   structures_wait_s]() -> Work {
+                    if (*words == std::vector<std::string>{"ls"}) return listStructures;
+                    return [call = aliasCall("structures", *words, structures_usage),
+                            structures_wait_s](Server& s) {
+                      if (call.row.kind == commands::InputKind::kLoadStructures)
+                        return loadStructures(s, call, *structures_wait_s);
                       return sendCall(s, call);
                     };
                   });

@@ -13,84 +13,118 @@
 namespace ignav::anatomy {
 namespace {
 
-constexpr double kFar = std::numeric_limits<double>::infinity();
+constexpr float kFar = std::numeric_limits<float>::infinity();
 
-// One line of the transform: d[q] = min over sites v of (x_q - x_v)² + f[v], with the site's
-// feature carried along. Lines without a site stay as they are (kFar, -1).
-void transformLine(std::vector<double>& f, std::vector<std::int64_t>& feature, std::size_t start,
-                   std::size_t stride, int n, double spacing, std::vector<int>& v,
-                   std::vector<double>& z, std::vector<double>& line_f,
-                   std::vector<std::int64_t>& line_feature) {
-  line_f.resize(static_cast<std::size_t>(n));
-  line_feature.resize(static_cast<std::size_t>(n));
-  for (int q = 0; q < n; ++q) {
-    line_f[static_cast<std::size_t>(q)] = f[start + stride * static_cast<std::size_t>(q)];
-    line_feature[static_cast<std::size_t>(q)] =
-        feature[start + stride * static_cast<std::size_t>(q)];
+// Scratch for one line of the transform.
+struct Line {
+  std::vector<float> f;
+  std::vector<std::int32_t> feature;
+  std::vector<int> v;
+  std::vector<float> z;
+  void resize(int n) {
+    f.resize(static_cast<std::size_t>(n));
+    feature.resize(static_cast<std::size_t>(n));
+    v.resize(static_cast<std::size_t>(n));
+    z.resize(static_cast<std::size_t>(n) + 1);
   }
-  v.resize(static_cast<std::size_t>(n));
-  z.resize(static_cast<std::size_t>(n) + 1);
+};
+
+// One line of the transform (Felzenszwalb & Huttenlocher): d[q] = min over sites p of
+// (x_q - x_p)² + f[p], the site's feature carried along. A line without a site stays as it is.
+void transformLine(float* f, std::int32_t* feature, std::size_t stride, int n, float spacing,
+                   Line& line) {
+  for (int q = 0; q < n; ++q) {
+    line.f[static_cast<std::size_t>(q)] = f[stride * static_cast<std::size_t>(q)];
+    line.feature[static_cast<std::size_t>(q)] = feature[stride * static_cast<std::size_t>(q)];
+  }
   int k = -1;
   for (int q = 0; q < n; ++q) {
-    const double fq = line_f[static_cast<std::size_t>(q)];
-    if (!std::isfinite(fq)) continue;
-    const double xq = q * spacing;
-    double s = -kFar;
+    const float fq = line.f[static_cast<std::size_t>(q)];
+    if (fq == kFar) continue;
+    const float xq = static_cast<float>(q) * spacing;
+    float s = -kFar;
     while (k >= 0) {
-      const int p = v[static_cast<std::size_t>(k)];
-      const double xp = p * spacing;
-      s = ((fq + xq * xq) - (line_f[static_cast<std::size_t>(p)] + xp * xp)) / (2.0 * (xq - xp));
-      if (s > z[static_cast<std::size_t>(k)]) break;
+      const int p = line.v[static_cast<std::size_t>(k)];
+      const float xp = static_cast<float>(p) * spacing;
+      s = ((fq + xq * xq) - (line.f[static_cast<std::size_t>(p)] + xp * xp)) / (2.0f * (xq - xp));
+      if (s > line.z[static_cast<std::size_t>(k)]) break;
       --k;
     }
     ++k;
-    v[static_cast<std::size_t>(k)] = q;
-    z[static_cast<std::size_t>(k)] = k == 0 ? -kFar : s;
-    z[static_cast<std::size_t>(k) + 1] = kFar;
+    line.v[static_cast<std::size_t>(k)] = q;
+    line.z[static_cast<std::size_t>(k)] = k == 0 ? -kFar : s;
+    line.z[static_cast<std::size_t>(k) + 1] = kFar;
   }
   if (k < 0) return;
   int j = 0;
   for (int q = 0; q < n; ++q) {
-    const double xq = q * spacing;
-    while (z[static_cast<std::size_t>(j) + 1] < xq)
+    const float xq = static_cast<float>(q) * spacing;
+    while (line.z[static_cast<std::size_t>(j) + 1] < xq)
       ++j;
-    const int p = v[static_cast<std::size_t>(j)];
-    const double dx = xq - p * spacing;
-    const std::size_t at = start + stride * static_cast<std::size_t>(q);
-    f[at] = dx * dx + line_f[static_cast<std::size_t>(p)];
-    feature[at] = line_feature[static_cast<std::size_t>(p)];
+    const int p = line.v[static_cast<std::size_t>(j)];
+    const float dx = xq - static_cast<float>(p) * spacing;
+    f[stride * static_cast<std::size_t>(q)] = dx * dx + line.f[static_cast<std::size_t>(p)];
+    feature[stride * static_cast<std::size_t>(q)] = line.feature[static_cast<std::size_t>(p)];
   }
 }
 
-// For every voxel of `grid`, the nearest voxel (linear index) whose `inside` equals `of`.
-std::vector<std::int64_t> nearestOf(const volume::Geometry& grid,
-                                    const std::vector<std::uint8_t>& inside, std::uint8_t of) {
-  const auto& d = grid.dims;
-  const std::size_t n = grid.voxelCount();
-  std::vector<double> f(n, kFar);
-  std::vector<std::int64_t> feature(n, -1);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (inside[i] == of) {
-      f[i] = 0.0;
-      feature[i] = static_cast<std::int64_t>(i);
+// Within the box [lo, lo + n) of a grid of `dims` voxels: for every voxel, the nearest voxel
+// (its index in the grid) whose `inside` equals `of`; -1 where the box holds none. Indices are
+// the box's, i fastest.
+std::vector<std::int32_t> nearestOf(const std::array<int, 3>& dims, const Eigen::Vector3d& spacing,
+                                    const std::vector<std::uint8_t>& inside, std::uint8_t of,
+                                    const Eigen::Array3i& lo, const Eigen::Array3i& n) {
+  const std::size_t nx = static_cast<std::size_t>(n[0]), ny = static_cast<std::size_t>(n[1]);
+  const std::size_t count = nx * ny * static_cast<std::size_t>(n[2]);
+  std::vector<float> f(count, kFar);
+  std::vector<std::int32_t> feature(count, -1);
+  // Along i: the nearest site of each row directly, by two sweeps.
+  const float hx = static_cast<float>(spacing.x());
+  for (int k = 0; k < n[2]; ++k)
+    for (int j = 0; j < n[1]; ++j) {
+      const std::size_t row = nx * (static_cast<std::size_t>(j) + ny * k);
+      const std::size_t grid_row =
+          static_cast<std::size_t>(lo[0]) +
+          static_cast<std::size_t>(dims[0]) *
+              (static_cast<std::size_t>(j + lo[1]) +
+               static_cast<std::size_t>(dims[1]) * static_cast<std::size_t>(k + lo[2]));
+      int last = -1;
+      for (int i = 0; i < n[0]; ++i) {
+        if (inside[grid_row + static_cast<std::size_t>(i)] == of) last = i;
+        if (last >= 0) {
+          const float d = static_cast<float>(i - last) * hx;
+          f[row + static_cast<std::size_t>(i)] = d * d;
+          feature[row + static_cast<std::size_t>(i)] =
+              static_cast<std::int32_t>(grid_row + static_cast<std::size_t>(last));
+        }
+      }
+      last = -1;
+      for (int i = n[0] - 1; i >= 0; --i) {
+        if (inside[grid_row + static_cast<std::size_t>(i)] == of) last = i;
+        if (last >= 0) {
+          const float d = static_cast<float>(last - i) * hx;
+          if (d * d < f[row + static_cast<std::size_t>(i)]) {
+            f[row + static_cast<std::size_t>(i)] = d * d;
+            feature[row + static_cast<std::size_t>(i)] =
+                static_cast<std::int32_t>(grid_row + static_cast<std::size_t>(last));
+          }
+        }
+      }
     }
-  }
-  std::vector<int> v;
-  std::vector<double> z, line_f;
-  std::vector<std::int64_t> line_feature;
-  const std::size_t nx = static_cast<std::size_t>(d[0]), ny = static_cast<std::size_t>(d[1]);
-  for (int k = 0; k < d[2]; ++k)
-    for (int j = 0; j < d[1]; ++j)
-      transformLine(f, feature, nx * (static_cast<std::size_t>(j) + ny * k), 1, d[0],
-                    grid.spacing_mm.x(), v, z, line_f, line_feature);
-  for (int k = 0; k < d[2]; ++k)
-    for (int i = 0; i < d[0]; ++i)
-      transformLine(f, feature, static_cast<std::size_t>(i) + nx * ny * k, nx, d[1],
-                    grid.spacing_mm.y(), v, z, line_f, line_feature);
-  for (int j = 0; j < d[1]; ++j)
-    for (int i = 0; i < d[0]; ++i)
-      transformLine(f, feature, static_cast<std::size_t>(i) + nx * j, nx * ny, d[2],
-                    grid.spacing_mm.z(), v, z, line_f, line_feature);
+  Line line;
+  line.resize(std::max(n[1], n[2]));
+  for (int k = 0; k < n[2]; ++k)
+    for (int i = 0; i < n[0]; ++i) {
+      const std::size_t at = static_cast<std::size_t>(i) + nx * ny * k;
+      transformLine(f.data() + at, feature.data() + at, nx, n[1], static_cast<float>(spacing.y()),
+                    line);
+    }
+  for (int j = 0; j < n[1]; ++j)
+    for (int i = 0; i < n[0]; ++i) {
+      const std::size_t at = static_cast<std::size_t>(i) + nx * j;
+      transformLine(f.data() + at, feature.data() + at, nx * ny, n[2],
+                    static_cast<float>(spacing.z()), line);
+    }
   return feature;
 }
 
@@ -152,25 +186,47 @@ DistanceField DistanceField::fromMask(const Mask& coarse, double reach_mm) {
                    (static_cast<std::size_t>(j + pad[1]) +
                     static_cast<std::size_t>(g.dims[1]) * static_cast<std::size_t>(k + pad[2]))] =
             mask.inside[mask.index(i, j, k)];
-  const auto to_inside = nearestOf(g, inside, 1);
-  const auto to_outside = nearestOf(g, inside, 0);
+  // Outside voxels: their nearest inside voxel, over the whole box. Inside voxels: their
+  // nearest outside one, found within the mask's box and the ring of outside voxels around it
+  // (any outside voxel beyond that ring has a ring voxel at least as near).
+  const Eigen::Array3i all = Eigen::Array3i(g.dims[0], g.dims[1], g.dims[2]);
+  const Eigen::Array3i pads(pad[0], pad[1], pad[2]);
+  const Eigen::Array3i ring_lo = pads - 1;
+  const Eigen::Array3i ring_n = Eigen::Array3i(m.dims[0], m.dims[1], m.dims[2]) + 2;
+  const auto to_inside = nearestOf(g.dims, g.spacing_mm, inside, 1, Eigen::Array3i::Zero(), all);
+  const auto to_outside = nearestOf(g.dims, g.spacing_mm, inside, 0, ring_lo, ring_n);
   const std::size_t nx = static_cast<std::size_t>(g.dims[0]);
   const std::size_t nxy = nx * static_cast<std::size_t>(g.dims[1]);
-  const Eigen::Array3d half = 0.5 * g.spacing_mm.array();
+  const Eigen::Array3d h = g.spacing_mm.array();
   out.values_.resize(g.voxelCount());
-  for (std::size_t n = 0; n < out.values_.size(); ++n) {
-    const bool in = inside[n] != 0;
-    const std::int64_t other = in ? to_outside[n] : to_inside[n];
-    // Distance from this voxel's centre to the other kind's nearest voxel's cube.
-    const auto ijk = [&](std::size_t x) {
-      return Eigen::Array3d(static_cast<double>(x % nx), static_cast<double>((x % nxy) / nx),
-                            static_cast<double>(x / nxy));
-    };
-    const Eigen::Array3d offset =
-        (ijk(n) - ijk(static_cast<std::size_t>(other))).abs() * g.spacing_mm.array() - half;
-    const double distance = offset.max(0.0).matrix().norm();
-    out.values_[n] = static_cast<float>(in ? -distance : distance);
-  }
+  std::size_t n = 0;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i, ++n) {
+        const bool in = inside[n] != 0;
+        std::int32_t other = 0;
+        if (in) {
+          const Eigen::Array3i r = Eigen::Array3i(i, j, k) - ring_lo;
+          other =
+              to_outside[static_cast<std::size_t>(r[0]) +
+                         static_cast<std::size_t>(ring_n[0]) *
+                             (static_cast<std::size_t>(r[1]) + static_cast<std::size_t>(ring_n[1]) *
+                                                                   static_cast<std::size_t>(r[2]))];
+        } else {
+          other = to_inside[n];
+        }
+        const auto o = static_cast<std::size_t>(other);
+        // From this voxel's centre to the other kind's nearest voxel's cube.
+        const Eigen::Array3d offset =
+            (Eigen::Array3d(i, j, k) - Eigen::Array3d(static_cast<double>(o % nx),
+                                                      static_cast<double>((o % nxy) / nx),
+                                                      static_cast<double>(o / nxy)))
+                    .abs() *
+                h -
+            0.5 * h;
+        const double distance = offset.max(0.0).matrix().norm();
+        out.values_[n] = static_cast<float>(in ? -distance : distance);
+      }
   out.lps_to_ijk_ = g.lpsToIjk();
   return out;
 }

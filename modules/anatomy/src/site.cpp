@@ -57,9 +57,9 @@ Expected<Site> readSite(const std::string& path) {
                    "' is none of target, avoid, shown");
       r.role = *parsed;
       if (e["margin_mm"]) r.margin_mm = e["margin_mm"].as<double>();
-      if (!std::isfinite(r.margin_mm) || r.margin_mm < 0.0 || r.margin_mm > 50.0) {
-        return bad(
-            fmt::format("{} ({}): margin_mm {} is outside 0-50 mm", where, r.name, r.margin_mm));
+      if (!std::isfinite(r.margin_mm) || r.margin_mm < 0.0 || r.margin_mm > kMaxMargin_mm) {
+        return bad(fmt::format("{} ({}): margin_mm {} is outside 0-{:g} mm", where, r.name,
+                               r.margin_mm, kMaxMargin_mm));
       }
       if (r.role == Role::kAvoid && !e["margin_mm"]) {
         return bad(where + " (" + r.name + "): an avoided structure needs margin_mm");

@@ -163,4 +163,24 @@ Status checkOnCt(const StructureSet& set, const volume::Geometry& ct, const std:
   return Ok{};
 }
 
+Expected<StructureSet> voxelise(const volume::Geometry& grid, const Eigen::Matrix4d& lps_to_shape,
+                                const std::vector<Shape>& shapes, const std::string& source) {
+  StructureSet set;
+  set.source = source;
+  const Eigen::Matrix4d ijk_to_shape = lps_to_shape * grid.ijkToLps();
+  std::vector<std::uint8_t> inside(grid.voxelCount());
+  for (const auto& shape : shapes) {
+    std::size_t n = 0;
+    for (int k = 0; k < grid.dims[2]; ++k)
+      for (int j = 0; j < grid.dims[1]; ++j)
+        for (int i = 0; i < grid.dims[0]; ++i, ++n)
+          inside[n] = shape.sdf((ijk_to_shape * Eigen::Vector4d(i, j, k, 1.0)).head<3>()) <= 0.0;
+    auto mask = cropMask(grid, inside, source + ": " + shape.name);
+    if (!mask) return mask.error();
+    set.structures.push_back(
+        {shape.name, shape.colour_rgb, std::move(mask).value(), shape.role, shape.margin_mm});
+  }
+  return set;
+}
+
 }  // namespace ignav::anatomy

@@ -59,11 +59,18 @@ bool releasesMotion(InputKind kind) {
   return (specOf(kind).traits & kReleasesMotion) != 0;
 }
 
+bool isText(const Arguments& args) {
+  return args.path_word != nullptr && std::string_view(args.path_word) == "TEXT";
+}
+
 std::string usageOf(const InputSpec& spec) {
   const Arguments& a = spec.args;
   std::string out;
   auto add = [&](const std::string& word) { out += (out.empty() ? "" : " ") + word; };
-  if (a.path_is) add(a.path_choices ? a.path_choices : a.path_word ? a.path_word : "PATH");
+  const bool text_last = isText(a);  // words for a person take what the others leave
+  if (a.path_is && !text_last) {
+    add(a.path_choices ? a.path_choices : a.path_word ? a.path_word : "PATH");
+  }
   auto repeated = [&](std::size_t n, const char* one) {
     if (n == kAnyCount) {
       add(std::string(one) + "...");
@@ -75,6 +82,7 @@ std::string usageOf(const InputSpec& spec) {
   repeated(a.ids, "ID");
   repeated(a.points, "X,Y,Z");
   if (a.matrix_is) add(a.matrix_optional ? "[M11,M12,...,M44]" : "M11,M12,...,M44");
+  if (text_last) add("TEXT...");
   return out;
 }
 

@@ -120,4 +120,12 @@ Refusal adoptNeedleScan(Session& s, const Input& in, ActionOutput& out);
 Refusal noteNeedleScanFailure(Session& s, const Input& in, ActionOutput& out);
 Refusal adoptReaim(Session& s, const Input& in, ActionOutput& out);
 
+// ---- Actions: the patient's structures (anatomy_actions.cpp) ----
+
+Refusal startStructureLoad(Session& s, const Input& in, ActionOutput& out);
+Refusal adoptStructures(Session& s, const Input& in, ActionOutput& out);
+Refusal noteStructureLoadFailure(Session& s, const Input& in, ActionOutput& out);
+Refusal setStructureRole(Session& s, const Input& in, ActionOutput& out);
+Refusal overrideClearance(Session& s, const Input& in, ActionOutput& out);
+
 }  // namespace ignav::workflow::detail

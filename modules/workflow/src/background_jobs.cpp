@@ -58,6 +58,21 @@ std::string staleNeedleScan(const Session& s, const Input& in) {
                      in.job, in.path, s.scanning_needle);
 }
 
+std::optional<BackgroundJob> structureLoad(const Session& s) {
+  if (s.structures.loading == 0) return std::nullopt;
+  return BackgroundJob{JobKind::kStructureLoad, s.structures.loading, s.structures.source,
+                       [job = s.structures.loading, source = s.structures.source, ct = s.ct,
+                        site = s.site, robot = s.robot](const JobContext& context) {
+                         return loadStructures(job, source, ct, site, *robot, context);
+                       }};
+}
+
+std::string staleStructureLoad(const Session& s, const Input& in) {
+  return fmt::format("structure load #{} ({}) is not the one awaited ({}): ignored", in.job,
+                     in.path,
+                     s.structures.loading ? fmt::format("#{}", s.structures.loading) : "none is");
+}
+
 std::string staleMeasurement(const Session& s, const Input& in) {
   return fmt::format("confirmation CT measurement #{} ({}) is not the one awaited (#{}): ignored",
                      in.job, in.path, s.confirmation.measuring);
@@ -78,6 +93,9 @@ const std::vector<JobKindSpec> kJobKinds = {
     {JobKind::kNeedleScan, "intermittent CT search", InputKind::kNeedleScanned,
      InputKind::kNeedleScanFailed, [](const Session& s) { return s.scanning_needle; }, needleScan,
      staleNeedleScan},
+    {JobKind::kStructureLoad, "structure load", InputKind::kStructuresLoaded,
+     InputKind::kStructuresLoadFailed, [](const Session& s) { return s.structures.loading; },
+     structureLoad, staleStructureLoad},
 };
 
 }  // namespace

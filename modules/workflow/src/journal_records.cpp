@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "ignav/workflow/background_jobs.hpp"
 #include "ignav/workflow/reducer.hpp"
 
 namespace ignav::workflow {
@@ -112,6 +113,16 @@ json journalRecord(const Input& in, const Session& after) {
                         {"acceleration_steps_s2", in.policy->acceleration_steps_s2},
                         {"max_targets", in.policy->limits.max_targets},
                         {"max_total_rotation_rad", in.policy->limits.max_total_rotation_rad}};
+  }
+  if (in.site) {
+    json roles = json::array();
+    for (const auto& r : in.site->roles) {
+      roles.push_back({{"name", r.name},
+                       {"aliases", r.aliases},
+                       {"role", anatomy::toString(r.role)},
+                       {"margin_mm", r.margin_mm}});
+    }
+    record["site"] = {{"name", in.site->name}, {"roles", roles}};
   }
   if (in.tissue) {
     record["tissue"] = {{"name", in.tissue->name},
@@ -316,6 +327,22 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
       }
       e.input.reaim = std::move(p);
     }
+    if (r.contains("site")) {
+      const json& j = r.at("site");
+      anatomy::Site site;
+      site.name = j.at("name").get<std::string>();
+      for (const auto& entry : j.at("roles")) {
+        anatomy::SiteRole role;
+        role.name = entry.at("name").get<std::string>();
+        role.aliases = entry.value("aliases", std::vector<std::string>{});
+        const auto named = anatomy::roleNamed(entry.at("role").get<std::string>());
+        if (!named) throw std::invalid_argument("site.roles.role: unknown");
+        role.role = *named;
+        role.margin_mm = entry.value("margin_mm", 0.0);
+        site.roles.push_back(std::move(role));
+      }
+      e.input.site = std::move(site);
+    }
     if (r.contains("tissue")) {
       const json& t = r.at("tissue");
       config::TissueProfile profile;
@@ -364,6 +391,19 @@ Expected<ReplayedStep> replayRecord(const Session& session, const std::string& l
                        where + ": cannot load the CT again (" + ct.error().message + ")");
     }
     in.loaded = std::move(ct).value();
+  }
+  if (in.kind == InputKind::kStructuresLoaded) {
+    // Read again from the file, on the CT and with the site the session has: the same structures
+    // unless the file changed since (the summary names each with its voxels).
+    auto again = loadStructures(in.job, in.path, session.ct, session.site, *session.robot, {});
+    if (again.kind != InputKind::kStructuresLoaded || again.summary != in.summary) {
+      return makeError(ErrorCode::kIo,
+                       fmt::format("{}: cannot load the structures again ({})", where,
+                                   again.kind == InputKind::kStructuresLoaded
+                                       ? "the file now holds " + again.summary
+                                       : again.error));
+    }
+    in.structures = std::move(again.structures);
   }
   Step step = reduce(session, in);
   if (step.session.revision != entry->revision || toString(step.session.phase) != entry->phase) {

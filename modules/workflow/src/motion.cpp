@@ -64,6 +64,21 @@ std::string pointText(const Eigen::Vector3d& p) {
   return fmt::format("({:.3f}, {:.3f}, {:.3f})", p.x(), p.y(), p.z());
 }
 
+std::string clearanceText(const Target& t) {
+  if (t.clearances.empty()) return "";
+  std::string out = "; clearance of the whole needle:";
+  for (const auto& c : t.clearances) {
+    out += fmt::format(" {} {}{:.2f} mm at the {} (margin {:g} mm, uncertainty {:.2f} mm){};",
+                       c.structure, c.reachedBeyond ? "over " : "", c.distance_mm, c.part,
+                       c.margin_mm, c.uncertainty_mm, c.tooClose() ? " TOO CLOSE" : "");
+  }
+  out.pop_back();
+  if (!t.clearance_override.empty()) {
+    out += fmt::format("; CLEARANCE OVERRIDDEN by the operator: \"{}\"", t.clearance_override);
+  }
+  return out;
+}
+
 // What the operator approves for a target: the joints, and what they depart from.
 std::string aimText(const Target& t) {
   const auto& j = t.commandedJoints();
@@ -196,6 +211,7 @@ Expected<std::optional<MotionRequest>> nextRequest(const Session& s, double time
     } else if (t.paused) {
       where = "the rest of the insertion to " + where;
     }
+    where += clearanceText(t);
   } else {
     const Retraction back = retraction(robot, s.position);
     if (back.steps == actuation::Steps{}) return std::optional<MotionRequest>{};

@@ -20,6 +20,7 @@ namespace ignav::workflow {
 namespace {
 
 using detail::jointsText;
+using detail::landingSe_mm;
 
 // A needle tip on the scan farther than this from where the model puts the paused one's is
 // another needle (or none of this insertion): the scan is refused rather than re-aimed from it.
@@ -31,33 +32,6 @@ constexpr double kTipSearch_mm = 10.0;
 // mean into 0.51 mm over 20 targets (docs/VERIFICATION.md); the aim's model, corrected by the
 // path, is used instead.
 constexpr double kMaxLandingSe_mm = 0.2;
-
-// The landing of `joints` in `model`, uncertain by `fit`'s covariance of λ1, λ2: √trace(J Σ Jᵀ),
-// J by central differences. Infinite where the model cannot say (a perturbed λ inadmissible).
-double landingSe_mm(const kinematics::Kinematics& kin, const compensation::DeflectionModel& model,
-                    const compensation::TargetingFit& fit, const kinematics::Joints& joints) {
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  const double s1 = fit.standard_errors.at(0), s2 = fit.standard_errors.at(1);
-  const double rho = std::isfinite(fit.correlation) ? fit.correlation : 0.0;
-  Eigen::Matrix2d covariance;
-  covariance << s1 * s1, rho * s1 * s2, rho * s1 * s2, s2 * s2;
-  if (!covariance.allFinite()) return kInf;
-  constexpr double kStep = 1e-4;
-  Eigen::Matrix<double, 3, 2> jacobian;
-  for (int p = 0; p < 2; ++p) {
-    Eigen::Vector3d ends[2];
-    for (int side = 0; side < 2; ++side) {
-      compensation::DeflectionModel moved = model;
-      double& lambda = p == 0 ? moved.tissue.lambda1 : moved.tissue.lambda2;
-      lambda += side == 0 ? kStep : -kStep;
-      auto landing = compensation::predictLanding(kin, moved, joints);
-      if (!landing) return kInf;
-      ends[side] = landing->tip_mm;
-    }
-    jacobian.col(p) = (ends[0] - ends[1]) / (2.0 * kStep);
-  }
-  return std::sqrt((jacobian * covariance * jacobian.transpose()).trace());
-}
 
 // What the plan aims with: the aim's tissue, or none (a model that does not deflect: the needle's
 // own curvature 0 and no slip, so its path is the kinematics').
@@ -278,4 +252,32 @@ Input proposeReaim(const NeedleScanJob& job, const Input& measured) {
   return in;
 }
 
+namespace detail {
+
+double landingSe_mm(const kinematics::Kinematics& kin, const compensation::DeflectionModel& model,
+                    const compensation::TargetingFit& fit, const kinematics::Joints& joints) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const double s1 = fit.standard_errors.at(0), s2 = fit.standard_errors.at(1);
+  const double rho = std::isfinite(fit.correlation) ? fit.correlation : 0.0;
+  Eigen::Matrix2d covariance;
+  covariance << s1 * s1, rho * s1 * s2, rho * s1 * s2, s2 * s2;
+  if (!covariance.allFinite()) return kInf;
+  constexpr double kStep = 1e-4;
+  Eigen::Matrix<double, 3, 2> jacobian;
+  for (int p = 0; p < 2; ++p) {
+    Eigen::Vector3d ends[2];
+    for (int side = 0; side < 2; ++side) {
+      compensation::DeflectionModel moved = model;
+      double& lambda = p == 0 ? moved.tissue.lambda1 : moved.tissue.lambda2;
+      lambda += side == 0 ? kStep : -kStep;
+      auto landing = compensation::predictLanding(kin, moved, joints);
+      if (!landing) return kInf;
+      ends[side] = landing->tip_mm;
+    }
+    jacobian.col(p) = (ends[0] - ends[1]) / (2.0 * kStep);
+  }
+  return std::sqrt((jacobian * covariance * jacobian.transpose()).trace());
+}
+
+}  // namespace detail
 }  // namespace ignav::workflow

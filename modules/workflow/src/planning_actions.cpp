@@ -13,6 +13,7 @@ namespace ignav::workflow::detail {
 Refusal adoptConfig(Session& s, const Input& in, ActionOutput& out) {
   if (in.policy) adoptPolicy(s, *in.policy);
   if (in.tissue) s.tissue = in.tissue;
+  s.site = in.site;
   s.robot_id = in.robot_id;
   s.session_uuid = in.session_uuid;
   out.effects.robot_changed = out.effects.approval_changed = true;
@@ -29,7 +30,9 @@ Refusal startVolumeLoad(Session& s, const Input& in, ActionOutput& out) {
   s.volume_status = {"loading", in.path, "loading " + in.path};
   s.registration.reset();
   s.registration_status = {};
-  s.detecting = 0;  // a detection on the CT before is ignored when it ends
+  s.detecting = 0;    // a detection on the CT before is ignored when it ends
+  s.structures = {};  // drawn on the CT before (a load under way is ignored when it ends)
+  e.structures_changed = true;
   e.start_jobs.push_back(JobKind::kVolumeLoad);  // its outcome names this step's revision
   e.volume_changed = e.registration_changed = true;
   evaluateAll(s, e);
@@ -181,7 +184,8 @@ Refusal moveTarget(Session& s, const Input& in, ActionOutput& out) {
     return outside;
   }
   t->lps_mm = in.points[0];
-  t->reached = false;  // a new place
+  t->reached = false;             // a new place
+  t->clearance_override.clear();  // given for the path before
   evaluate(s, *t);
   out.note = t->message;
   out.effects.targets_changed.push_back(t->id);
@@ -250,6 +254,16 @@ Refusal checkLockable(const Session& s) {
   }
   if (!outside.empty()) {
     return Rejection{ReplyCode::kOutsideVolume, "remove or move these first: " + outside};
+  }
+  std::string close;
+  for (const auto& t : s.targets) {
+    if (t.status() == "too_close") {
+      close += fmt::format("{}target {}: {}", close.empty() ? "" : "; ", t.id, t.clearance_refusal);
+    }
+  }
+  if (!close.empty()) {
+    return Rejection{ReplyCode::kTooClose,
+                     "move these, or override_clearance with a reason: " + close};
   }
   std::string bad;
   for (const auto& t : s.targets) {

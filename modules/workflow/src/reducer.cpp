@@ -173,6 +173,9 @@ std::string Target::status() const {
   if (outside_volume && !reached) return "outside_volume";
   if (!registered) return "unregistered";
   if (reached) return "reached";
+  if (registered && solution.reachable() && compensation_refusal.empty() && tooClose()) {
+    return "too_close";
+  }
   return plannable() ? "planned" : "unreachable";
 }
 

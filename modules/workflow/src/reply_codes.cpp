@@ -123,6 +123,21 @@ const std::vector<ReplyCodeSpec> kCodes = {
     {C::kNoReaim, "no_reaim",
      "`reaim` with no re-aim proposed (scan_needle first), or one that would break the plan (a "
      "joint out of range, the rotation limit): the message says which"},
+    {C::kNoStructures, "no_structures",
+     "`structure_role` before any structures are loaded (load_structures); `load_structures` "
+     "without a CT"},
+    {C::kUnknownStructure, "unknown_structure",
+     "`structure_role` with a name no loaded structure has; the message lists them"},
+    {C::kBadRole, "bad_role",
+     "`structure_role` text that is not NAME ROLE [MARGIN_MM]: a role other than target, avoid, "
+     "shown, or a margin that is not 0-10 mm (avoid needs one)"},
+    {C::kTooClose, "too_close",
+     "`lock_plan` while a target's needle passes closer to an avoided structure than its margin "
+     "(after the uncertainty there): the message names the target, the structure, the distance, "
+     "the margin, the uncertainty and the point; override_clearance plans it all the same"},
+    {C::kNotTooClose, "not_too_close",
+     "`override_clearance` for a target whose clearances all hold"},
+    {C::kNoReason, "no_reason", "`override_clearance` without a reason"},
     {C::kJournalFailed, "journal_failed",
      "the session journal cannot be written (disk full, I/O error): nothing was done, and every "
      "later change is refused until the server is restarted; `Health.journal` says why "

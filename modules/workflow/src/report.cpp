@@ -4,6 +4,7 @@
 #include <ctime>
 
 #include "ignav/verification/targeting_report.hpp"
+#include "ignav/workflow/background_jobs.hpp"
 #include "ignav/workflow/reducer.hpp"
 
 namespace ignav::workflow {
@@ -86,6 +87,38 @@ std::string verificationSection(const Session& s) {
   return out;
 }
 
+// The patient's structures (issue 41) and every target's whole-needle clearance from the avoided
+// ones, with the overrides operators gave.
+std::string anatomySection(const Session& s) {
+  const auto& st = s.structures;
+  if (st.status == "none") return "";
+  std::string out = fmt::format("\n## Structures ({})\n\n- {} {}: {}\n", st.source, st.status,
+                                s.site ? "(site: " + s.site->name + ")" : "", st.message);
+  if (!st.loaded.set) return out;
+  out += "- for 3D Slicer: the segmentation file loaded";
+  out += st.source == kPhantomSource ? " (`phantom_anatomy.seg.nrrd` in this folder)\n" : "\n";
+  out +=
+      "\n| target | structure | clearance (mm) | at | margin (mm) | uncertainty (mm) | verdict "
+      "|\n|---|---|---|---|---|---|---|\n";
+  for (const auto& t : s.targets) {
+    for (const auto& c : t.clearances) {
+      out += fmt::format(
+          "| T{} | {} | {}{:.2f} | {} ({:.1f}, {:.1f}, {:.1f}) | {:g} | {:.2f} | {} |\n", t.id,
+          c.structure, c.reachedBeyond ? "> " : "", c.distance_mm, c.part, c.needle_lps_mm.x(),
+          c.needle_lps_mm.y(), c.needle_lps_mm.z(), c.margin_mm, c.uncertainty_mm,
+          !c.tooClose()                  ? "clear"
+          : t.clearance_override.empty() ? "**too close**"
+                                         : "too close, overridden: " + t.clearance_override);
+    }
+  }
+  out +=
+      "\nClearance: from the needle's surface (the cannula's, then the stylet's outer diameter) "
+      "to the structure's, at the closest point of its whole length; negative inside. "
+      "Uncertainty: 2 SD of the expected registration error there (and of the aimed tissue's "
+      "landing), plus any deflection the aim leaves uncompensated.\n";
+  return out;
+}
+
 }  // namespace
 
 std::string procedureReport(const Session& s, const std::vector<std::string>& images) {
@@ -147,6 +180,7 @@ std::string procedureReport(const Session& s, const std::vector<std::string>& im
       notes += "- T" + std::to_string(t.id) + ": " + t.message + "\n";
   }
   if (!notes.empty()) out += "\n" + notes;
+  out += anatomySection(s);
   out += motionSection(s);
   out += verificationSection(s);
   if (!images.empty()) {

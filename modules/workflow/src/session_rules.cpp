@@ -102,7 +102,8 @@ void evaluate(const Session& s, Target& t) {
   fresh.pause_z_s_mm = t.pause_z_s_mm;               // a plan choice
   fresh.paused = t.paused;                           // where the needle has been
   fresh.replan = t.replan;
-  if (t.reached) fresh.reaimed = t.reaimed;  // as it was reached
+  fresh.clearance_override = t.clearance_override;  // a plan choice
+  if (t.reached) fresh.reaimed = t.reaimed;         // as it was reached
   t = fresh;
   const auto outside = checkInsideCt(s, t.lps_mm);
   t.outside_volume = outside.has_value();
@@ -128,6 +129,7 @@ void evaluate(const Session& s, Target& t) {
   if (!outside) checkPath(s, t);
   if (!t.path_warning.empty()) t.message += "; warning: " + t.path_warning;
   if (!t.compensation_refusal.empty()) t.message += "; refused: " + t.compensation_refusal;
+
   if (t.compensated) {
     const auto& c = *t.compensated;
     t.message += fmt::format(
@@ -148,11 +150,17 @@ void evaluate(const Session& s, Target& t) {
   const auto& settings = robot.config.registration;
   if (reg.image_mm.empty()) {  // registered elsewhere: no fiducials to estimate it from
     t.tre_mm = std::numeric_limits<double>::quiet_NaN();
-    return;
+  } else {
+    t.tre_mm = registration::expectedTre_mm(registration::describeFiducials(reg.image_mm), t.lps_mm,
+                                            settings.fle_mm, reg.kind);
+    t.tre_warning = t.tre_mm > settings.max_tre_mm;
   }
-  t.tre_mm = registration::expectedTre_mm(registration::describeFiducials(reg.image_mm), t.lps_mm,
-                                          settings.fle_mm, reg.kind);
-  t.tre_warning = t.tre_mm > settings.max_tre_mm;
+  checkClearance(s, t);  // with the drift predicted above
+  if (!t.clearance_refusal.empty()) {
+    t.message += t.clearance_override.empty()
+                     ? "; refused: " + t.clearance_refusal
+                     : "; overridden (" + t.clearance_override + "): " + t.clearance_refusal;
+  }
 }
 
 void evaluateAll(Session& s, Effects& e) {

@@ -45,6 +45,16 @@ std::string staleDetection(const Session& s, const Input& in);
 
 void adoptPolicy(Session& s, ApprovalPolicy policy);
 
+// The landing of `joints` in `model`, uncertain by `fit`'s covariance of λ1, λ2: √trace(J Σ Jᵀ),
+// J by central differences (needle_scan.cpp). Infinite where the model cannot say (a perturbed λ
+// inadmissible).
+double landingSe_mm(const kinematics::Kinematics& kin, const compensation::DeflectionModel& model,
+                    const compensation::TargetingFit& fit, const kinematics::Joints& joints);
+
+// The whole needle of `t` (its commanded joints) against every avoided structure
+// (clearance_rules.cpp): t.clearances and, when one is too close, t.clearance_refusal.
+void checkClearance(const Session& s, Target& t);
+
 // A scan's registration given with its command (load_confirmation, scan_needle), checked as
 // set_registration checks one, before any work: why not ("`what`: ..."), or nullopt.
 std::optional<Rejection> checkGivenMatrix(const Session& s,

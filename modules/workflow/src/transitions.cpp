@@ -201,6 +201,20 @@ std::vector<Transition> buildTable() {
     t.push_back({p, I::kNeedleScanned, always, p, adoptNeedleScan, "re-aim proposed"});
     t.push_back({p, I::kNeedleScanFailed, always, p, noteNeedleScanFailure, "scan refused"});
   }
+  // The patient's structures (issue 41): loaded on the CT and given roles before the plan is
+  // locked; a load may end anywhere.
+  for (Phase p : {P::kRegistration, P::kPlanning}) {
+    t.push_back({p, I::kLoadStructures, always, p, startStructureLoad, "load the structures"});
+    t.push_back({p, I::kStructureRole, always, p, setStructureRole, "a structure's role"});
+  }
+  t.push_back({P::kPlanning, I::kOverrideClearance, always, P::kPlanning, overrideClearance,
+               "plan a target too close, for a reason"});
+  for (Phase p : kAllPhases) {
+    if (p == P::kStartup) continue;
+    t.push_back({p, I::kStructuresLoaded, always, p, adoptStructures, "structures loaded"});
+    t.push_back(
+        {p, I::kStructuresLoadFailed, always, p, noteStructureLoadFailure, "structures refused"});
+  }
   // resume returns to the phase the first interruption left (a move in flight: plan_locked, to be
   // approved again), or to done when nothing is left to move. Interruptions taken while
   // interrupted (manual after stop, emergency in manual) keep that phase (issue 27).

@@ -92,6 +92,7 @@ struct StateMirror {
   std::optional<MotionState> motion;
   std::optional<Health> health;
   std::optional<VerificationState> verification;
+  std::optional<StructuresState> structures;
 };
 
 class Client {

@@ -39,6 +39,9 @@ IGNAV_PROTOCOL_JSON_VIEW(SeedState);
 IGNAV_PROTOCOL_JSON_VIEW(MeasuredTargetState);
 IGNAV_PROTOCOL_JSON_VIEW(FittedTissueState);
 IGNAV_PROTOCOL_JSON_VIEW(VerificationState);
+IGNAV_PROTOCOL_JSON_VIEW(ClearanceState);
+IGNAV_PROTOCOL_JSON_VIEW(StructureInfo);
+IGNAV_PROTOCOL_JSON_VIEW(StructuresState);
 #undef IGNAV_PROTOCOL_JSON_VIEW
 
 }  // namespace ignav::protocol

@@ -98,6 +98,26 @@ struct Fields<RegistrationState> {
 };
 IGNAV_TOPIC_OF(RegistrationState, topic::kRegistration, Qos::kState);
 
+struct ClearanceState {
+  std::string structure;
+  double distance_mm = 0.0;
+  double margin_mm = 0.0;
+  double uncertainty_mm = 0.0;
+  std::string part;
+  Point3 needle_lps;
+  Point3 structure_lps;
+  bool beyond_reach = false;
+  bool too_close = false;
+};
+template <>
+struct Fields<ClearanceState> {
+  using T = ClearanceState;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(structure), IGNAV_FIELD(distance_mm), IGNAV_FIELD(margin_mm),
+      IGNAV_FIELD(uncertainty_mm), IGNAV_FIELD(part), IGNAV_FIELD(needle_lps),
+      IGNAV_FIELD(structure_lps), IGNAV_FIELD(beyond_reach), IGNAV_FIELD(too_close));
+};
+
 struct TargetState {
   std::uint32_t id = 0;
   Point3 lps;
@@ -129,6 +149,9 @@ struct TargetState {
   Point3 previous_landing_robot;
   Point3 reaimed_landing_robot;
   std::string replan;
+  std::vector<ClearanceState> clearances;
+  std::string clearance_refusal;
+  std::string clearance_override;
 };
 template <>
 struct Fields<TargetState> {
@@ -147,9 +170,43 @@ struct Fields<TargetState> {
       IGNAV_FIELD(nominal_joints), IGNAV_FIELD(nominal_landing_robot),
       IGNAV_FIELD(predicted_landing_robot), IGNAV_FIELD(pause_z_s_mm), IGNAV_FIELD(paused),
       IGNAV_FIELD(paused_joints), IGNAV_FIELD(reaimed), IGNAV_FIELD(previous_joints),
-      IGNAV_FIELD(previous_landing_robot), IGNAV_FIELD(reaimed_landing_robot), IGNAV_FIELD(replan));
+      IGNAV_FIELD(previous_landing_robot), IGNAV_FIELD(reaimed_landing_robot), IGNAV_FIELD(replan),
+      IGNAV_FIELD(clearances), IGNAV_FIELD(clearance_refusal), IGNAV_FIELD(clearance_override));
 };
 IGNAV_TOPIC_OF(TargetState, topic::kTarget, Qos::kState);
+
+struct StructureInfo {
+  std::string name;
+  std::array<double, 3> colour_rgb{};
+  std::string role;
+  double margin_mm = 0.0;
+  std::uint64_t voxels = 0;
+  double volume_cm3 = 0.0;
+  std::array<double, 6> bounds_lps{};
+};
+template <>
+struct Fields<StructureInfo> {
+  using T = StructureInfo;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(name), IGNAV_FIELD(colour_rgb), IGNAV_FIELD(role), IGNAV_FIELD(margin_mm),
+      IGNAV_FIELD(voxels), IGNAV_FIELD(volume_cm3), IGNAV_FIELD(bounds_lps));
+};
+
+struct StructuresState {
+  std::string status;  // none | loading | loaded | failed
+  std::string source;
+  std::string message;
+  std::string site;
+  std::vector<StructureInfo> structures;
+};
+template <>
+struct Fields<StructuresState> {
+  using T = StructuresState;
+  static constexpr auto list =
+      std::make_tuple(IGNAV_FIELD(status), IGNAV_FIELD(source), IGNAV_FIELD(message),
+                      IGNAV_FIELD(site), IGNAV_FIELD(structures));
+};
+IGNAV_TOPIC_OF(StructuresState, topic::kStructures, Qos::kState);
 
 struct ErrorStats {
   std::uint32_t count = 0;

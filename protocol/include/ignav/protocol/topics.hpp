@@ -25,6 +25,7 @@ constexpr const char* kEmergencyStop = "ignav/emergency_stop";
 constexpr const char* kApprovalState = "ignav/state/approval";
 constexpr const char* kMotion = "ignav/state/motion";
 constexpr const char* kVerification = "ignav/state/verification";
+constexpr const char* kStructures = "ignav/state/structures";
 // Background jobs' outcomes: one instance, the last 64 kept (Qos::kStateOfMany).
 constexpr const char* kJobOutcome = "ignav/state/job_outcome";
 }  // namespace topic

@@ -13,6 +13,10 @@
 
 namespace ignav::anatomy {
 
+// The largest margin a site or a command may give: a structure's distance field reaches 15 mm
+// (the server's), and the uncertainty at the needle needs room below that.
+constexpr double kMaxMargin_mm = 10.0;
+
 struct SiteRole {
   std::string name;
   std::vector<std::string> aliases;
@@ -27,7 +31,7 @@ struct Site {
   const SiteRole* roleFor(const std::string& structure_name) const;
 };
 
-// Errors name the file and the entry (margins finite, 0-50 mm; avoid needs a margin).
+// Errors name the file and the entry (margins finite, 0-10 mm; avoid needs a margin).
 Expected<Site> readSite(const std::string& path);
 // Every structure the site names gets its role and margin; the rest are shown only.
 void applySite(const Site& site, StructureSet& set);

@@ -7,6 +7,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -81,5 +82,19 @@ Expected<StructureSet> readStructures(const std::string& path);
 // centres (within 1 % of a voxel) and inside the CT. Otherwise an error saying which structure
 // and how it differs (reason "other_ct").
 Status checkOnCt(const StructureSet& set, const volume::Geometry& ct, const std::string& ct_name);
+
+// A structure given by a signed distance (mm, negative inside) in a frame of its own: the
+// built-in phantom's anatomy (in the robot's frame), tests' closed forms.
+struct Shape {
+  std::string name;
+  std::array<double, 3> colour_rgb{0.5, 0.5, 0.5};
+  Role role = Role::kShown;
+  double margin_mm = 0.0;
+  std::function<double(const Eigen::Vector3d&)> sdf;
+};
+// Each shape drawn on `grid` (the voxels whose centre lies inside it), `lps_to_shape` taking a
+// voxel's LPS centre to the shapes' frame. A shape that covers no voxel is an error naming it.
+Expected<StructureSet> voxelise(const volume::Geometry& grid, const Eigen::Matrix4d& lps_to_shape,
+                                const std::vector<Shape>& shapes, const std::string& source);
 
 }  // namespace ignav::anatomy

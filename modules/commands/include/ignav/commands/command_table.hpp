@@ -51,6 +51,9 @@ enum class InputKind {
   kPauseAt,
   kScanNeedle,
   kReaim,
+  kLoadStructures,
+  kStructureRole,
+  kOverrideClearance,
   kConfigLoaded,
   kVolumeLoaded,
   kVolumeLoadFailed,
@@ -63,6 +66,8 @@ enum class InputKind {
   kConfirmationFailed,
   kNeedleScanned,
   kNeedleScanFailed,
+  kStructuresLoaded,
+  kStructuresLoadFailed,
 };
 
 // Who may give a command: each role may do what the one before it may, and more. Commands travel
@@ -110,6 +115,11 @@ struct Arguments {
   constexpr Arguments millimetres(const char* is) const {  // a number of mm in Command.path
     Arguments a = path(is);
     a.path_word = "MM";
+    return a;
+  }
+  constexpr Arguments text(const char* is) const {  // words for a person, in Command.path
+    Arguments a = path(is);
+    a.path_word = "TEXT";
     return a;
   }
   constexpr Arguments serverFile(const char* is) const {
@@ -183,8 +193,10 @@ bool isQuestion(InputKind kind);       // changes nothing (kQuestion)
 bool needsControllerReading(InputKind kind);
 bool releasesMotion(InputKind kind);  // kReleasesMotion: a reading begun after it arrived
 
+// Command.path holds words for a person (Arguments::text): ignavctl takes them last, joined.
+bool isText(const Arguments& args);
 // The arguments for a person: "PATH (a server-side ...)", "ID X,Y,Z", ... in ignavctl's order
-// (path, ids, points, matrix).
+// (path, ids, points, matrix; words for a person last).
 std::string usageOf(const InputSpec& spec);
 
 // ---- The table: one row per InputKind, in its order (checked when compiling) ----
@@ -319,6 +331,24 @@ inline constexpr InputSpec kInputRows[] = {
      "adopt the re-aim scan_needle proposed: the targets it names are aimed with its joints, and "
      "the approval request shows nominal, previously aimed and re-aimed joints with their "
      "predicted landings"},
+    {I::kLoadStructures, "load_structures", 31, R::kPlanner, kCommand,
+     kNone.serverFile("a server-side segmentation of the session's CT: 3D Slicer .seg.nrrd, or "
+                      "a .nrrd/.nhdr/.mha/.mhd label map with a Slicer colour table beside it "
+                      "(<stem>.ctbl)"),
+     "load the patient's structures on the CT in the background (their distance fields too): "
+     "StructuresState shows loading, then the structures with their roles (the site's, "
+     "server.yaml site:), or why the file was refused; every target's path is then checked "
+     "against the avoided ones"},
+    {I::kStructureRole, "structure_role", 32, R::kPlanner, kCommand,
+     kNone.text("NAME ROLE [MARGIN_MM]: a loaded structure, target | avoid | shown, and for "
+                "avoid the margin in mm (0-10)"),
+     "give a structure its role (overrides the site's); the targets are checked again"},
+    {I::kOverrideClearance, "override_clearance", 33, R::kPlanner, kCommand,
+     kNone.withIds(1, "a target too close to a structure")
+         .text("REASON: why its path may pass so close (journaled, shown in the approval "
+               "request and the report)"),
+     "plan this one target although its needle passes closer to a structure than the margin "
+     "allows"},
     {I::kConfigLoaded, "config_loaded", kNoWireKind, R::kApprover, kServer, kNone,
      "the server started with a valid robot config"},
     {I::kVolumeLoaded, "volume_loaded", kNoWireKind, R::kApprover, kServer, kNone,
@@ -345,6 +375,10 @@ inline constexpr InputSpec kInputRows[] = {
     {I::kNeedleScanFailed, "needle_scan_failed", kNoWireKind, R::kApprover, kServer, kNone,
      "an intermittent CT could not be loaded, registered, or show the paused needle, or no re-aim "
      "came of it: why"},
+    {I::kStructuresLoaded, "structures_loaded", kNoWireKind, R::kApprover, kServer, kNone,
+     "a structure load the server ran finished: the structures and their distance fields"},
+    {I::kStructuresLoadFailed, "structures_load_failed", kNoWireKind, R::kApprover, kServer, kNone,
+     "a structure load the server ran failed: why"},
 };
 
 static_assert(inEnumOrder(kInputRows, &InputSpec::kind),

@@ -26,7 +26,13 @@ namespace ignav::workflow {
 
 // In the order the job thread prefers them when several are queued (a CT before what is found on
 // it).
-enum class JobKind { kVolumeLoad, kMarkerDetection, kConfirmationMeasurement, kNeedleScan };
+enum class JobKind {
+  kVolumeLoad,
+  kMarkerDetection,
+  kConfirmationMeasurement,
+  kNeedleScan,
+  kStructureLoad
+};
 
 // What the job thread gives every run besides its snapshot: the session folder (for files a job
 // leaves for people, such as the built-in phantom's DICOM series) and where to say how far it is.
@@ -79,5 +85,25 @@ constexpr const char* kPhantomSource = "phantom:";
 // volume_load_failed with why. Replay and crash recovery call it to read a journaled CT again.
 Input loadCt(std::uint64_t job, const std::string& source, const config::Robot& robot,
              const JobContext& context);
+
+// How far around a structure its distance field reaches: a needle farther away is at least this
+// far (more than any margin, at most 10 mm, and its uncertainty need).
+constexpr double kStructureReach_mm = 15.0;
+
+// load_structures' job (structure_load.cpp): the segmentation at `source`, checked to lie on
+// `ct`'s grid, with the site's roles and a distance field per structure, as structures_loaded
+// naming `job` (its summary names each structure with its role and voxels), or
+// structures_load_failed with why. kPhantomSource: the built-in phantom's anatomy, drawn on its
+// CT for `robot` (and written to the session folder as phantom_anatomy.seg.nrrd for people).
+// Replay and crash recovery call it to read them again.
+Input loadStructures(std::uint64_t job, const std::string& source, const LoadedCt& ct,
+                     const std::optional<anatomy::Site>& site, const config::Robot& robot,
+                     const JobContext& context);
+// The built-in phantom's anatomy in the robot's frame (phantom_anatomy.cpp): a prostate filling
+// the feasible volume (target), a urethra through it (avoid 3 mm), a rectum behind (5 mm), a
+// pubic arch in front (2 mm).
+std::vector<anatomy::Shape> phantomAnatomy(const kinematics::Kinematics& kinematics);
+// "prostate (target, 1234 voxels, 5.67 cm³); urethra (avoid 3 mm, ...)".
+std::string describeStructures(const anatomy::StructureSet& set);
 
 }  // namespace ignav::workflow

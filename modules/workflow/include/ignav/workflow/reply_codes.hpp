@@ -73,6 +73,13 @@ enum class ReplyCode {
   kBadDepth,
   kNotPaused,
   kNoReaim,
+  // The patient's structures and the needle's clearance (issue 41).
+  kNoStructures,
+  kUnknownStructure,
+  kBadRole,
+  kTooClose,
+  kNotTooClose,
+  kNoReason,
   // The server.
   kJournalFailed,
   kInternal,

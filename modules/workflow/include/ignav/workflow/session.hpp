@@ -14,6 +14,8 @@
 
 #include "ignav/actuation/controller.hpp"
 #include "ignav/actuation/transmission.hpp"
+#include "ignav/anatomy/distance_field.hpp"
+#include "ignav/anatomy/site.hpp"
 #include "ignav/config/robot_config.hpp"
 #include "ignav/config/tissue_profiles.hpp"
 #include "ignav/kinematics/solver.hpp"
@@ -78,6 +80,31 @@ struct LoadedCt {
   std::string description;
 };
 
+// The patient's structures on the CT (issue 41): as a structure load read them (roles from the
+// file and the site), with a distance field per structure, built off the event thread.
+struct LoadedStructures {
+  std::shared_ptr<const anatomy::StructureSet> set;
+  std::vector<std::shared_ptr<const anatomy::DistanceField>> fields;  // one per structure
+};
+
+// How far a target's needle passes from one avoided structure (issue 41): its whole body (the
+// cannula, then the stylet, each with its outer radius) at its closest.
+struct StructureClearance {
+  std::string structure;
+  // From the needle's surface to the structure's; negative: the needle enters it that deep.
+  double distance_mm = 0.0;
+  double margin_mm = 0.0;  // the structure's
+  // What the distance may be wrong by there (2 SD along the way to the structure): the expected
+  // registration error at that point and, aiming with a fitted tissue, the landing's spread; and
+  // the deflection a tissue profile predicts that the aim does not compensate.
+  double uncertainty_mm = 0.0;
+  std::string part;                                            // "cannula" | "stylet"
+  Eigen::Vector3d needle_lps_mm = Eigen::Vector3d::Zero();     // on the centreline
+  Eigen::Vector3d structure_lps_mm = Eigen::Vector3d::Zero();  // the nearest surface point
+  bool reachedBeyond = false;  // farther than the field reaches: distance_mm is a lower bound
+  bool tooClose() const { return distance_mm - uncertainty_mm < margin_mm; }
+};
+
 struct Input {
   InputKind kind = InputKind::kQuery;
   double time_s = 0.0;    // Unix seconds, stamped by the server; the reducer never reads a clock
@@ -119,6 +146,12 @@ struct Input {
   // kNeedleScanned's, with the re-aim the scan led to.
   std::vector<FoundSeed> seeds;
   std::optional<ReaimProposal> reaim;
+  // kStructuresLoaded: the structures read and their fields (`path` the file; `summary` names
+  // each with its voxels, so replay can tell a changed file).
+  LoadedStructures structures;
+  // kConfigLoaded: the site's roles for structures by name (server.yaml site:); none: every
+  // structure is shown only until structure_role gives it a role.
+  std::optional<anatomy::Site> site;
   // What the controller said just before this input (approve, resume, reset_emergency, home and
   // the controller's own inputs): the reducer judges the robot by it, and replay sees the same.
   std::optional<actuation::ControllerStatus> controller;
@@ -185,13 +218,21 @@ struct Target {
   std::optional<double> pause_z_s_mm;
   std::optional<kinematics::Joints> paused;
   std::optional<ReaimedAim> reaimed;
-  std::string replan;   // for a person: the last intermittent CT's outcome or the re-aim taken
+  std::string replan;  // for a person: the last intermittent CT's outcome or the re-aim taken
+  // The whole needle against every avoided structure (issue 41), in the structures' order; why
+  // it is refused ("" when every clearance holds); and the reason an operator gave to plan it
+  // all the same (override_clearance; a plan choice, dropped when the target moves).
+  std::vector<StructureClearance> clearances;
+  std::string clearance_refusal;
+  std::string clearance_override;
   std::string message;  // person-readable reachability
-  // "planned" | "reached" | "unreachable" | "unregistered" | "outside_volume"
+  // "planned" | "reached" | "unreachable" | "unregistered" | "outside_volume" | "too_close"
   std::string status() const;
-  // Registered, reachable, and (aiming with a tissue) compensated: lock_plan may plan it.
+  bool tooClose() const { return !clearance_refusal.empty() && clearance_override.empty(); }
+  // Registered, reachable, (aiming with a tissue) compensated and clear of the avoided
+  // structures (or overridden): lock_plan may plan it.
   bool plannable() const {
-    return registered && solution.reachable() && compensation_refusal.empty();
+    return registered && solution.reachable() && compensation_refusal.empty() && !tooClose();
   }
   // The joints the plan moves to: re-aimed ones, else the compensated ones with a tissue profile,
   // else the nominal.
@@ -288,6 +329,22 @@ struct RegistrationStatus {
   bool auto_detected = false;
 };
 
+// Per structure of the loaded set: the role the plan gives it (the file's or site's, or
+// structure_role's).
+struct StructureRoleChoice {
+  anatomy::Role role = anatomy::Role::kShown;
+  double margin_mm = 0.0;
+};
+
+struct StructuresStatus {
+  std::string status = "none";  // none | loading | loaded | failed
+  std::string source;
+  std::string message;
+  std::uint64_t loading = 0;  // the load_structures awaited (its revision); 0: none
+  LoadedStructures loaded;    // loaded: the structures
+  std::vector<StructureRoleChoice> roles;
+};
+
 struct Session {
   std::string session_id;
   std::string robot_id;      // config_loaded's (journaled); "" before issue 38
@@ -322,6 +379,9 @@ struct Session {
   std::string scanning_source;
   std::optional<Eigen::Matrix4d> scanning_matrix;
   std::optional<ReaimProposal> reaim;
+  // The patient's structures on the CT (issue 41) and the site's roles for them.
+  StructuresStatus structures;
+  std::optional<anatomy::Site> site;
   std::vector<FittedTissue> fitted_tissues;
   std::optional<config::TissueProfile> aim_tissue;
   actuation::Steps position;  // last verified absolute motor position (zero = home)
@@ -414,6 +474,7 @@ struct Effects {
   bool plan_slices = false;
   std::optional<std::uint32_t> reached_target_slices;
   bool confirmation_changed = false;  // VerificationState
+  bool structures_changed = false;    // StructuresState
   bool tissue_fitted = false;         // write the fitted profiles to the session folder
   bool approval_changed = false;
   bool motion_changed = false;

@@ -1,0 +1,153 @@
+// The rows' actions for the patient's structures (issue 41; actions.hpp): loading them, giving
+// them roles, and an operator's override of one target's clearance.
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "actions.hpp"
+#include "ignav/workflow/background_jobs.hpp"
+#include "session_rules.hpp"
+
+namespace ignav::workflow::detail {
+namespace {
+
+using anatomy::kMaxMargin_mm;
+
+std::string names(const anatomy::StructureSet& set) {
+  std::string out;
+  for (const auto& s : set.structures)
+    out += (out.empty() ? "" : ", ") + s.name;
+  return out;
+}
+
+}  // namespace
+
+Refusal startStructureLoad(Session& s, const Input& in, ActionOutput& out) {
+  if (!s.ct.volume) {
+    return Rejection{ReplyCode::kNoVolume, "no CT is loaded: structures are loaded on one"};
+  }
+  if (s.structures.loading != 0) {
+    return Rejection{ReplyCode::kBusy, fmt::format("structures are loading ({}; load #{})",
+                                                   s.structures.source, s.structures.loading)};
+  }
+  s.structures.loading = s.revision + 1;  // this step's
+  s.structures.status = "loading";
+  s.structures.message = fmt::format(
+      "loading {} on the CT ({}){}", in.path, s.ct.source,
+      s.structures.loaded.set ? "; the structures from before stay in use until then" : "");
+  out.effects.start_jobs.push_back(JobKind::kStructureLoad);
+  out.effects.structures_changed = true;
+  out.note = fmt::format(
+      "structure load #{} started ({}): StructuresState shows loading, then the structures or why "
+      "they were refused",
+      s.structures.loading, in.path);
+  s.structures.source = in.path;
+  return std::nullopt;
+}
+
+Refusal adoptStructures(Session& s, const Input& in, ActionOutput& out) {
+  auto& st = s.structures;
+  st.loading = 0;
+  st.loaded = in.structures;
+  st.roles.clear();
+  for (const auto& structure : st.loaded.set->structures)
+    st.roles.push_back({structure.role, structure.margin_mm});
+  st.status = "loaded";
+  st.source = in.path;
+  st.message = in.summary;
+  out.effects.structures_changed = true;
+  evaluateAll(s, out.effects);
+  out.note = "structures loaded: " + in.summary;
+  return std::nullopt;
+}
+
+Refusal noteStructureLoadFailure(Session& s, const Input& in, ActionOutput& out) {
+  auto& st = s.structures;
+  st.loading = 0;
+  if (st.loaded.set) {
+    st.status = "loaded";
+    st.message = fmt::format("{} was refused ({}); the structures from {} stay", in.path, in.error,
+                             st.loaded.set->source);
+    st.source = st.loaded.set->source;
+  } else {
+    st.status = "failed";
+    st.message = in.error;
+  }
+  out.effects.structures_changed = true;
+  out.note = in.error;
+  return std::nullopt;
+}
+
+Refusal setStructureRole(Session& s, const Input& in, ActionOutput& out) {
+  auto& st = s.structures;
+  if (!st.loaded.set) {
+    return Rejection{ReplyCode::kNoStructures, "no structures are loaded (load_structures)"};
+  }
+  // NAME ROLE [MARGIN_MM], the name possibly of several words: read from the end.
+  std::vector<std::string> words;
+  std::istringstream text(in.path);
+  for (std::string w; text >> w;)
+    words.push_back(w);
+  auto bad = [&](const std::string& why) {
+    return Rejection{ReplyCode::kBadRole,
+                     fmt::format("'{}': {} (NAME ROLE [MARGIN_MM])", in.path, why)};
+  };
+  std::optional<double> margin;
+  if (!words.empty()) {
+    char* end = nullptr;
+    const double m = std::strtod(words.back().c_str(), &end);
+    if (end != words.back().c_str() && *end == '\0') {
+      if (!std::isfinite(m) || m < 0.0 || m > kMaxMargin_mm) {
+        return bad(
+            fmt::format("a margin of {} mm is outside 0-{:g} mm", words.back(), kMaxMargin_mm));
+      }
+      margin = m;
+      words.pop_back();
+    }
+  }
+  if (words.size() < 2) return bad("a name and a role are needed");
+  const auto role = anatomy::roleNamed(words.back());
+  if (!role) return bad("role '" + words.back() + "' is none of target, avoid, shown");
+  words.pop_back();
+  std::string name;
+  for (const auto& w : words)
+    name += (name.empty() ? "" : " ") + w;
+  const auto& set = *st.loaded.set;
+  const auto* structure = set.find(name);
+  if (!structure) {
+    return Rejection{ReplyCode::kUnknownStructure,
+                     fmt::format("no structure '{}' (loaded: {})", name, names(set))};
+  }
+  if (*role == anatomy::Role::kAvoid && !margin) return bad("avoid needs a margin in mm");
+  if (*role != anatomy::Role::kAvoid && margin) return bad("only avoid takes a margin");
+  auto& choice = st.roles.at(static_cast<std::size_t>(structure - set.structures.data()));
+  choice = {*role, margin.value_or(0.0)};
+  out.effects.structures_changed = true;
+  evaluateAll(s, out.effects);
+  out.note = fmt::format("'{}' is now {}{}", structure->name, anatomy::toString(*role),
+                         margin ? fmt::format(" with a margin of {:g} mm", *margin) : "");
+  return std::nullopt;
+}
+
+Refusal overrideClearance(Session& s, const Input& in, ActionOutput& out) {
+  Target* t = findTarget(s, in.ids[0]);
+  if (!t) return Rejection{ReplyCode::kUnknownTarget, fmt::format("no target {}", in.ids[0])};
+  const auto first = in.path.find_first_not_of(" \t");
+  if (first == std::string::npos) {
+    return Rejection{ReplyCode::kNoReason,
+                     fmt::format("target {}: say why its path may pass so close", t->id)};
+  }
+  if (t->clearance_refusal.empty()) {
+    return Rejection{ReplyCode::kNotTooClose,
+                     fmt::format("target {} keeps every margin: nothing to override", t->id)};
+  }
+  t->clearance_override = in.path.substr(first);
+  evaluate(s, *t);
+  out.effects.targets_changed.push_back(t->id);
+  out.note = t->message;
+  return std::nullopt;
+}
+
+}  // namespace ignav::workflow::detail

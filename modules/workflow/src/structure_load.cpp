@@ -1,0 +1,111 @@
+// load_structures' background job (background_jobs.hpp): read the segmentation, check it was
+// made on the session's CT, give the site's roles, build a distance field per structure.
+#include <fmt/format.h>
+
+#include <atomic>
+#include <exception>
+#include <memory>
+#include <thread>
+
+#include "ignav/anatomy/distance_field.hpp"
+#include "ignav/registration/robot_phantom.hpp"
+#include "ignav/workflow/background_jobs.hpp"
+
+namespace ignav::workflow {
+
+std::string describeStructures(const anatomy::StructureSet& set) {
+  std::string out;
+  for (const auto& s : set.structures) {
+    out += fmt::format("{}{} ({}{}, {} voxels, {:.2f} cm³)", out.empty() ? "" : "; ", s.name,
+                       anatomy::toString(s.role),
+                       s.role == anatomy::Role::kAvoid ? fmt::format(" {:g} mm", s.margin_mm) : "",
+                       s.mask.count(), s.mask.volume_cm3());
+  }
+  return out;
+}
+
+namespace {
+
+// The built-in phantom's anatomy on its CT: drawn where the phantom put the robot.
+Expected<anatomy::StructureSet> phantomStructures(const LoadedCt& ct, const config::Robot& robot,
+                                                  const JobContext& context) {
+  if (ct.source != kPhantomSource) {
+    return makeError(ErrorCode::kInvalidArgument,
+                     "phantom: structures belong to the built-in phantom CT (load phantom:); the "
+                     "CT loaded is " +
+                         ct.source,
+                     "other_ct");
+  }
+  auto rp = registration::makeRobotPhantom(robot.kinematics, robot.config.registration.scan);
+  if (!rp) return rp.error();
+  auto set = anatomy::voxelise(ct.volume->geometry, rp->image_to_robot_true,
+                               phantomAnatomy(robot.kinematics), kPhantomSource);
+  if (set && !context.session_dir.empty()) {
+    // For people (3D Slicer opens it over the phantom's series); a failure here loses nothing.
+    (void)anatomy::writeSegNrrd(*set, ct.volume->geometry,
+                                (context.session_dir / "phantom_anatomy.seg.nrrd").string());
+  }
+  return set;
+}
+
+}  // namespace
+
+Input loadStructures(std::uint64_t job, const std::string& source, const LoadedCt& ct,
+                     const std::optional<anatomy::Site>& site, const config::Robot& robot,
+                     const JobContext& context) {
+  Input in;
+  in.job = job;
+  in.path = source;
+  in.kind = InputKind::kStructuresLoadFailed;
+  if (!ct.volume) {
+    in.error = "no CT is loaded: structures belong to one";
+    return in;
+  }
+  auto read = source == kPhantomSource ? phantomStructures(ct, robot, context)
+                                       : anatomy::readStructures(source);
+  if (!read) {
+    in.error = read.error().message;
+    return in;
+  }
+  if (auto on_ct = anatomy::checkOnCt(*read, ct.volume->geometry, ct.source); !on_ct.ok()) {
+    in.error = on_ct.error().message;
+    return in;
+  }
+  if (site) anatomy::applySite(*site, *read);
+  auto set = std::make_shared<const anatomy::StructureSet>(std::move(read).value());
+  // The fields on two threads (the machine's cores; the event thread waits on nothing here),
+  // progress said from this one.
+  const std::size_t total = set->structures.size();
+  in.structures.fields.resize(total);
+  std::atomic<std::size_t> next{0}, done{0};
+  std::exception_ptr helper_failed;  // out of memory: the job's failure, not the server's end
+  auto build = [&] {
+    for (std::size_t n = next++; n < total; n = next++) {
+      in.structures.fields[n] = std::make_shared<const anatomy::DistanceField>(
+          anatomy::DistanceField::fromMask(set->structures[n].mask, kStructureReach_mm));
+      ++done;
+    }
+  };
+  std::thread helper([&] {
+    try {
+      build();
+    } catch (...) {
+      helper_failed = std::current_exception();
+    }
+  });
+  try {
+    build();
+  } catch (...) {
+    helper.join();
+    throw;
+  }
+  helper.join();
+  if (helper_failed) std::rethrow_exception(helper_failed);
+  if (context.progress) context.progress(done, total);
+  in.summary = describeStructures(*set);
+  in.structures.set = std::move(set);
+  in.kind = InputKind::kStructuresLoaded;
+  return in;
+}
+
+}  // namespace ignav::workflow

@@ -1,0 +1,129 @@
+// The patient's structures (issue 41): distance fields for five structures of a prostate CT on a
+// 512 x 512 x 300 grid (0.7 x 0.7 x 1.0 mm), and one target's whole-needle clearance once they
+// exist. Google Benchmark; docs/PERFORMANCE.md has the figures.
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+
+#include "ignav/anatomy/clearance.hpp"
+
+namespace {
+
+using ignav::anatomy::DistanceField;
+using ignav::anatomy::Shape;
+
+constexpr double kReach_mm = 20.0;  // the server's (kStructureReach_mm)
+
+ignav::volume::Geometry ctGrid() {
+  ignav::volume::Geometry g;
+  g.dims = {512, 512, 300};
+  g.spacing_mm = Eigen::Vector3d(0.7, 0.7, 1.0);
+  g.origin_lps_mm = Eigen::Vector3d(-179.0, -179.0, -150.0);
+  return g;
+}
+
+double capsule(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+               double r) {
+  const Eigen::Vector3d ab = b - a;
+  const double t = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+  return (p - a - t * ab).norm() - r;
+}
+
+// A prostate, its urethra, the rectum behind, the bladder above and the pubic arch in front.
+const std::vector<Shape>& anatomy() {
+  static const std::vector<Shape> shapes = {
+      {"prostate",
+       {},
+       {},
+       0.0,
+       [](const Eigen::Vector3d& p) {
+         return ((p.array() / Eigen::Array3d(22.0, 17.0, 20.0)).matrix().norm() - 1.0) * 17.0;
+       }},
+      {"urethra",
+       {},
+       {},
+       3.0,
+       [](const Eigen::Vector3d& p) {
+         return capsule(p, {0, -3, -40}, {0, -3, 40}, 3.0);
+       }},
+      {"rectum",
+       {},
+       {},
+       5.0,
+       [](const Eigen::Vector3d& p) {
+         return capsule(p, {0, 30, -50}, {0, 30, 30}, 12.0);
+       }},
+      {"bladder",
+       {},
+       {},
+       3.0,
+       [](const Eigen::Vector3d& p) { return (p - Eigen::Vector3d(0, 0, 50)).norm() - 25.0; }},
+      {"pubic_arch",
+       {},
+       {},
+       2.0,
+       [](const Eigen::Vector3d& p) {
+         return capsule(p, {-35, -30, 25}, {35, -30, 25}, 6.0);
+       }},
+  };
+  return shapes;
+}
+
+const ignav::anatomy::StructureSet& structures() {
+  static const auto set =
+      ignav::anatomy::voxelise(ctGrid(), Eigen::Matrix4d::Identity(), anatomy(), "bench").value();
+  return set;
+}
+
+// Every structure's field, as the server's structure load builds them.
+void BM_DistanceFieldsFiveStructures(benchmark::State& state) {
+  const auto& set = structures();
+  std::size_t bytes = 0;
+  for (auto _ : state) {
+    bytes = 0;
+    for (const auto& s : set.structures) {
+      const auto field = DistanceField::fromMask(s.mask, kReach_mm);
+      bytes += field.bytes();
+      benchmark::DoNotOptimize(field);
+    }
+  }
+  state.counters["field_MB"] = static_cast<double>(bytes) / 1e6;
+}
+BENCHMARK(BM_DistanceFieldsFiveStructures)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_DistanceFieldUrethra(benchmark::State& state) {
+  const auto& mask = structures().structures.at(1).mask;
+  for (auto _ : state)
+    benchmark::DoNotOptimize(DistanceField::fromMask(mask, kReach_mm));
+}
+BENCHMARK(BM_DistanceFieldUrethra)->Unit(benchmark::kMillisecond);
+
+// One target: a 100 mm cannula down to the prostate and a 30 mm stylet arc beside the urethra,
+// against the four avoided structures.
+void BM_ClearanceOneTarget(benchmark::State& state) {
+  const auto& set = structures();
+  std::vector<DistanceField> fields;
+  for (std::size_t n = 1; n < set.structures.size(); ++n)
+    fields.push_back(DistanceField::fromMask(set.structures[n].mask, kReach_mm));
+  ignav::anatomy::NeedleBody body(2);
+  for (int i = 0; i <= 200; ++i)
+    body[0].centreline_lps_mm.emplace_back(8.0, -2.0, -110.0 + 0.5 * i);
+  body[0].radius_mm = 1.05;
+  for (int i = 0; i <= 60; ++i) {
+    const double a = 0.5 * i / 35.5;
+    body[1].centreline_lps_mm.emplace_back(8.0 + 35.5 * (1 - std::cos(a)), -2.0,
+                                           -10.0 + 35.5 * std::sin(a));
+  }
+  body[1].radius_mm = 0.6;
+  for (auto _ : state) {
+    double closest = 1e9;
+    for (const auto& f : fields)
+      closest = std::min(closest, ignav::anatomy::closestApproach(body, f, 0.1).distance_mm);
+    benchmark::DoNotOptimize(closest);
+  }
+}
+BENCHMARK(BM_ClearanceOneTarget)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();
