@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 seconds="${1:-30}"
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(fuzz_dicom fuzz_nrrd fuzz_metaimage fuzz_robot_config fuzz_journal
+[ ${#targets[@]} -gt 0 ] || targets=(fuzz_dicom fuzz_nrrd fuzz_metaimage fuzz_seg_nrrd fuzz_robot_config fuzz_journal
   fuzz_command fuzz_igtl)
 
 cmake --preset fuzz >/dev/null

@@ -98,6 +98,33 @@ TEST_F(Structures, ASegNrrdWithOverlappingSegmentsIsReadBackVoxelForVoxel) {
               1e-12);
 }
 
+// Files as Slicer writes them by hand-made bytes (the fuzzer's seeds): labels in one layer,
+// overlapping segments in two, and a file from before Slicer 4.11 (no LabelValue or Layer: one
+// segment per layer, label 1).
+TEST_F(Structures, SlicerFilesOfEachKindAreRead) {
+  const std::string seeds = IGNAV_SOURCE_DIR "/tests/fuzz/seeds/seg_nrrd/";
+  const auto one = readSegNrrd(seeds + "two_segments.seg.nrrd");
+  ASSERT_TRUE(one.ok()) << one.error().message;
+  ASSERT_EQ(one->structures.size(), 2u);
+  EXPECT_EQ(one->structures[1].name, "urethra");
+  EXPECT_EQ(one->structures[1].role, Role::kAvoid);
+  EXPECT_EQ(one->structures[1].margin_mm, 3.0);
+  EXPECT_EQ(one->structures[0].mask.count(), 2u);
+  EXPECT_DOUBLE_EQ(one->structures[0].colour_rgb[1], 0.6);
+  for (const char* file : {"two_layers.seg.nrrd", "old_slicer.seg.nrrd"}) {
+    const auto two = readSegNrrd(seeds + file);
+    ASSERT_TRUE(two.ok()) << two.error().message;
+    ASSERT_EQ(two->structures.size(), 2u) << file;
+    EXPECT_EQ(two->structures[0].mask.count(), 4u) << file;  // the gland holds the urethra
+    EXPECT_EQ(two->structures[1].mask.count(), 2u) << file;
+    // The urethra's first voxel (i 2, j 1) in LPS: origin + (2 x 0.8, 1 x 0.8, 0).
+    EXPECT_LT(
+        (two->structures[1].mask.geometry.origin_lps_mm - Eigen::Vector3d(0.1, 2.8, -30)).norm(),
+        1e-9)
+        << file;
+  }
+}
+
 TEST_F(Structures, ALabelMapIsNamedByItsColourTable) {
   volume::Volume labels;
   labels.geometry = ct_;

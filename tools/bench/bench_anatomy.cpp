@@ -6,72 +6,19 @@
 #include <cmath>
 
 #include "ignav/anatomy/clearance.hpp"
+#include "prostate_shapes.hpp"
 
 namespace {
 
 using ignav::anatomy::DistanceField;
-using ignav::anatomy::Shape;
 
 constexpr double kReach_mm = 20.0;  // the server's (kStructureReach_mm)
 
-ignav::volume::Geometry ctGrid() {
-  ignav::volume::Geometry g;
-  g.dims = {512, 512, 300};
-  g.spacing_mm = Eigen::Vector3d(0.7, 0.7, 1.0);
-  g.origin_lps_mm = Eigen::Vector3d(-179.0, -179.0, -150.0);
-  return g;
-}
-
-double capsule(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-               double r) {
-  const Eigen::Vector3d ab = b - a;
-  const double t = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-  return (p - a - t * ab).norm() - r;
-}
-
-// A prostate, its urethra, the rectum behind, the bladder above and the pubic arch in front.
-const std::vector<Shape>& anatomy() {
-  static const std::vector<Shape> shapes = {
-      {"prostate",
-       {},
-       {},
-       0.0,
-       [](const Eigen::Vector3d& p) {
-         return ((p.array() / Eigen::Array3d(22.0, 17.0, 20.0)).matrix().norm() - 1.0) * 17.0;
-       }},
-      {"urethra",
-       {},
-       {},
-       3.0,
-       [](const Eigen::Vector3d& p) {
-         return capsule(p, {0, -3, -40}, {0, -3, 40}, 3.0);
-       }},
-      {"rectum",
-       {},
-       {},
-       5.0,
-       [](const Eigen::Vector3d& p) {
-         return capsule(p, {0, 30, -50}, {0, 30, 30}, 12.0);
-       }},
-      {"bladder",
-       {},
-       {},
-       3.0,
-       [](const Eigen::Vector3d& p) { return (p - Eigen::Vector3d(0, 0, 50)).norm() - 25.0; }},
-      {"pubic_arch",
-       {},
-       {},
-       2.0,
-       [](const Eigen::Vector3d& p) {
-         return capsule(p, {-35, -30, 25}, {35, -30, 25}, 6.0);
-       }},
-  };
-  return shapes;
-}
-
 const ignav::anatomy::StructureSet& structures() {
   static const auto set =
-      ignav::anatomy::voxelise(ctGrid(), Eigen::Matrix4d::Identity(), anatomy(), "bench").value();
+      ignav::anatomy::voxelise(ignav::bench::prostateCtGrid(), Eigen::Matrix4d::Identity(),
+                               ignav::bench::prostateShapes(), "bench")
+          .value();
   return set;
 }
 

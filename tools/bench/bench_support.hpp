@@ -2,8 +2,11 @@
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <cstdio>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "ignav/protocol/client.hpp"
@@ -38,6 +41,55 @@ inline bool loadAndRegister(protocol::Client& c, const std::string& source) {
       },
       std::chrono::seconds(60));
   return true;
+}
+
+// Pings from a client of its own every 5 ms until stopped; the round trips (ms).
+class Pinger {
+ public:
+  Pinger(std::uint32_t domain, const std::string& xml) {
+    thread_ = std::thread([this, domain, xml] {
+      ignav::protocol::Client c(
+          domain, xml, "bench-ping", nullptr,
+          ignav::protocol::chooseRobot(domain, xml, nullptr, "", std::chrono::seconds(10)));
+      if (!c.waitForServer(std::chrono::seconds(10))) return;
+      ready_ = true;
+      while (!stop_) {
+        const auto t = Clock::now();
+        c.send("ping");
+        const double ms = sinceMs(t);
+        if (recording_) samples_.push_back(ms);
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      }
+    });
+    while (!ready_)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ~Pinger() {
+    stop_ = true;
+    thread_.join();
+  }
+  void record(bool on) { recording_ = on; }
+  // Only between record(false) and the next record(true).
+  std::vector<double> take() {
+    std::vector<double> out;
+    out.swap(samples_);
+    return out;
+  }
+
+ private:
+  std::atomic<bool> stop_{false}, ready_{false}, recording_{false};
+  std::vector<double> samples_;
+  std::thread thread_;
+};
+
+inline void print(const char* name, const std::vector<double>& v) {
+  if (v.empty()) {
+    std::printf("%-40s no samples\n", name);
+    return;
+  }
+  std::printf("%-40s median %7.2f ms   p95 %7.2f   p99 %7.2f   worst %7.2f   (n %zu)\n", name,
+              percentile(v, 50), percentile(v, 95), percentile(v, 99),
+              *std::max_element(v.begin(), v.end()), v.size());
 }
 
 }  // namespace ignav::bench
