@@ -9,6 +9,8 @@
 
 #include <filesystem>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include "ignav/anatomy/structures.hpp"
 #include "server_process.hpp"
 
@@ -21,9 +23,7 @@ using namespace std::chrono_literals;
 constexpr std::uint32_t kDomain = 190;
 
 CommandRun ctl(const std::string& args) {
-  return runCommand(std::string(IGNAVCTL_EXE) +
-                    " --dds-config " IGNAV_SOURCE_DIR "/configs/dds/loopback.xml --domain " +
-                    std::to_string(kDomain) + " " + args);
+  return ignavctlOn(kDomain, args);
 }
 
 const json& targetState(const json& s, std::uint32_t id) {
@@ -61,6 +61,20 @@ TEST(AnatomyE2E, ATargetWhoseNeedleCrossesTheUrethraIsRefusedUntilOverriddenWith
   EXPECT_EQ(t["clearances"][0]["structure"], "urethra");
   EXPECT_TRUE(t["clearances"][0]["too_close"].get<bool>());
   EXPECT_LT(t["clearances"][0]["distance_mm"].get<double>(), 0.0);  // it enters the urethra
+  // The structures' outlines on a slice through the target: the urethra's yellow (255, 230, 51).
+  protocol::SliceArgs through;
+  through.view = "axial";
+  through.centre_lps = vec(t["lps"]);
+  through.size_px = 256;
+  through.pixel_mm = 0.25;
+  const auto slice = op->slice(through, 30s);
+  ASSERT_TRUE(slice.ok);
+  const cv::Mat img = cv::imdecode(slice.png, cv::IMREAD_COLOR);
+  int urethra_px = 0;
+  for (int v = 0; v < img.rows; ++v)
+    for (int u = 0; u < img.cols; ++u)
+      urethra_px += img.at<cv::Vec3b>(v, u) == cv::Vec3b(51, 230, 255);
+  EXPECT_GT(urethra_px, 40);  // its 3 mm circle's outline at 0.25 mm pixels: ~75
   const auto listed = ctl("targets ls");
   EXPECT_NE(listed.output.find("TOO CLOSE"), std::string::npos) << listed.output;
 

@@ -23,9 +23,7 @@ using namespace std::chrono_literals;
 constexpr std::uint32_t kDomain = 188;
 
 CommandRun ctl(const std::string& args) {
-  return runCommand(std::string(IGNAVCTL_EXE) +
-                    " --dds-config " IGNAV_SOURCE_DIR "/configs/dds/loopback.xml --domain " +
-                    std::to_string(kDomain) + " " + args);
+  return ignavctlOn(kDomain, args);
 }
 
 json scanOf(const std::filesystem::path& session, const std::filesystem::path& out,

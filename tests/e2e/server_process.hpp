@@ -292,6 +292,15 @@ inline CommandRun runCommand(const std::string& cmd) {
   return r;
 }
 
+#ifdef IGNAVCTL_EXE
+// `ignavctl ARGS` over the loopback configuration on `domain`: its exit code and what it printed.
+inline CommandRun ignavctlOn(std::uint32_t domain, const std::string& args) {
+  return runCommand(std::string(IGNAVCTL_EXE) +
+                    " --dds-config " IGNAV_SOURCE_DIR "/configs/dds/loopback.xml --domain " +
+                    std::to_string(domain) + " " + args);
+}
+#endif
+
 class ServerProcess {
   // Per test process and instance: two servers may share a domain (several robots).
   static std::filesystem::path uniqueSessionDir(std::uint32_t domain) {

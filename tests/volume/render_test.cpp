@@ -158,6 +158,33 @@ TEST(Render, RegionBoundsLimitWhereThePredicateIsAsked) {
   EXPECT_EQ(rgbAt(beside, 32, 24), cv::Vec3i(128, 128, 128));
 }
 
+// A segmentation's structure over the CT: its outline in its colour, the inside left grey.
+TEST(Render, ARegionDrawnAsAnOutlineColoursOnlyItsEdge) {
+  const Slice s = flatSlice(40.0f);  // z = 7 mm, pixels 0.5 mm: u = 2 (x + 16), v = 2 (y + 12)
+  RegionOverlay ball;                // a 3 mm disc at (0, 0): pixels (32, 24) +- 6
+  ball.contains = [](const Eigen::Vector3d& p) {
+    return (p - Eigen::Vector3d(0, 0, 7)).norm() <= 3.0;
+  };
+  for (int c = 0; c < 8; ++c)
+    ball.bounds_lps_mm.emplace_back(c & 1 ? 3 : -3, c & 2 ? 3 : -3, 7 + (c & 4 ? 3 : -3));
+  ball.colour = {255, 230, 51};
+  ball.opacity = 1.0;
+  ball.outline = true;
+  Overlays ov;
+  ov.regions = {ball};
+  const cv::Mat img = decode(renderPng(s, ov, plain()));
+  EXPECT_EQ(rgbAt(img, 32, 24), cv::Vec3i(128, 128, 128));  // the inside stays grey
+  EXPECT_EQ(rgbAt(img, 32, 30), cv::Vec3i(255, 230, 51));   // 3 mm off the centre: the edge
+  EXPECT_EQ(rgbAt(img, 26, 24), cv::Vec3i(255, 230, 51));
+  EXPECT_EQ(rgbAt(img, 32, 31), cv::Vec3i(128, 128, 128));  // outside
+  int edge = 0;
+  for (int v = 0; v < img.rows; ++v)
+    for (int u = 0; u < img.cols; ++u)
+      edge += rgbAt(img, u, v) == cv::Vec3i(255, 230, 51);
+  EXPECT_GT(edge, 20);  // a ring about 2π·6 pixels long
+  EXPECT_LT(edge, 60);
+}
+
 TEST(Render, PathIsDrawnThroughProjectedPoints) {
   const Slice s = flatSlice(40.0f);
   Overlays ov;

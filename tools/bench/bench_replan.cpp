@@ -18,10 +18,7 @@
 
 namespace {
 
-using ignav::bench::Clock;
-using ignav::bench::Pinger;
 using ignav::bench::print;
-using ignav::bench::sinceMs;
 using nlohmann::json;
 using namespace std::chrono_literals;
 
@@ -75,32 +72,17 @@ int main(int argc, char** argv) {
     return 9;
   }
 
-  Pinger pinger(domain, xml);
-  pinger.record(true);
-  std::this_thread::sleep_for(2s);
-  pinger.record(false);
-  const auto idle = pinger.take();
-  std::vector<double> jobs_ms;
-  std::string last;
-  pinger.record(true);
-  for (int r = 0; r < rounds; ++r) {
-    const auto t = Clock::now();
-    const auto sent = c.send("scan_needle", {scan, {}, {}, image_to_robot});
-    if (!sent.accepted) {
-      std::fprintf(stderr, "scan_needle refused: %s\n", sent.message.c_str());
-      return 10;
-    }
-    const auto outcome = c.waitForJobOutcome(sent.job, 300s);
-    jobs_ms.push_back(sinceMs(t));
-    last = outcome.status + ": " + outcome.message;
-    if (outcome.status != "done") break;
+  const auto run = ignav::bench::timeJobsWhilePinging(c, domain, xml, rounds, [&] {
+    return c.send("scan_needle", {scan, {}, {}, image_to_robot});
+  });
+  if (run.refused) {
+    std::fprintf(stderr, "scan_needle %s\n", run.last.c_str());
+    return 10;
   }
-  pinger.record(false);
-  const auto during = pinger.take();
-  std::printf("intermittent CT search and re-aim: %s\n", last.c_str());
-  print("scan_needle -> its outcome", jobs_ms);
-  print("ping -> reply, idle", idle);
-  print("ping -> reply, while the CT is searched", during);
+  std::printf("intermittent CT search and re-aim: %s\n", run.last.c_str());
+  print("scan_needle -> its outcome", run.jobs_ms);
+  print("ping -> reply, idle", run.idle_ms);
+  print("ping -> reply, while the CT is searched", run.during_ms);
   std::system(("rm -rf " + scan + " " + scan + "_truth.json").c_str());
   return 0;
 }

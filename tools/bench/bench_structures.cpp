@@ -15,7 +15,6 @@
 namespace {
 
 using ignav::bench::Clock;
-using ignav::bench::Pinger;
 using ignav::bench::print;
 using ignav::bench::sinceMs;
 using nlohmann::json;
@@ -60,31 +59,16 @@ int main(int argc, char** argv) {
   c.waitFor([](const json& s) { return s.contains("volume") && s["volume"]["status"] == "loaded"; },
             120s);
 
-  Pinger pinger(domain, xml);
-  pinger.record(true);
-  std::this_thread::sleep_for(2s);
-  pinger.record(false);
-  const auto idle = pinger.take();
-  std::vector<double> jobs_ms;
-  std::string last;
-  pinger.record(true);
-  for (int r = 0; r < rounds; ++r) {
-    const auto t = Clock::now();
-    const auto sent = c.send("load_structures", {seg_path, {}, {}});
-    if (!sent.accepted) {
-      std::fprintf(stderr, "load_structures refused: %s\n", sent.message.c_str());
-      return 7;
-    }
-    const auto outcome = c.waitForJobOutcome(sent.job, 300s);
-    jobs_ms.push_back(sinceMs(t));
-    last = outcome.status + ": " + outcome.message;
-    if (outcome.status != "done") break;
+  const auto run = ignav::bench::timeJobsWhilePinging(c, domain, xml, rounds, [&] {
+    return c.send("load_structures", {seg_path, {}, {}});
+  });
+  if (run.refused) {
+    std::fprintf(stderr, "load_structures %s\n", run.last.c_str());
+    return 7;
   }
-  pinger.record(false);
-  const auto during = pinger.take();
-  std::printf("structure load: %s\n", last.c_str());
-  print("load_structures -> its outcome", jobs_ms);
-  print("ping -> reply, idle", idle);
-  print("ping -> reply, while structures load", during);
+  std::printf("structure load: %s\n", run.last.c_str());
+  print("load_structures -> its outcome", run.jobs_ms);
+  print("ping -> reply, idle", run.idle_ms);
+  print("ping -> reply, while structures load", run.during_ms);
   return 0;
 }

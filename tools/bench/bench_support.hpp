@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <functional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -90,6 +91,42 @@ inline void print(const char* name, const std::vector<double>& v) {
   std::printf("%-40s median %7.2f ms   p95 %7.2f   p99 %7.2f   worst %7.2f   (n %zu)\n", name,
               percentile(v, 50), percentile(v, 95), percentile(v, 99),
               *std::max_element(v.begin(), v.end()), v.size());
+}
+
+// A background job's command sent `rounds` times, each awaited, while a Pinger times `ping`s
+// (2 s idle first): the jobs' durations, the pings idle and during, the last outcome. `send`
+// returns the reply naming the job; a refusal or a failed job ends the rounds.
+struct JobsWhilePinging {
+  std::vector<double> jobs_ms, idle_ms, during_ms;
+  std::string last;  // "done: ..." or why not
+  bool refused = false;
+};
+inline JobsWhilePinging timeJobsWhilePinging(protocol::Client& c, std::uint32_t domain,
+                                             const std::string& xml, int rounds,
+                                             const std::function<protocol::Reply()>& send) {
+  JobsWhilePinging out;
+  Pinger pinger(domain, xml);
+  pinger.record(true);
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  pinger.record(false);
+  out.idle_ms = pinger.take();
+  pinger.record(true);
+  for (int r = 0; r < rounds; ++r) {
+    const auto t = Clock::now();
+    const auto sent = send();
+    if (!sent.accepted) {
+      out.refused = true;
+      out.last = "refused: " + sent.message;
+      break;
+    }
+    const auto outcome = c.waitForJobOutcome(sent.job, std::chrono::seconds(300));
+    out.jobs_ms.push_back(sinceMs(t));
+    out.last = outcome.status + ": " + outcome.message;
+    if (outcome.status != "done") break;
+  }
+  pinger.record(false);
+  out.during_ms = pinger.take();
+  return out;
 }
 
 }  // namespace ignav::bench

@@ -85,6 +85,22 @@ void drawRegion(cv::Mat& img, const Slice& slice, const RegionOverlay& region) {
   }
   if (!region.contains) return;
   const cv::Rect asked = askedPixels(img, slice, region);
+  if (region.outline) {
+    if (asked.empty()) return;
+    cv::Mat inside = cv::Mat::zeros(asked.height + 2, asked.width + 2, CV_8U);  // a ring outside
+    for (int v = 0; v < asked.height; ++v)
+      for (int u = 0; u < asked.width; ++u)
+        inside.at<uchar>(v + 1, u + 1) =
+            region.contains(slice.pixelToLps(u + asked.x, v + asked.y)) ? 1 : 0;
+    for (int v = 1; v <= asked.height; ++v)
+      for (int u = 1; u <= asked.width; ++u) {
+        if (inside.at<uchar>(v, u) && !(inside.at<uchar>(v - 1, u) && inside.at<uchar>(v + 1, u) &&
+                                        inside.at<uchar>(v, u - 1) && inside.at<uchar>(v, u + 1))) {
+          blend(img, u - 1 + asked.x, v - 1 + asked.y, region.colour, alpha);
+        }
+      }
+    return;
+  }
   for (int v = asked.y; v < asked.y + asked.height; ++v) {
     for (int u = asked.x; u < asked.x + asked.width; ++u) {
       if (!mask.empty() && mask.at<uchar>(v, u) != 0) continue;  // tinted once

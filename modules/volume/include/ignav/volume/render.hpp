@@ -45,6 +45,9 @@ struct RegionOverlay {
   std::vector<Eigen::Vector3d> polygon_lps_mm;
   Rgb colour{0, 255, 0};
   double opacity = 0.3;
+  // contains() drawn as its outline only (the pixels inside with a neighbour outside), as
+  // segmentations are shown over a CT.
+  bool outline = false;
 };
 
 struct Overlays {
