@@ -279,7 +279,7 @@ void StatePublisher::publishTarget(const Session& s, std::uint32_t id) {
     for (const auto& c : t.clearances) {
       m.clearances.push_back({c.structure, c.distance_mm, c.margin_mm, c.uncertainty_mm, c.part,
                               toPoint3(c.needle_lps_mm), toPoint3(c.structure_lps_mm),
-                              c.reachedBeyond, c.tooClose()});
+                              c.beyond_reach, c.tooClose()});
     }
     m.clearance_refusal = t.clearance_refusal;
     m.clearance_override = t.clearance_override;

@@ -75,7 +75,7 @@ void checkClearance(const Session& s, Target& t) {
     c.part = closest.piece == 0 ? "cannula" : "stylet";
     c.needle_lps_mm = closest.needle_lps_mm;
     c.structure_lps_mm = closest.structure_lps_mm;
-    c.reachedBeyond = closest.distance_mm + body[closest.piece].radius_mm >= field.reach_mm();
+    c.beyond_reach = closest.distance_mm + body[closest.piece].radius_mm >= field.reach_mm();
     // The expected registration error there (RMS, 3-D: per direction TRE/√3), the aim's landing
     // spread likewise, 2 SD along the way to the structure; without fiducials (a matrix given),
     // the TRE the robot config accepts at most.

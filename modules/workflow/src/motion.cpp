@@ -69,7 +69,7 @@ std::string clearanceText(const Target& t) {
   std::string out = "; clearance of the whole needle:";
   for (const auto& c : t.clearances) {
     out += fmt::format(" {} {}{:.2f} mm at the {} (margin {:g} mm, uncertainty {:.2f} mm){};",
-                       c.structure, c.reachedBeyond ? "over " : "", c.distance_mm, c.part,
+                       c.structure, c.beyond_reach ? "over " : "", c.distance_mm, c.part,
                        c.margin_mm, c.uncertainty_mm, c.tooClose() ? " TOO CLOSE" : "");
   }
   out.pop_back();

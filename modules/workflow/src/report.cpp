@@ -104,7 +104,7 @@ std::string anatomySection(const Session& s) {
     for (const auto& c : t.clearances) {
       out += fmt::format(
           "| T{} | {} | {}{:.2f} | {} ({:.1f}, {:.1f}, {:.1f}) | {:g} | {:.2f} | {} |\n", t.id,
-          c.structure, c.reachedBeyond ? "> " : "", c.distance_mm, c.part, c.needle_lps_mm.x(),
+          c.structure, c.beyond_reach ? "> " : "", c.distance_mm, c.part, c.needle_lps_mm.x(),
           c.needle_lps_mm.y(), c.needle_lps_mm.z(), c.margin_mm, c.uncertainty_mm,
           !c.tooClose()                  ? "clear"
           : t.clearance_override.empty() ? "**too close**"

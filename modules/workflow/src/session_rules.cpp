@@ -129,7 +129,6 @@ void evaluate(const Session& s, Target& t) {
   if (!outside) checkPath(s, t);
   if (!t.path_warning.empty()) t.message += "; warning: " + t.path_warning;
   if (!t.compensation_refusal.empty()) t.message += "; refused: " + t.compensation_refusal;
-
   if (t.compensated) {
     const auto& c = *t.compensated;
     t.message += fmt::format(

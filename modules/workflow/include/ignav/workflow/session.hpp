@@ -101,7 +101,7 @@ struct StructureClearance {
   std::string part;                                            // "cannula" | "stylet"
   Eigen::Vector3d needle_lps_mm = Eigen::Vector3d::Zero();     // on the centreline
   Eigen::Vector3d structure_lps_mm = Eigen::Vector3d::Zero();  // the nearest surface point
-  bool reachedBeyond = false;  // farther than the field reaches: distance_mm is a lower bound
+  bool beyond_reach = false;  // farther than the field reaches: distance_mm is a lower bound
   bool tooClose() const { return distance_mm - uncertainty_mm < margin_mm; }
 };
 
