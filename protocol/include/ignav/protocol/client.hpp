@@ -43,7 +43,7 @@ struct SliceArgs {
   double window = 0.0;
   double level = 0.0;
   bool overlays = true;
-  bool region_only = false;  // with overlays: only the feasible region
+  bool region_only = false;  // with overlays: only the feasible region and the structures
 };
 
 struct SliceResult {

@@ -116,7 +116,7 @@ struct SliceRequest {
   double window = 0.0;        // <= 0: the CT preset
   double level = 0.0;
   bool overlays = false;     // fiducials, targets and the feasible region
-  bool region_only = false;  // with overlays: the feasible region only
+  bool region_only = false;  // with overlays: the feasible region and the structures only
 };
 template <>
 struct Fields<SliceRequest> {
