@@ -208,7 +208,7 @@ void Reports::run(const Job& job) {
   }
 }
 
-void Reports::writeExports(const Session& session) const {
+void Reports::writeExports(const Session& session) {
   if (session.registration) {
     const auto& reg = *session.registration;
     (void)registration::writeItkTransform(reg, (session_dir_ / "image_to_robot.tfm").string());
@@ -227,6 +227,26 @@ void Reports::writeExports(const Session& session) const {
   }
   (void)registration::writeMarkupsJson("ignav targets", targets,
                                        (session_dir_ / "targets.mrk.json").string());
+  // The structures as the plan used them, roles included (Slicer keeps them as segment tags).
+  const auto& st = session.structures;
+  const bool same_roles = st.roles.size() == exported_roles_.size() &&
+                          std::equal(st.roles.begin(), st.roles.end(), exported_roles_.begin(),
+                                     [](const auto& a, const auto& b) {
+                                       return a.role == b.role && a.margin_mm == b.margin_mm;
+                                     });
+  if (st.loaded.set && session.ct.volume &&
+      (st.loaded.set != exported_structures_ || !same_roles)) {
+    anatomy::StructureSet used = *st.loaded.set;
+    for (std::size_t n = 0; n < used.structures.size() && n < st.roles.size(); ++n) {
+      used.structures[n].role = st.roles[n].role;
+      used.structures[n].margin_mm = st.roles[n].margin_mm;
+    }
+    const auto written = anatomy::writeSegNrrd(used, session.ct.volume->geometry,
+                                               (session_dir_ / "structures.seg.nrrd").string());
+    if (!written.ok()) spdlog::warn("reports: {}", written.error().message);
+    exported_structures_ = st.loaded.set;
+    exported_roles_ = st.roles;
+  }
 }
 
 void Reports::writeVerification(const Session& session) const {

@@ -61,7 +61,7 @@ class Reports {
   void submit(Job job);
   void loop();
   void run(const Job& job);
-  void writeExports(const workflow::Session& session) const;
+  void writeExports(const workflow::Session& session);
   void writeReport(const workflow::Session& session) const;
   void writeSlices(const workflow::Session& session, bool all_targets, std::uint32_t reached_id);
   void writeVerification(const workflow::Session& session) const;
@@ -74,6 +74,10 @@ class Reports {
   std::uint64_t done_ = 0, replaced_ = 0;  // for the log at shutdown
   // The reports thread's own: the slice files per target id, listed by the report.
   std::map<std::uint32_t, std::vector<std::string>> images_;
+  // What structures.seg.nrrd holds (the set and the roles the plan gave it), so that it is written
+  // again only when they change.
+  std::shared_ptr<const anatomy::StructureSet> exported_structures_;
+  std::vector<workflow::StructureRoleChoice> exported_roles_;
   std::thread thread_;  // last: it starts once everything above is built
 };
 

@@ -8,6 +8,8 @@
 #include <fmt/format.h>
 
 #include <filesystem>
+#include <optional>
+#include <thread>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -108,6 +110,23 @@ TEST(AnatomyE2E, ATargetWhoseNeedleCrossesTheUrethraIsRefusedUntilOverriddenWith
       anatomy::readSegNrrd((server.sessionDir() / "phantom_anatomy.seg.nrrd").string());
   ASSERT_TRUE(written.ok()) << written.error().message;
   EXPECT_EQ(written->structures.size(), 4u);
+  // A role given by command (ignavctl's words joined into NAME ROLE MM), and the structures as the
+  // plan uses them exported for Slicer with it (the reports thread writes them after the step).
+  ASSERT_TRUE(op->send("unlock_plan").accepted);
+  const auto role = ctl("structures role rectum avoid 6");
+  ASSERT_EQ(role.exit_code, 0) << role.output;
+  std::optional<anatomy::StructureSet> used;
+  for (int i = 0; i < 200; ++i) {
+    auto read = anatomy::readSegNrrd((server.sessionDir() / "structures.seg.nrrd").string());
+    if (read.ok() && read->find("rectum")->margin_mm == 6.0) {
+      used = std::move(read).value();
+      break;
+    }
+    std::this_thread::sleep_for(50ms);
+  }
+  ASSERT_TRUE(used.has_value());
+  EXPECT_EQ(used->find("urethra")->role, anatomy::Role::kAvoid);
+  EXPECT_EQ(used->find("prostate")->role, anatomy::Role::kTarget);
   op.reset();
   const auto dir = server.sessionDir();
   server.stop();

@@ -4,7 +4,6 @@
 #include <ctime>
 
 #include "ignav/verification/targeting_report.hpp"
-#include "ignav/workflow/background_jobs.hpp"
 #include "ignav/workflow/reducer.hpp"
 
 namespace ignav::workflow {
@@ -95,8 +94,9 @@ std::string anatomySection(const Session& s) {
   std::string out = fmt::format("\n## Structures ({})\n\n- {} {}: {}\n", st.source, st.status,
                                 s.site ? "(site: " + s.site->name + ")" : "", st.message);
   if (!st.loaded.set) return out;
-  out += "- for 3D Slicer: the segmentation file loaded";
-  out += st.source == kPhantomSource ? " (`phantom_anatomy.seg.nrrd` in this folder)\n" : "\n";
+  out +=
+      "- for 3D Slicer: `structures.seg.nrrd` in this folder, the structures as the plan used "
+      "them (their roles and margins as segment tags)\n";
   out +=
       "\n| target | structure | clearance (mm) | at | margin (mm) | uncertainty (mm) | verdict "
       "|\n|---|---|---|---|---|---|---|\n";
