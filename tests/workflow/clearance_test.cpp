@@ -6,9 +6,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 
 #include <fmt/format.h>
 
+#include "ignav/anatomy/structures.hpp"
+#include "ignav/registration/robot_phantom.hpp"
 #include "ignav/workflow/background_jobs.hpp"
 #include "ignav/workflow/reducer.hpp"
 #include "workflow/bench.hpp"
@@ -151,6 +154,26 @@ TEST(Structures, AStructureLoadThatFailsLeavesTheSessionAsItWas) {
   EXPECT_EQ(b.s.structures.loaded.set, before);
   EXPECT_NE(b.s.structures.message.find("was refused"), std::string::npos)
       << b.s.structures.message;
+  // A segmentation of another CT (the same anatomy on a grid of other voxels): refused by name,
+  // the phantom's structures stay.
+  volume::Geometry other = b.s.ct.volume->geometry;
+  other.spacing_mm *= 1.25;
+  const auto rp = registration::makeRobotPhantom(paperRobot()->kinematics,
+                                                 paperRobot()->config.registration.scan);
+  const auto drawn = anatomy::voxelise(other, rp->image_to_robot_true,
+                                       phantomAnatomy(paperRobot()->kinematics), "other");
+  ASSERT_TRUE(drawn.ok()) << drawn.error().message;
+  const std::string file = (std::filesystem::temp_directory_path() /
+                            ("ignav_other_ct_" + std::to_string(::getpid()) + ".seg.nrrd"))
+                               .string();
+  ASSERT_TRUE(anatomy::writeSegNrrd(*drawn, other, file).ok());
+  const std::uint64_t revision = b.s.revision;
+  ASSERT_TRUE(loadStructures(b, file).accepted);
+  std::filesystem::remove(file);
+  EXPECT_EQ(b.s.structures.loaded.set, before);
+  EXPECT_NE(b.s.structures.message.find("was not made on this CT"), std::string::npos)
+      << b.s.structures.message;
+  EXPECT_EQ(b.s.revision, revision + 2);  // the command and its outcome, nothing else
   // A new CT drops the structures drawn on the old one.
   ASSERT_TRUE(b.send(withText(b, InputKind::kLoadVolume, kPhantomSource)).accepted);
   EXPECT_EQ(b.s.structures.status, "none");
