@@ -85,27 +85,15 @@ volume::Overlays overlaysFor(const Session& session) {
   if (const auto set = session.structures.loaded.set) {
     for (std::size_t n = 0; n < set->structures.size(); ++n) {
       const auto& mask = set->structures[n].mask;
-      const auto& g = mask.geometry;
-      std::vector<Eigen::Vector3d> bounds;
-      for (int c = 0; c < 8; ++c) {
-        bounds.push_back(g.toLps(Eigen::Vector3d((c & 1) ? g.dims[0] - 0.5 : -0.5,
-                                                 (c & 2) ? g.dims[1] - 0.5 : -0.5,
-                                                 (c & 4) ? g.dims[2] - 0.5 : -0.5)));
-      }
-      const Eigen::Matrix4d to_ijk = g.lpsToIjk();
+      const auto cubes = mask.corners(0.5);
+      const Eigen::Matrix4d to_ijk = mask.geometry.lpsToIjk();
       const auto& rgb = set->structures[n].colour_rgb;
       auto channel = [](double c) { return static_cast<std::uint8_t>(std::lround(255.0 * c)); };
       o.regions.push_back({[set, n, to_ijk](const Eigen::Vector3d& lps) {
-                             const auto& m = set->structures[n].mask;
-                             const Eigen::Vector3d ijk = (to_ijk * lps.homogeneous()).head<3>();
-                             const int i = static_cast<int>(std::lround(ijk.x())),
-                                       j = static_cast<int>(std::lround(ijk.y())),
-                                       k = static_cast<int>(std::lround(ijk.z()));
-                             const auto& d = m.geometry.dims;
-                             return i >= 0 && j >= 0 && k >= 0 && i < d[0] && j < d[1] &&
-                                    k < d[2] && m.inside[m.index(i, j, k)] != 0;
+                             return set->structures[n].mask.insideNearest(
+                                 (to_ijk * lps.homogeneous()).head<3>());
                            },
-                           std::move(bounds),
+                           {cubes.begin(), cubes.end()},
                            {},
                            {channel(rgb[0]), channel(rgb[1]), channel(rgb[2])},
                            1.0,

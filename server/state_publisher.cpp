@@ -80,12 +80,9 @@ void StatePublisher::publishStructures(const Session& s) {
     const auto& set = st.loaded.set->structures;
     for (std::size_t n = 0; n < set.size(); ++n) {
       const auto& structure = set[n];
-      const auto& g = structure.mask.geometry;
-      // The box of the voxels' centres, as LPS corners.
+      // The box of the voxels' centres, in LPS.
       Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
-      for (int c = 0; c < 8; ++c) {
-        const Eigen::Vector3d corner = g.toLps(Eigen::Vector3d(
-            (c & 1) ? g.dims[0] - 1 : 0, (c & 2) ? g.dims[1] - 1 : 0, (c & 4) ? g.dims[2] - 1 : 0));
+      for (const auto& corner : structure.mask.corners()) {
         lo = lo.cwiseMin(corner);
         hi = hi.cwiseMax(corner);
       }

@@ -28,10 +28,6 @@ CommandRun ctl(const std::string& args) {
   return ignavctlOn(kDomain, args);
 }
 
-const json& targetState(const json& s, std::uint32_t id) {
-  return s["targets"][std::to_string(id)];
-}
-
 TEST(AnatomyE2E, ATargetWhoseNeedleCrossesTheUrethraIsRefusedUntilOverriddenWithAReason) {
   ServerProcess server(kDomain);
   auto op = server.client("operator");

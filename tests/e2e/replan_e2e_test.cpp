@@ -38,10 +38,6 @@ json scanOf(const std::filesystem::path& session, const std::filesystem::path& o
   return json::parse(text.substr(text.find('{')));
 }
 
-const json& targetState(const json& s, std::uint32_t id) {
-  return s["targets"][std::to_string(id)];
-}
-
 json truthOf(const json& truth, std::uint32_t id) {
   for (const auto& t : truth["targets"])
     if (t["id"].get<std::uint32_t>() == id) return t;

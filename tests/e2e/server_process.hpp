@@ -72,6 +72,11 @@ inline Eigen::Matrix4d imageToRobot(const nlohmann::json& state) {
   return protocol::matrixFromState(state["registration"]["image_to_robot"]);
 }
 
+// A target's state as a client sees it (its JSON view), by id.
+inline const nlohmann::json& targetState(const nlohmann::json& state, std::uint32_t id) {
+  return state["targets"][std::to_string(id)];
+}
+
 // Where a robot-frame point lies in the image: the click a user would make for it.
 inline Eigen::Vector3d lpsOf(const nlohmann::json& state, const Eigen::Vector3d& robot_mm) {
   return (imageToRobot(state).inverse() * robot_mm.homogeneous()).head<3>();

@@ -12,7 +12,7 @@ namespace {
 
 using ignav::anatomy::DistanceField;
 
-constexpr double kReach_mm = 20.0;  // the server's (kStructureReach_mm)
+constexpr double kReach_mm = 15.0;  // the server's (workflow::kStructureReach_mm)
 
 const ignav::anatomy::StructureSet& structures() {
   static const auto set =

@@ -18,7 +18,6 @@
 
 namespace {
 
-using ignav::bench::print;
 using nlohmann::json;
 using namespace std::chrono_literals;
 
@@ -75,14 +74,10 @@ int main(int argc, char** argv) {
   const auto run = ignav::bench::timeJobsWhilePinging(c, domain, xml, rounds, [&] {
     return c.send("scan_needle", {scan, {}, {}, image_to_robot});
   });
-  if (run.refused) {
-    std::fprintf(stderr, "scan_needle %s\n", run.last.c_str());
+  if (!ignav::bench::printJobsWhilePinging(run, "scan_needle", "intermittent CT search and re-aim",
+                                           "the CT is searched")) {
     return 10;
   }
-  std::printf("intermittent CT search and re-aim: %s\n", run.last.c_str());
-  print("scan_needle -> its outcome", run.jobs_ms);
-  print("ping -> reply, idle", run.idle_ms);
-  print("ping -> reply, while the CT is searched", run.during_ms);
   std::system(("rm -rf " + scan + " " + scan + "_truth.json").c_str());
   return 0;
 }

@@ -15,7 +15,6 @@
 namespace {
 
 using ignav::bench::Clock;
-using ignav::bench::print;
 using ignav::bench::sinceMs;
 using nlohmann::json;
 using namespace std::chrono_literals;
@@ -62,13 +61,8 @@ int main(int argc, char** argv) {
   const auto run = ignav::bench::timeJobsWhilePinging(c, domain, xml, rounds, [&] {
     return c.send("load_structures", {seg_path, {}, {}});
   });
-  if (run.refused) {
-    std::fprintf(stderr, "load_structures %s\n", run.last.c_str());
-    return 7;
-  }
-  std::printf("structure load: %s\n", run.last.c_str());
-  print("load_structures -> its outcome", run.jobs_ms);
-  print("ping -> reply, idle", run.idle_ms);
-  print("ping -> reply, while structures load", run.during_ms);
-  return 0;
+  return ignav::bench::printJobsWhilePinging(run, "load_structures", "structure load",
+                                             "structures load")
+             ? 0
+             : 7;
 }

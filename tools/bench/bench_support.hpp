@@ -129,4 +129,19 @@ inline JobsWhilePinging timeJobsWhilePinging(protocol::Client& c, std::uint32_t 
   return out;
 }
 
+// What timeJobsWhilePinging measured, for a person: `command`'s durations and the pings idle and
+// `while` it ran; false (said on stderr) when the command was refused.
+inline bool printJobsWhilePinging(const JobsWhilePinging& run, const std::string& command,
+                                  const std::string& what, const std::string& during) {
+  if (run.refused) {
+    std::fprintf(stderr, "%s %s\n", command.c_str(), run.last.c_str());
+    return false;
+  }
+  std::printf("%s: %s\n", what.c_str(), run.last.c_str());
+  print((command + " -> its outcome").c_str(), run.jobs_ms);
+  print("ping -> reply, idle", run.idle_ms);
+  print(("ping -> reply, while " + during).c_str(), run.during_ms);
+  return true;
+}
+
 }  // namespace ignav::bench

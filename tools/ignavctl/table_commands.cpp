@@ -35,22 +35,30 @@ void onAlias(CLI::App* sub, Action& chosen, const std::string& group, const std:
   });
 }
 
-// Accepted when the load starts; waits for the CT load's outcome, then shows what was loaded (or
-// why not).
-int loadCt(Server& s, const AliasCall& call, double wait_s) {
+// A load that runs as a background job (`phantom` names the built-in phantom): accepted when it
+// starts, its outcome awaited.
+std::optional<protocol::JobOutcome> sendLoad(Server& s, const AliasCall& call, double wait_s,
+                                             protocol::Reply& r) {
   protocol::CommandArgs args = call.args;
   if (args.path == "phantom") args.path = "phantom:";
+  return s.sendAndAwaitJob(call.row.name, args, wait_s, &r);
+}
+
+json loadJson(const protocol::Reply& r, const protocol::JobOutcome& outcome) {
+  return {{"accepted", true},
+          {"message", r.message},
+          {"request_id", r.request_id},
+          {"revision", r.revision},
+          {"outcome", outcome}};
+}
+
+// Waits for the CT load's outcome, then shows what was loaded (or why not).
+int loadCt(Server& s, const AliasCall& call, double wait_s) {
   protocol::Reply r;
-  const auto outcome = s.sendAndAwaitJob(call.row.name, args, wait_s, &r);
+  const auto outcome = sendLoad(s, call, wait_s, r);
   if (!outcome) return kExitRejected;
   if (s.as_json) {
-    std::cout << json{{"accepted", true},
-                      {"message", r.message},
-                      {"request_id", r.request_id},
-                      {"revision", r.revision},
-                      {"outcome", *outcome}}
-                     .dump()
-              << "\n";
+    std::cout << loadJson(r, *outcome).dump() << "\n";
   } else {
     std::cout << "CT " << (outcome->status == "done" ? "loaded" : outcome->status) << ": "
               << outcome->message << "\n";
@@ -82,21 +90,17 @@ int detectFiducials(Server& s, const AliasCall& call, double wait_s) {
   return registered ? 0 : kExitRejected;
 }
 
-// Accepted when the load starts; waits for the structure load's outcome, then lists them.
+// Waits for the structure load's outcome, then lists them (or says why not).
 int loadStructures(Server& s, const AliasCall& call, double wait_s) {
-  protocol::CommandArgs args = call.args;
-  if (args.path == "phantom") args.path = "phantom:";
   protocol::Reply r;
-  const auto outcome = s.sendAndAwaitJob(call.row.name, args, wait_s, &r);
+  const auto outcome = sendLoad(s, call, wait_s, r);
   if (!outcome) return kExitRejected;
   s.client.waitUntil([](const protocol::StateMirror& m) { return m.structures.has_value(); },
                      std::chrono::seconds(5));
   if (s.as_json) {
-    std::cout << json{{"accepted", true},           {"message", r.message},
-                      {"request_id", r.request_id}, {"revision", r.revision},
-                      {"outcome", *outcome},        {"structures", *s.client.mirror().structures}}
-                     .dump()
-              << "\n";
+    json out = loadJson(r, *outcome);
+    out["structures"] = *s.client.mirror().structures;
+    std::cout << out.dump() << "\n";
   } else if (outcome->status == "done") {
     printStructures(s.client.mirror());
   } else {

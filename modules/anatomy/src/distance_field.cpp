@@ -83,11 +83,7 @@ std::vector<std::int32_t> nearestOf(const std::array<int, 3>& dims, const Eigen:
   for (int k = 0; k < n[2]; ++k)
     for (int j = 0; j < n[1]; ++j) {
       const std::size_t row = nx * (static_cast<std::size_t>(j) + ny * k);
-      const std::size_t grid_row =
-          static_cast<std::size_t>(lo[0]) +
-          static_cast<std::size_t>(dims[0]) *
-              (static_cast<std::size_t>(j + lo[1]) +
-               static_cast<std::size_t>(dims[1]) * static_cast<std::size_t>(k + lo[2]));
+      const std::size_t grid_row = gridIndex(dims, lo[0], j + lo[1], k + lo[2]);
       int last = -1;
       for (int i = 0; i < n[0]; ++i) {
         if (inside[grid_row + static_cast<std::size_t>(i)] == of) last = i;
@@ -166,7 +162,7 @@ DistanceField DistanceField::fromMask(const Mask& coarse, double reach_mm) {
   const auto& m = mask.geometry;
   DistanceField out;
   out.grid_ = m;
-  int pad[3];
+  Eigen::Array3i pad;
   double reach = kFar;
   for (int a = 0; a < 3; ++a) {
     const double h = m.spacing_mm[a];
@@ -181,17 +177,13 @@ DistanceField DistanceField::fromMask(const Mask& coarse, double reach_mm) {
   for (int k = 0; k < m.dims[2]; ++k)
     for (int j = 0; j < m.dims[1]; ++j)
       for (int i = 0; i < m.dims[0]; ++i)
-        inside[static_cast<std::size_t>(i + pad[0]) +
-               static_cast<std::size_t>(g.dims[0]) *
-                   (static_cast<std::size_t>(j + pad[1]) +
-                    static_cast<std::size_t>(g.dims[1]) * static_cast<std::size_t>(k + pad[2]))] =
+        inside[gridIndex(g.dims, i + pad[0], j + pad[1], k + pad[2])] =
             mask.inside[mask.index(i, j, k)];
   // Outside voxels: their nearest inside voxel, over the whole box. Inside voxels: their
   // nearest outside one, found within the mask's box and the ring of outside voxels around it
   // (any outside voxel beyond that ring has a ring voxel at least as near).
   const Eigen::Array3i all = Eigen::Array3i(g.dims[0], g.dims[1], g.dims[2]);
-  const Eigen::Array3i pads(pad[0], pad[1], pad[2]);
-  const Eigen::Array3i ring_lo = pads - 1;
+  const Eigen::Array3i ring_lo = pad - 1;
   const Eigen::Array3i ring_n = Eigen::Array3i(m.dims[0], m.dims[1], m.dims[2]) + 2;
   const auto to_inside = nearestOf(g.dims, g.spacing_mm, inside, 1, Eigen::Array3i::Zero(), all);
   const auto to_outside = nearestOf(g.dims, g.spacing_mm, inside, 0, ring_lo, ring_n);
@@ -207,11 +199,7 @@ DistanceField DistanceField::fromMask(const Mask& coarse, double reach_mm) {
         std::int32_t other = 0;
         if (in) {
           const Eigen::Array3i r = Eigen::Array3i(i, j, k) - ring_lo;
-          other =
-              to_outside[static_cast<std::size_t>(r[0]) +
-                         static_cast<std::size_t>(ring_n[0]) *
-                             (static_cast<std::size_t>(r[1]) + static_cast<std::size_t>(ring_n[1]) *
-                                                                   static_cast<std::size_t>(r[2]))];
+          other = to_outside[gridIndex({ring_n[0], ring_n[1], ring_n[2]}, r[0], r[1], r[2])];
         } else {
           other = to_inside[n];
         }

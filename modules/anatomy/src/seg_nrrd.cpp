@@ -169,11 +169,7 @@ Status writeSegNrrd(const StructureSet& set, const volume::Geometry& grid,
       for (int j = 0; j < m.geometry.dims[1]; ++j)
         for (int i = 0; i < m.geometry.dims[0]; ++i)
           if (m.inside[m.index(i, j, k)])
-            at.push_back(
-                static_cast<std::size_t>(i + off.x()) +
-                static_cast<std::size_t>(out[0]) *
-                    (static_cast<std::size_t>(j + off.y()) +
-                     static_cast<std::size_t>(out[1]) * static_cast<std::size_t>(k + off.z())));
+            at.push_back(gridIndex(out, i + off.x(), j + off.y(), k + off.z()));
     std::size_t layer = 0;
     for (; layer < layer_labels.size(); ++layer) {
       const auto& l = layer_labels[layer];

@@ -1,30 +1,17 @@
 // A site's roles for structures by name (site.hpp).
 #include "ignav/anatomy/site.hpp"
 
-#include <algorithm>
-#include <cctype>
 #include <cmath>
 
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
 namespace ignav::anatomy {
-namespace {
-
-bool sameName(const std::string& a, const std::string& b) {
-  return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
-           return std::tolower(static_cast<unsigned char>(x)) ==
-                  std::tolower(static_cast<unsigned char>(y));
-         });
-}
-
-}  // namespace
-
 const SiteRole* Site::roleFor(const std::string& structure_name) const {
   for (const auto& r : roles) {
-    if (sameName(r.name, structure_name)) return &r;
+    if (namesMatch(r.name, structure_name)) return &r;
     for (const auto& alias : r.aliases)
-      if (sameName(alias, structure_name)) return &r;
+      if (namesMatch(alias, structure_name)) return &r;
   }
   return nullptr;
 }

@@ -38,18 +38,36 @@ double Mask::volume_cm3() const {
   return static_cast<double>(count()) * geometry.spacing_mm.prod() / 1000.0;
 }
 
-namespace {
-bool sameName(std::string_view a, std::string_view b) {
+bool Mask::insideNearest(const Eigen::Vector3d& ijk) const {
+  const int i = static_cast<int>(std::lround(ijk.x())), j = static_cast<int>(std::lround(ijk.y())),
+            k = static_cast<int>(std::lround(ijk.z()));
+  const auto& d = geometry.dims;
+  return i >= 0 && j >= 0 && k >= 0 && i < d[0] && j < d[1] && k < d[2] &&
+         inside[index(i, j, k)] != 0;
+}
+
+std::array<Eigen::Vector3d, 8> Mask::corners(double margin_voxels) const {
+  const auto& d = geometry.dims;
+  std::array<Eigen::Vector3d, 8> out;
+  for (int c = 0; c < 8; ++c) {
+    out[static_cast<std::size_t>(c)] =
+        geometry.toLps(Eigen::Vector3d((c & 1) ? d[0] - 1 + margin_voxels : -margin_voxels,
+                                       (c & 2) ? d[1] - 1 + margin_voxels : -margin_voxels,
+                                       (c & 4) ? d[2] - 1 + margin_voxels : -margin_voxels));
+  }
+  return out;
+}
+
+bool namesMatch(std::string_view a, std::string_view b) {
   return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
            return std::tolower(static_cast<unsigned char>(x)) ==
                   std::tolower(static_cast<unsigned char>(y));
          });
 }
-}  // namespace
 
 const Structure* StructureSet::find(std::string_view name) const {
   for (const auto& s : structures)
-    if (sameName(s.name, name)) return &s;
+    if (namesMatch(s.name, name)) return &s;
   return nullptr;
 }
 
@@ -86,11 +104,7 @@ Expected<Mask> cropMask(const volume::Geometry& grid, const std::vector<std::uin
   for (int k = 0; k < m[2]; ++k)
     for (int j = 0; j < m[1]; ++j)
       for (int i = 0; i < m[0]; ++i) {
-        const std::size_t from =
-            static_cast<std::size_t>(i + lo[0]) +
-            static_cast<std::size_t>(d[0]) *
-                (static_cast<std::size_t>(j + lo[1]) +
-                 static_cast<std::size_t>(d[1]) * static_cast<std::size_t>(k + lo[2]));
+        const std::size_t from = gridIndex(d, i + lo[0], j + lo[1], k + lo[2]);
         mask.inside[mask.index(i, j, k)] = inside[from] ? 1 : 0;
       }
   return mask;
@@ -101,7 +115,7 @@ Expected<StructureSet> readStructures(const std::string& path) {
   auto ends = [&](const char* suffix) {
     const std::string s(suffix);
     return name.size() >= s.size() &&
-           sameName(std::string_view(name).substr(name.size() - s.size()), s);
+           namesMatch(std::string_view(name).substr(name.size() - s.size()), s);
   };
   if (ends(".seg.nrrd")) return readSegNrrd(path);
   if (ends(".nrrd") || ends(".nhdr") || ends(".mha") || ends(".mhd")) {

@@ -10,6 +10,9 @@
 
 namespace ignav::workflow {
 
+namespace {
+
+// "prostate (target, 1234 voxels, 5.67 cm³); urethra (avoid 3 mm, ...)".
 std::string describeStructures(const anatomy::StructureSet& set) {
   std::string out;
   for (const auto& s : set.structures) {
@@ -20,8 +23,6 @@ std::string describeStructures(const anatomy::StructureSet& set) {
   }
   return out;
 }
-
-namespace {
 
 // The built-in phantom's anatomy on its CT: drawn where the phantom put the robot.
 Expected<anatomy::StructureSet> phantomStructures(const LoadedCt& ct, const config::Robot& robot,

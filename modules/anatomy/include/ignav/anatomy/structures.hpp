@@ -24,20 +24,32 @@ enum class Role { kTarget, kAvoid, kShown };
 const char* toString(Role role);  // "target" | "avoid" | "shown"
 std::optional<Role> roleNamed(std::string_view name);
 
+// Structure names are told apart ignoring case ("Urethra" is "urethra"), as Slicer's users type
+// them.
+bool namesMatch(std::string_view a, std::string_view b);
+
+// Voxel (i, j, k)'s place in a buffer of `dims` voxels, i fastest.
+inline std::size_t gridIndex(const std::array<int, 3>& dims, int i, int j, int k) {
+  return static_cast<std::size_t>(i) +
+         static_cast<std::size_t>(dims[0]) *
+             (static_cast<std::size_t>(j) +
+              static_cast<std::size_t>(dims[1]) * static_cast<std::size_t>(k));
+}
+
 // A binary mask on a box of voxels: `geometry` is the box (its origin the first voxel's centre),
 // `inside` holds 1 for the structure's voxels, i fastest.
 struct Mask {
   volume::Geometry geometry;
   std::vector<std::uint8_t> inside;
 
-  std::size_t index(int i, int j, int k) const {
-    return static_cast<std::size_t>(i) +
-           static_cast<std::size_t>(geometry.dims[0]) *
-               (static_cast<std::size_t>(j) +
-                static_cast<std::size_t>(geometry.dims[1]) * static_cast<std::size_t>(k));
-  }
+  std::size_t index(int i, int j, int k) const { return gridIndex(geometry.dims, i, j, k); }
   std::size_t count() const;  // voxels inside
   double volume_cm3() const;
+  // Is the voxel nearest this continuous (i, j, k) of the box inside? False beyond the box.
+  bool insideNearest(const Eigen::Vector3d& ijk) const;
+  // The box's corners (LPS): of the voxels' centres, widened by `margin_voxels` along each axis
+  // (0.5: the voxels' cubes).
+  std::array<Eigen::Vector3d, 8> corners(double margin_voxels = 0.0) const;
 };
 
 struct Structure {

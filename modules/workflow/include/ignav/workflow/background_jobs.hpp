@@ -103,7 +103,5 @@ Input loadStructures(std::uint64_t job, const std::string& source, const LoadedC
 // the feasible volume (target), a urethra through it (avoid 3 mm), a rectum behind (5 mm), a
 // pubic arch in front (2 mm).
 std::vector<anatomy::Shape> phantomAnatomy(const kinematics::Kinematics& kinematics);
-// "prostate (target, 1234 voxels, 5.67 cm³); urethra (avoid 3 mm, ...)".
-std::string describeStructures(const anatomy::StructureSet& set);
 
 }  // namespace ignav::workflow
