@@ -215,6 +215,18 @@ void Reports::writeExports(const Session& session) {
   }
   (void)registration::writeMarkupsJson("ignav targets", targets,
                                        (session_dir_ / "targets.mrk.json").string());
+  // Targets proposed to fill a structure and not yet accepted, for Slicer beside the plan's.
+  const auto& proposals = session.proposals;
+  if (proposals.status == "proposed" || fs::exists(session_dir_ / "proposed_targets.mrk.json")) {
+    std::vector<registration::MarkupPoint> proposed;
+    for (const auto& p : proposals.targets)
+      proposed.push_back({"P" + std::to_string(p.id), p.lps_mm,
+                          fmt::format("proposed to fill '{}' at {:g} mm", proposals.structure,
+                                      proposals.spacing_mm),
+                          false});
+    (void)registration::writeMarkupsJson("ignav proposed targets", proposed,
+                                         (session_dir_ / "proposed_targets.mrk.json").string());
+  }
   // The structures as the plan used them, roles included (Slicer keeps them as segment tags).
   const auto& st = session.structures;
   const bool same_roles = st.roles.size() == exported_roles_.size() &&

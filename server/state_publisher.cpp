@@ -96,6 +96,10 @@ void StatePublisher::publishStructures(const Session& s) {
                               {lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z()}});
     }
   }
+  m.proposal_status = s.proposals.status;
+  m.proposal_message = s.proposals.message;
+  for (const auto& p : s.proposals.targets)
+    m.proposed.push_back({p.id, {p.lps_mm.x(), p.lps_mm.y(), p.lps_mm.z()}});
   structures_.write(m);
 }
 

@@ -79,7 +79,8 @@ class Server::Sink final : public workflow::EffectSink {
     const Session& now = s_.session_;
     auto& reports = s_.reports_;
     if (!workflow::isQuestion(in_.kind) &&
-        (e.registration_changed || !e.targets_changed.empty() || !e.targets_removed.empty())) {
+        (e.registration_changed || e.structures_changed || !e.targets_changed.empty() ||
+         !e.targets_removed.empty())) {
       reports.exports(s_.snapshot());
     }
     if (e.plan_slices) reports.slices(s_.snapshot(), true, 0);

@@ -200,5 +200,7 @@ echo "targets .mrk.json, slices with overlays, summary.txt, report.md with the t
 echo "the confirmation CTs: both passes, then a needle left in (verification/targeting.png,"
 echo "seeds.mrk.json; tissues_fitted.yaml))."
 echo "In 3D Slicer: load phantom_ct/ (DICOM), fiducials.mrk.json and image_to_robot.tfm, then put"
-echo "feasible_volume.ply (robot frame) under the transform to see it in the CT. The slice PNGs (with"
+echo "feasible_volume.ply (robot frame) under the transform to see it in the CT. The anatomy:"
+echo "structures.seg.nrrd (Slicer) or phantom_anatomy_rtstruct.dcm (SlicerRT, planning systems);"
+echo "the targets proposed to fill the prostate: proposed_targets.mrk.json. The slice PNGs (with"
 echo "their pixel -> LPS mapping in the matching .json) and IK_STUDY.md open in any viewer."

@@ -32,8 +32,9 @@ packages=(
   clang libclang-rt-14-dev llvm
   # ITK reads our .tfm files back in the tests (an independent reader)
   libinsighttoolkit5-dev
-  # reference DICOM files for tests (pydicom ships real edge cases)
-  python3-pydicom python3-numpy
+  # reference DICOM files for tests (pydicom ships real edge cases); the RT Structure Set
+  # reader's independent references: dicompyler-core's volumes and plastimatch's rasterisation
+  python3-pydicom python3-numpy python3-dicompylercore plastimatch
   # the web viewer's browser test: Debian's chromium, driven headless by playwright-core
   chromium fonts-dejavu-core
 )

@@ -78,7 +78,7 @@ TEST_F(Structures, ASegNrrdWithOverlappingSegmentsIsReadBackVoxelForVoxel) {
   const auto layers = volume::readNrrdLayers(path("a.seg.nrrd"));
   ASSERT_TRUE(layers.ok());
   EXPECT_EQ(layers->components, 2);
-  const auto back = readStructures(path("a.seg.nrrd"));
+  const auto back = readStructures(path("a.seg.nrrd"), {});
   ASSERT_TRUE(back.ok()) << back.error().message;
   ASSERT_EQ(back->structures.size(), 3u);
   for (std::size_t n = 0; n < 3; ++n) {
@@ -147,7 +147,7 @@ TEST_F(Structures, ALabelMapIsNamedByItsColourTable) {
   ASSERT_TRUE(volume::writeNrrd(labels, path("labels.nrrd")).ok());
   std::ofstream(path("labels.ctbl")) << "# Slicer colour table\n0 Background 0 0 0 0\n"
                                      << "3 Rectum 200 100 50 255\n7 Urethra 255 255 0 255\n";
-  const auto read = readStructures(path("labels.nrrd"));
+  const auto read = readStructures(path("labels.nrrd"), {});
   ASSERT_TRUE(read.ok()) << read.error().message;
   ASSERT_EQ(read->structures.size(), 2u);
   EXPECT_EQ(read->structures[0].name, "Rectum");
@@ -222,10 +222,10 @@ TEST_F(Structures, BadSegmentationsAreRefusedByName) {
   labels.voxels.assign(ct_.voxelCount(), 0);
   labels.voxels[5] = 4;
   ASSERT_TRUE(volume::writeNrrd(labels, path("l.nrrd")).ok());
-  expectRefused(readStructures(path("l.nrrd")), "names_missing", "needs a colour table");
+  expectRefused(readStructures(path("l.nrrd"), {}), "names_missing", "needs a colour table");
   std::ofstream(path("l.ctbl")) << "1 prostate 1 2 3 255\n";
-  expectRefused(readStructures(path("l.nrrd")), "names_missing", "label 4 is not named");
-  EXPECT_EQ(readStructures(path("x.vtk")).error().reason, "unsupported");
+  expectRefused(readStructures(path("l.nrrd"), {}), "names_missing", "label 4 is not named");
+  EXPECT_EQ(readStructures(path("x.vtk"), {}).error().reason, "unsupported");
 }
 
 TEST_F(Structures, ASegmentationOfAnotherCtIsRefusedSayingHowItDiffers) {

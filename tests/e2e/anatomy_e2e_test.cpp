@@ -8,6 +8,8 @@
 #include <fmt/format.h>
 
 #include <filesystem>
+#include <fstream>
+#include <map>
 #include <optional>
 #include <thread>
 
@@ -106,9 +108,26 @@ TEST(AnatomyE2E, ATargetWhoseNeedleCrossesTheUrethraIsRefusedUntilOverriddenWith
       anatomy::readSegNrrd((server.sessionDir() / "phantom_anatomy.seg.nrrd").string());
   ASSERT_TRUE(written.ok()) << written.error().message;
   EXPECT_EQ(written->structures.size(), 4u);
+  // And as an RT Structure Set in the phantom series' frame of reference: loaded over DDS, the
+  // same structures, voxel for voxel as many, with their roles (PTV, AVOIDANCE, ORGAN; the site's
+  // margins).
+  ASSERT_TRUE(op->send("unlock_plan").accepted);
+  auto voxels = [](const json& s) {
+    std::map<std::string, std::pair<std::uint64_t, std::string>> out;
+    for (const auto& one : s["structures"]["structures"])
+      out[one["name"]] = {one["voxels"].get<std::uint64_t>(), one["role"].get<std::string>()};
+    return out;
+  };
+  const auto from_phantom = voxels(op->state());
+  const std::string rtstruct = (server.sessionDir() / "phantom_anatomy_rtstruct.dcm").string();
+  const auto dicom = ctl("structures load " + rtstruct);
+  ASSERT_EQ(dicom.exit_code, 0) << dicom.output;
+  op->waitFor([&](const json& s) { return stateText(s, "structures", "source") == rtstruct; }, 10s);
+  EXPECT_EQ(voxels(op->state()), from_phantom);
+  EXPECT_EQ(stateText(op->state(), "structures", "message").find("not checked"), std::string::npos)
+      << "the phantom's series carries a frame of reference";
   // A role given by command (ignavctl's words joined into NAME ROLE MM), and the structures as the
   // plan uses them exported for Slicer with it (the reports thread writes them after the step).
-  ASSERT_TRUE(op->send("unlock_plan").accepted);
   const auto role = ctl("structures role rectum avoid 6");
   ASSERT_EQ(role.exit_code, 0) << role.output;
   std::optional<anatomy::StructureSet> used;
@@ -123,6 +142,60 @@ TEST(AnatomyE2E, ATargetWhoseNeedleCrossesTheUrethraIsRefusedUntilOverriddenWith
   ASSERT_TRUE(used.has_value());
   EXPECT_EQ(used->find("urethra")->role, anatomy::Role::kAvoid);
   EXPECT_EQ(used->find("prostate")->role, anatomy::Role::kTarget);
+  op.reset();
+  const auto dir = server.sessionDir();
+  server.stop();
+  const auto [status, text] = replayVerified(dir);
+  EXPECT_EQ(status, 0) << text;
+}
+
+// Targets that fill the phantom's prostate, proposed and accepted through ignavctl over DDS:
+// the proposal lists them and is exported for Slicer; accepted (two by id, then the rest) they
+// are planned targets that lock as one insertion; the session replays.
+TEST(AnatomyE2E, TargetsProposedToFillTheProstateAreAcceptedAndLockAsOneInsertion) {
+  constexpr std::uint32_t kProposalDomain = 191;
+  ServerProcess server(kProposalDomain);
+  auto op = server.client("operator");
+  op->waitFor([](const json& s) { return s.contains("robot"); }, 10s);
+  auto run = [](const std::string& args) { return ignavctlOn(kProposalDomain, args); };
+  registeredPhantom(*op);
+  ASSERT_EQ(run("structures load phantom").exit_code, 0);
+  const auto refused = run("targets propose prostate 0.2");
+  EXPECT_NE(refused.exit_code, 0);
+  EXPECT_NE(refused.output.find("bad_spacing"), std::string::npos) << refused.output;
+  const auto proposed = run("targets propose prostate 8");
+  ASSERT_EQ(proposed.exit_code, 0) << proposed.output;
+  EXPECT_NE(proposed.output.find("targets proposed:"), std::string::npos) << proposed.output;
+  EXPECT_NE(proposed.output.find("P1 "), std::string::npos) << proposed.output;
+  op->waitFor(
+      [](const json& s) { return stateText(s, "structures", "proposal_status") == "proposed"; },
+      10s);
+  const std::size_t count = op->state()["structures"]["proposed"].size();
+  ASSERT_GT(count, 10u);
+  // For Slicer: one control point per proposal, where the state says.
+  const auto markups = server.sessionDir() / "proposed_targets.mrk.json";
+  for (int i = 0; i < 100 && !std::filesystem::exists(markups); ++i)
+    std::this_thread::sleep_for(50ms);
+  std::ifstream in(markups);
+  const json slicer = json::parse(in);
+  ASSERT_EQ(slicer["markups"][0]["controlPoints"].size(), count);
+  const json first = op->state()["structures"]["proposed"][0];
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_NEAR(slicer["markups"][0]["controlPoints"][0]["position"][a].get<double>(),
+                first["lps"][a].get<double>(), 1e-3);
+  }
+
+  ASSERT_EQ(run("targets accept 2 1").exit_code, 0);
+  op->waitFor([](const json& s) { return s.contains("targets") && s["targets"].size() == 2u; },
+              10s);
+  const auto again = run("targets accept 1");
+  EXPECT_NE(again.output.find("unknown_proposal"), std::string::npos) << again.output;
+  ASSERT_EQ(run("targets accept").exit_code, 0);
+  op->waitFor([&](const json& s) { return s.contains("targets") && s["targets"].size() == count; },
+              10s);
+  for (const auto& [id, t] : op->state()["targets"].items())
+    EXPECT_EQ(t["status"], "planned") << id << ": " << t.dump();
+  lockAndWaitForApproval(*op);
   op.reset();
   const auto dir = server.sessionDir();
   server.stop();

@@ -113,11 +113,13 @@ TEST(FaultE2E, AJournalThatCannotBeWrittenRefusesEveryChangeAndLosesNothing) {
   EXPECT_EQ(server.stop(), 0);
   server.start();
   auto again = server.client("operator");
-  // Each state topic arrives on its own (the workflow may come before the targets and health),
+  // Each state topic arrives on its own (the workflow may come before the targets, health and
+  // the registration the next click is mapped through),
   // and the restart's own record once the controller has been read (after the robot-id check).
   again->waitFor(
       [&](const json& s) {
-        return s.contains("health") && s.contains("targets") && s["targets"].size() == 1 &&
+        return s.contains("health") && s.contains("registration") && s.contains("targets") &&
+               s["targets"].size() == 1 &&
                stateCount(s, "workflow", "revision").value_or(0) >= revision + 1;
       },
       10s);

@@ -69,7 +69,7 @@ inline Eigen::Vector3d vec(const nlohmann::json& p) {
 }
 
 inline Eigen::Matrix4d imageToRobot(const nlohmann::json& state) {
-  return protocol::matrixFromState(state["registration"]["image_to_robot"]);
+  return protocol::matrixFromState(state.at("registration").at("image_to_robot"));
 }
 
 // A target's state as a client sees it (its JSON view), by id.
@@ -198,8 +198,8 @@ class QueryWatcher {
   std::thread thread_;
 };
 
-// Loads the phantom, registers on its markers, adds a target given in the robot frame; its id.
-inline std::uint32_t plannedTarget(protocol::Client& c, const Eigen::Vector3d& robot_mm) {
+// Loads the phantom and registers on its markers.
+inline void registeredPhantom(protocol::Client& c) {
   using namespace std::chrono_literals;
   EXPECT_TRUE(c.send("load_volume", {"phantom:", {}, {}}).accepted);
   c.waitFor([](const nlohmann::json& s) { return stateText(s, "volume", "status") == "loaded"; },
@@ -210,6 +210,12 @@ inline std::uint32_t plannedTarget(protocol::Client& c, const Eigen::Vector3d& r
         return stateText(s, "registration", "status") == "registered";
       },
       10s);
+}
+
+// registeredPhantom, then a target given in the robot frame; its id.
+inline std::uint32_t plannedTarget(protocol::Client& c, const Eigen::Vector3d& robot_mm) {
+  using namespace std::chrono_literals;
+  registeredPhantom(c);
   const auto added = c.send("add_target", {"", {lpsOf(c.state(), robot_mm)}, {}});
   EXPECT_TRUE(added.accepted) << added.message;
   // Its state travels apart from the reply: callers read it next (under load it came later).

@@ -7,9 +7,11 @@
 
 #include <cmath>
 #include <filesystem>
+#include <set>
 
 #include <fmt/format.h>
 
+#include "ignav/anatomy/dicom_structures.hpp"
 #include "ignav/anatomy/structures.hpp"
 #include "ignav/registration/robot_phantom.hpp"
 #include "ignav/workflow/background_jobs.hpp"
@@ -29,14 +31,19 @@ Input withText(Bench& b, InputKind kind, const std::string& text,
   return in;
 }
 
-// load_structures, then its job run here as the server's job thread would, its outcome fed back.
-Reply loadStructures(Bench& b, const std::string& source) {
-  const Reply started = b.send(withText(b, InputKind::kLoadStructures, source));
+// A command that starts a job, then that job run here as the server's job thread would, its
+// outcome fed back.
+Reply sendAndRunJob(Bench& b, InputKind command, const std::string& text, JobKind kind) {
+  const Reply started = b.send(withText(b, command, text));
   if (!started.accepted) return started;
   for (const auto& job : pendingJobs(b.s)) {
-    if (job.kind == JobKind::kStructureLoad) b.feed(job.run({}));
+    if (job.kind == kind) b.feed(job.run({}));
   }
   return started;
+}
+
+Reply loadStructures(Bench& b, const std::string& source) {
+  return sendAndRunJob(b, InputKind::kLoadStructures, source, JobKind::kStructureLoad);
 }
 
 // The urethra of the phantom (phantom_anatomy.cpp): a 3 mm cylinder parallel to the robot's
@@ -178,6 +185,183 @@ TEST(Structures, AStructureLoadThatFailsLeavesTheSessionAsItWas) {
   ASSERT_TRUE(b.send(withText(b, InputKind::kLoadVolume, kPhantomSource)).accepted);
   EXPECT_EQ(b.s.structures.status, "none");
   EXPECT_FALSE(b.s.structures.loaded.set);
+}
+
+// The phantom's anatomy exported as an RT Structure Set (as the server writes it beside the
+// phantom) and loaded through the job: the same voxels. A structure set with a contour that
+// crosses itself (written by pydicom) is refused by name, the structures before kept.
+TEST(Structures, AnRtStructureSetDrawsTheSameVoxelsAndACrossedContourIsRefused) {
+  Bench b;
+  ASSERT_TRUE(loadStructures(b, kPhantomSource).accepted);
+  const auto phantom = b.s.structures.loaded.set;
+  ASSERT_TRUE(phantom);
+  const std::string dir =
+      (std::filesystem::temp_directory_path() / ("ignav_rtstruct_" + std::to_string(::getpid())))
+          .string();
+  std::filesystem::create_directories(dir);
+  const anatomy::CtFrame ct{b.s.ct.volume->geometry, b.s.ct.volume->frame_of_reference_uid,
+                            "bench CT"};
+  ASSERT_TRUE(anatomy::writeRtStructureSet(*phantom, ct, {}, dir + "/anatomy.dcm").ok());
+  ASSERT_TRUE(loadStructures(b, dir + "/anatomy.dcm").accepted);
+  ASSERT_EQ(b.s.structures.status, "loaded") << b.s.structures.message;
+  const auto& read = *b.s.structures.loaded.set;
+  ASSERT_EQ(read.structures.size(), phantom->structures.size());
+  for (std::size_t n = 0; n < read.structures.size(); ++n) {
+    const auto& a = read.structures[n];
+    const auto& want = phantom->structures[n];
+    SCOPED_TRACE(want.name);
+    EXPECT_EQ(a.name, want.name);
+    EXPECT_EQ(a.role, want.role);  // PTV / AVOIDANCE / ORGAN in the file
+    EXPECT_EQ(a.mask.geometry.dims, want.mask.geometry.dims);
+    EXPECT_LT((a.mask.geometry.origin_lps_mm - want.mask.geometry.origin_lps_mm).norm(), 1e-9);
+    EXPECT_TRUE(a.mask.inside == want.mask.inside);
+  }
+  EXPECT_EQ(b.s.structures.loaded.fields.size(), read.structures.size());
+
+  // A bow tie among the star's contours, on this CT's slices.
+  const auto& g = b.s.ct.volume->geometry;
+  ASSERT_TRUE(g.direction.isIdentity(1e-12));  // the script draws on axial grids
+  const std::string grid =
+      fmt::format(R"({{"origin": [{}, {}, {}], "spacing": [{}, {}, {}], "dims": [{}, {}, {}]}})",
+                  g.origin_lps_mm.x(), g.origin_lps_mm.y(), g.origin_lps_mm.z(), g.spacing_mm.x(),
+                  g.spacing_mm.y(), g.spacing_mm.z(), g.dims[0], g.dims[1], g.dims[2]);
+  const std::string crossed = dir + "/crossed.dcm";
+  ASSERT_EQ(std::system(("/usr/bin/python3 " IGNAV_SOURCE_DIR
+                         "/tests/anatomy/rtstruct_reference.py make-crossing " +
+                         crossed + " 1.2.3 '" + grid + "'")
+                            .c_str()),
+            0);
+  const auto before = b.s.structures.loaded.set;
+  const std::uint64_t revision = b.s.revision;
+  ASSERT_TRUE(loadStructures(b, crossed).accepted);
+  EXPECT_EQ(b.s.structures.loaded.set, before);
+  const std::string& said = b.s.structures.message;
+  EXPECT_NE(said.find("structure 'star': contour "), std::string::npos) << said;
+  EXPECT_NE(said.find("crosses itself at (-20.30, -18.90, "), std::string::npos) << said;
+  EXPECT_EQ(b.s.revision, revision + 2);
+  std::filesystem::remove_all(dir);
+}
+
+Reply proposeTargets(Bench& b, const std::string& text) {
+  return sendAndRunJob(b, InputKind::kProposeTargets, text, JobKind::kTargetProposal);
+}
+
+// The needle's surface from the rectum (a cylinder of 8 mm radius along the robot's axis at
+// y = -(r_max + 12), phantom_anatomy.cpp) along the whole centreline, in closed form.
+double rectumClearance(const kinematics::Joints& j) {
+  const auto& kin = paperRobot()->kinematics;
+  const auto line = kin.centreline(j, 0.01);
+  const Eigen::Vector2d axis(0.0, -(kin.maxRadius_mm() + 12.0));
+  const auto& in = kin.instrument();
+  double best = 1e9;
+  for (const auto& p : line.cannula_mm)
+    best = std::min(best, (p.head<2>() - axis).norm() - 8.0 - 0.5 * in.cannula_outer_diameter_mm);
+  for (const auto& p : line.stylet_mm)
+    best = std::min(best, (p.head<2>() - axis).norm() - 8.0 - 0.5 * in.stylet_outer_diameter_mm);
+  return best;
+}
+
+// Targets that fill the phantom's prostate from one insertion, checked against closed forms:
+// each inside the prostate, on one lattice of the spacing, its needle clear of the urethra and
+// the rectum by their margins; and every lattice point inside that the needle reaches with room
+// to spare (2 mm beyond the margins: more than the uncertainty) is among them. Accepted, they
+// lock as one insertion within 360°.
+TEST(Proposals, TargetsFillTheProstateFromOneInsertionClearOfTheUrethraAndRectum) {
+  Bench b;
+  ASSERT_TRUE(loadStructures(b, kPhantomSource).accepted);
+  const auto& kin = paperRobot()->kinematics;
+  const auto& reg = *b.s.registration;
+  const double spacing = 8.0;
+  ASSERT_TRUE(proposeTargets(b, "Prostate 8").accepted);  // names ignore case
+  ASSERT_EQ(b.s.proposals.status, "proposed") << b.s.proposals.message;
+  const auto proposed = b.s.proposals.targets;
+  ASSERT_GE(proposed.size(), 10u);
+  ASSERT_LE(proposed.size(), 100u);
+  EXPECT_NE(b.s.proposals.message.find("too close to 'urethra'"), std::string::npos)
+      << b.s.proposals.message;
+  const auto shapes = phantomAnatomy(kin);
+  const auto& prostate_sdf = shapes[0].sdf;
+  const double half_voxel = 0.5 * b.s.ct.volume->geometry.spacing_mm.norm();
+  const Eigen::Vector3d origin = reg.toRobot(proposed.front().lps_mm);
+  std::set<std::array<long, 3>> cells;  // lattice indices from the first
+  for (const auto& p : proposed) {
+    const Eigen::Vector3d r = reg.toRobot(p.lps_mm);
+    EXPECT_LE(prostate_sdf(r), half_voxel) << r.transpose();
+    const Eigen::Vector3d cell = (r - origin) / spacing;
+    EXPECT_LT((cell - cell.array().round().matrix()).norm(), 1e-6) << "off the lattice";
+    cells.insert({std::lround(cell.x()), std::lround(cell.y()), std::lround(cell.z())});
+    const auto solution = kin.inverse(r).value();
+    ASSERT_TRUE(solution.reachable());
+    EXPECT_GE(urethraClearance(solution.joints), 3.0) << r.transpose();
+    EXPECT_GE(rectumClearance(solution.joints), 5.0) << r.transpose();
+  }
+  EXPECT_EQ(cells.size(), proposed.size());  // no point twice
+  // Every lattice point inside the prostate that the needle reaches with room to spare.
+  std::size_t expected = 0;
+  for (int c = -30; c <= 30; ++c)
+    for (int bb = -20; bb <= 20; ++bb)
+      for (int a = -20; a <= 20; ++a) {
+        const Eigen::Vector3d r = origin + spacing * Eigen::Vector3d(a, bb, c);
+        if (prostate_sdf(r) > -half_voxel) continue;
+        const auto solution = kin.inverse(r);
+        if (!solution || !solution->reachable()) continue;
+        if (urethraClearance(solution->joints) < 5.0 || rectumClearance(solution->joints) < 7.0) {
+          continue;
+        }
+        ++expected;
+        EXPECT_TRUE(cells.count({a, bb, c}) == 1) << "missing " << r.transpose();
+      }
+  EXPECT_GT(expected, 0u);
+
+  // Accepted two by id, then the rest: targets, planned, locked as one insertion.
+  ASSERT_TRUE(b.send(b.command(InputKind::kAcceptProposals, {}, {proposed[1].id, proposed[0].id}))
+                  .accepted);
+  EXPECT_EQ(b.s.targets.size(), 2u);
+  EXPECT_EQ(b.s.proposals.targets.size(), proposed.size() - 2);
+  EXPECT_EQ(b.send(b.command(InputKind::kAcceptProposals, {}, {proposed[0].id})).error_code,
+            "unknown_proposal");
+  ASSERT_TRUE(b.send(b.command(InputKind::kAcceptProposals)).accepted);
+  EXPECT_EQ(b.s.targets.size(), proposed.size());
+  EXPECT_TRUE(b.s.proposals.targets.empty());
+  for (const auto& t : b.s.targets)
+    EXPECT_EQ(t.status(), "planned") << t.message;
+  EXPECT_EQ(b.send(b.command(InputKind::kAcceptProposals)).error_code, "no_proposals");
+  const Reply locked = b.send(b.command(InputKind::kLockPlan));
+  ASSERT_TRUE(locked.accepted) << locked.message;
+}
+
+TEST(Proposals, BadRequestsAreRefusedAndTooManyTargetsNamesACoarserSpacing) {
+  Bench b;
+  EXPECT_EQ(b.send(withText(b, InputKind::kProposeTargets, "prostate 5")).error_code,
+            "no_structures");
+  ASSERT_TRUE(loadStructures(b, kPhantomSource).accepted);
+  const std::uint64_t revision = b.s.revision;
+  EXPECT_EQ(b.send(withText(b, InputKind::kProposeTargets, "prostate")).error_code, "bad_spacing");
+  EXPECT_EQ(b.send(withText(b, InputKind::kProposeTargets, "prostate 0.5")).error_code,
+            "bad_spacing");
+  EXPECT_EQ(b.send(withText(b, InputKind::kProposeTargets, "prostate nan")).error_code,
+            "bad_spacing");
+  EXPECT_EQ(b.send(withText(b, InputKind::kProposeTargets, "bladder 5")).error_code,
+            "unknown_structure");
+  EXPECT_EQ(b.send(b.command(InputKind::kAcceptProposals)).error_code, "no_proposals");
+  EXPECT_EQ(b.s.revision, revision);  // refusals change nothing
+  // A fine lattice: more than one insertion takes; the message names a spacing that fits.
+  ASSERT_TRUE(proposeTargets(b, "prostate 4").accepted);
+  ASSERT_EQ(b.s.proposals.status, "failed");
+  const std::string& said = b.s.proposals.message;
+  const auto at = said.find("a spacing of ");
+  ASSERT_NE(at, std::string::npos) << said;
+  const double fits = std::stod(said.substr(at + 13));
+  EXPECT_GT(fits, 4.0);
+  ASSERT_TRUE(proposeTargets(b, fmt::format("prostate {:g}", fits)).accepted);
+  EXPECT_EQ(b.s.proposals.status, "proposed") << b.s.proposals.message;
+  EXPECT_LE(b.s.proposals.targets.size(), 100u);
+  // It is the finest that fits: half a millimetre finer keeps too many.
+  ASSERT_TRUE(proposeTargets(b, fmt::format("prostate {:g}", fits - 0.5)).accepted);
+  EXPECT_EQ(b.s.proposals.status, "failed") << b.s.proposals.message;
+  // New structures drop what was proposed in the old ones.
+  ASSERT_TRUE(loadStructures(b, kPhantomSource).accepted);
+  EXPECT_EQ(b.s.proposals.status, "none");
 }
 
 }  // namespace

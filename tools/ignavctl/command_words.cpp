@@ -32,6 +32,8 @@ constexpr Alias kAliases[] = {
     {"targets unlock", "unlock_plan"},
     {"targets pause", "pause_at"},               // stop part-way: MM (or none) ID
     {"targets override", "override_clearance"},  // ID REASON...
+    {"targets propose", "propose_targets"},      // STRUCTURE SPACING_MM; waits for the outcome
+    {"targets accept", "accept_proposals"},      // [ID...]: none, all of them
     {"structures load", "load_structures"},
     {"structures role", "structure_role"},  // NAME ROLE [MARGIN_MM]
     {"verify load", "load_confirmation"},   // waits for the measurement; `same-frame`

@@ -79,6 +79,11 @@ void printStructures(const protocol::StateMirror& state) {
     std::printf("  %-14s %-7s %7s %10llu voxels %8.2f cm³\n", x.name.c_str(), x.role.c_str(),
                 margin.c_str(), static_cast<unsigned long long>(x.voxels), x.volume_cm3);
   }
+  if (s.proposal_status == "none" || s.proposal_status.empty()) return;
+  std::cout << "targets " << s.proposal_status << ": " << s.proposal_message << "\n";
+  for (const auto& p : s.proposed)
+    std::printf("  P%-4u (%8.2f, %8.2f, %8.2f) mm LPS\n", p.id, p.lps[0], p.lps[1], p.lps[2]);
+  if (!s.proposed.empty()) std::cout << "  (targets accept [ID...] makes them targets)\n";
 }
 
 void printApproval(const protocol::StateMirror& s) {

@@ -90,13 +90,19 @@ int detectFiducials(Server& s, const AliasCall& call, double wait_s) {
   return registered ? 0 : kExitRejected;
 }
 
-// Waits for the structure load's outcome, then lists them (or says why not).
-int loadStructures(Server& s, const AliasCall& call, double wait_s) {
+// Waits for the outcome of a structure load or a target proposal, then lists the structures and
+// the targets proposed (or says why not).
+int structuresJob(Server& s, const AliasCall& call, double wait_s) {
   protocol::Reply r;
   const auto outcome = sendLoad(s, call, wait_s, r);
   if (!outcome) return kExitRejected;
-  s.client.waitUntil([](const protocol::StateMirror& m) { return m.structures.has_value(); },
-                     std::chrono::seconds(5));
+  // The state after the outcome's step (another topic: it may come a moment later).
+  s.client.waitUntil(
+      [](const protocol::StateMirror& m) {
+        return m.structures && m.structures->status != "loading" &&
+               m.structures->proposal_status != "proposing";
+      },
+      std::chrono::seconds(5));
   if (s.as_json) {
     json out = loadJson(r, *outcome);
     out["structures"] = *s.client.mirror().structures;
@@ -157,13 +163,19 @@ void addAliasCommands(CLI::App& app, Action& chosen) {
 
   const std::string targets_usage = aliasUsage("targets") + " | ls";
   auto* targets = app.add_subcommand("targets", targets_usage);
-  onServerReadNow(targets, chosen,
-                  [words = wordsOf(targets, targets_usage), targets_usage]() -> Work {
-                    if (*words == std::vector<std::string>{"ls"}) return listTargets;
-                    return [call = aliasCall("targets", *words, targets_usage)](Server& s) {
-                      return sendCall(s, call);
-                    };
-                  });
+  auto propose_wait_s = std::make_shared<double>(300.0);
+  targets->add_option("--wait-s", *propose_wait_s,
+                      "propose: how long to wait for the proposal (default 300)");
+  onServerReadNow(
+      targets, chosen,
+      [words = wordsOf(targets, targets_usage), targets_usage, propose_wait_s]() -> Work {
+        if (*words == std::vector<std::string>{"ls"}) return listTargets;
+        return [call = aliasCall("targets", *words, targets_usage), propose_wait_s](Server& s) {
+          if (call.row.kind == commands::InputKind::kProposeTargets)
+            return structuresJob(s, call, *propose_wait_s);
+          return sendCall(s, call);
+        };
+      });
 
   const std::string structures_usage = aliasUsage("structures") + " | ls";
   auto* structures = app.add_subcommand("structures", structures_usage);
@@ -177,7 +189,7 @@ void addAliasCommands(CLI::App& app, Action& chosen) {
                     return [call = aliasCall("structures", *words, structures_usage),
                             structures_wait_s](Server& s) {
                       if (call.row.kind == commands::InputKind::kLoadStructures)
-                        return loadStructures(s, call, *structures_wait_s);
+                        return structuresJob(s, call, *structures_wait_s);
                       return sendCall(s, call);
                     };
                   });

@@ -1,6 +1,8 @@
 // Structures, their masks, and whether a segmentation was made on this CT (structures.hpp).
 #include "ignav/anatomy/structures.hpp"
 
+#include "ignav/anatomy/dicom_structures.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -110,7 +112,7 @@ Expected<Mask> cropMask(const volume::Geometry& grid, const std::vector<std::uin
   return mask;
 }
 
-Expected<StructureSet> readStructures(const std::string& path) {
+Expected<StructureSet> readStructures(const std::string& path, const CtFrame& ct) {
   const std::string name = fs::path(path).filename().string();
   auto ends = [&](const char* suffix) {
     const std::string s(suffix);
@@ -131,11 +133,7 @@ Expected<StructureSet> readStructures(const std::string& path) {
                                  path, stem.filename().string()),
                      "names_missing");
   }
-  return makeError(ErrorCode::kUnsupported,
-                   path +
-                       ": not a segmentation ignav reads (.seg.nrrd, or a .nrrd/.nhdr/.mha/.mhd "
-                       "label map with a colour table)",
-                   "unsupported");
+  return readDicomStructures(path, ct);
 }
 
 Status checkOnCt(const StructureSet& set, const volume::Geometry& ct, const std::string& ct_name) {

@@ -1,6 +1,7 @@
 #include "ignav/registration/slicer_export.hpp"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 
 #include <fmt/format.h>
@@ -15,12 +16,20 @@ constexpr const char* kMarkupsSchema =
     "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/"
     "Schema/markups-schema-v1.0.3.json#";
 
+// Beside it first, then renamed over it: a reader (Slicer, a test) never sees half a file, as the
+// session's exports are rewritten while the session runs.
 Status writeText(const std::string& text, const std::string& path) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) return makeError(ErrorCode::kIo, path + ": cannot open for writing");
-  out << text;
-  out.flush();
-  if (!out) return makeError(ErrorCode::kIo, path + ": write failed");
+  const std::string aside = path + ".partial";
+  {
+    std::ofstream out(aside, std::ios::binary | std::ios::trunc);
+    if (!out) return makeError(ErrorCode::kIo, path + ": cannot open for writing");
+    out << text;
+    out.flush();
+    if (!out) return makeError(ErrorCode::kIo, path + ": write failed");
+  }
+  std::error_code ec;
+  std::filesystem::rename(aside, path, ec);
+  if (ec) return makeError(ErrorCode::kIo, path + ": cannot replace: " + ec.message());
   return Ok{};
 }
 

@@ -45,7 +45,7 @@ void registerDecodersOnce() {
 // What one file says about its image(s).
 struct FileHeader {
   std::string path;
-  std::string series_uid, modality, description;
+  std::string series_uid, modality, description, frame_of_reference_uid;
   int rows = 0, cols = 0, frames = 1;
   Eigen::Vector3d row_dir, col_dir;         // IOP
   double row_spacing = 0, col_spacing = 0;  // PixelSpacing [row spacing, column spacing]
@@ -156,6 +156,7 @@ Expected<FileHeader> readHeader(const std::string& path, DcmFileFormat& ff, std:
   h.series_uid = str(ds, DCM_SeriesInstanceUID);
   if (h.series_uid.empty()) return bad("missing SeriesInstanceUID (0020,000E)");
   h.description = str(ds, DCM_SeriesDescription);
+  h.frame_of_reference_uid = str(ds, DCM_FrameOfReferenceUID);
   Uint16 u16 = 0;
   auto needU16 = [&](const DcmTagKey& tag, int& out) {
     if (ds.findAndGetUint16(tag, u16).bad()) return false;
@@ -608,6 +609,7 @@ Expected<DicomLoadResult> readDicomSeries(const std::vector<std::string>& paths,
   if (auto ok = g.validate(ref.path); !ok) return ok.error();
   vol.modality = ref.modality;
   vol.series_uid = uid;
+  vol.frame_of_reference_uid = ref.frame_of_reference_uid;
   vol.description = ref.description;
 
   // Storage: HU directly when the rescale is an integer shift, else raw with scale/offset.

@@ -348,7 +348,9 @@ Expected<std::vector<std::string>> writeDicomSeries(const Volume& vol, const std
   std::filesystem::create_directories(dir, ec);
   if (ec) return makeError(ErrorCode::kIo, dir + ": cannot create directory: " + ec.message());
   const std::string study = uidFor(options.seed, 1), series = uidFor(options.seed, 2),
-                    frame_of_reference = uidFor(options.seed, 3);
+                    frame_of_reference = vol.frame_of_reference_uid.empty()
+                                             ? uidFor(options.seed, 3)
+                                             : vol.frame_of_reference_uid;
   const Eigen::Vector3d row = g.direction.col(0), col = g.direction.col(1);
   const double iop[6] = {row.x(), row.y(), row.z(), col.x(), col.y(), col.z()};
   const double spacing[2] = {g.spacing_mm.y(), g.spacing_mm.x()};  // [row spacing, col spacing]

@@ -57,6 +57,7 @@ Refusal adoptStructures(Session& s, const Input& in, ActionOutput& out) {
   st.status = "loaded";
   st.source = in.path;
   st.message = in.summary;
+  s.proposals = {};  // proposed in the structures before (one under way is ignored)
   out.effects.structures_changed = true;
   evaluateAll(s, out.effects);
   out.note = "structures loaded: " + in.summary;
@@ -147,6 +148,141 @@ Refusal overrideClearance(Session& s, const Input& in, ActionOutput& out) {
   evaluate(s, *t);
   out.effects.targets_changed.push_back(t->id);
   out.note = t->message;
+  return std::nullopt;
+}
+
+Refusal startTargetProposal(Session& s, const Input& in, ActionOutput& out) {
+  auto& st = s.structures;
+  if (!st.loaded.set) {
+    return Rejection{ReplyCode::kNoStructures, "no structures are loaded (load_structures)"};
+  }
+  if (!s.registration) {
+    return Rejection{ReplyCode::kNotRegistered,
+                     "the CT is not registered: targets are proposed where the robot reaches"};
+  }
+  if (s.proposals.proposing != 0) {
+    return Rejection{ReplyCode::kBusy,
+                     fmt::format("targets are being proposed (#{})", s.proposals.proposing)};
+  }
+  // STRUCTURE SPACING_MM, the name possibly of several words: the spacing is the last.
+  const auto last = in.path.find_last_of(" \t");
+  const auto bad = [&](const std::string& why) {
+    return Rejection{ReplyCode::kBadSpacing,
+                     fmt::format("'{}': {} (STRUCTURE SPACING_MM)", in.path, why)};
+  };
+  if (last == std::string::npos) return bad("a structure and a spacing are needed");
+  const std::string word = in.path.substr(last + 1);
+  char* end = nullptr;
+  const double spacing = std::strtod(word.c_str(), &end);
+  if (word.empty() || *end != '\0' || !std::isfinite(spacing)) {
+    return bad("'" + word + "' is not a spacing in mm");
+  }
+  if (spacing < kMinProposalSpacing_mm || spacing > kMaxProposalSpacing_mm) {
+    return bad(fmt::format("a spacing of {:g} mm is outside {:g}-{:g} mm", spacing,
+                           kMinProposalSpacing_mm, kMaxProposalSpacing_mm));
+  }
+  std::string name = in.path.substr(0, last);
+  name.erase(name.find_last_not_of(" \t") + 1);
+  name.erase(0, name.find_first_not_of(" \t"));
+  const auto* structure = st.loaded.set->find(name);
+  if (!structure) {
+    return Rejection{ReplyCode::kUnknownStructure,
+                     fmt::format("no structure '{}' (loaded: {})", name, names(*st.loaded.set))};
+  }
+  auto& p = s.proposals;
+  p.proposing = s.revision + 1;  // this step's
+  p.status = "proposing";
+  p.structure = structure->name;
+  p.spacing_mm = spacing;
+  p.message = fmt::format("proposing targets that fill '{}' at {:g} mm", structure->name, spacing);
+  p.targets.clear();
+  out.effects.start_jobs.push_back(JobKind::kTargetProposal);
+  out.effects.structures_changed = true;
+  out.note = fmt::format(
+      "target proposal #{} started ('{}', {:g} mm): StructuresState shows the targets proposed, "
+      "or why none are",
+      p.proposing, structure->name, spacing);
+  return std::nullopt;
+}
+
+Refusal adoptProposals(Session& s, const Input& in, ActionOutput& out) {
+  auto& p = s.proposals;
+  p.proposing = 0;
+  p.status = "proposed";
+  p.message = in.summary;
+  p.targets.clear();
+  for (const auto& lps : in.points)
+    p.targets.push_back({static_cast<std::uint32_t>(p.targets.size() + 1), lps});
+  out.effects.structures_changed = true;
+  out.note = in.summary;
+  return std::nullopt;
+}
+
+Refusal noteProposalFailure(Session& s, const Input& in, ActionOutput& out) {
+  auto& p = s.proposals;
+  p.proposing = 0;
+  p.status = "failed";
+  p.message = in.error;
+  p.targets.clear();
+  out.effects.structures_changed = true;
+  out.note = in.error;
+  return std::nullopt;
+}
+
+Refusal acceptProposals(Session& s, const Input& in, ActionOutput& out) {
+  auto& p = s.proposals;
+  if (p.targets.empty()) {
+    return Rejection{ReplyCode::kNoProposals, p.proposing
+                                                  ? "targets are still being proposed"
+                                                  : "no targets are proposed (propose_targets)"};
+  }
+  std::vector<std::uint32_t> ids = in.ids;
+  if (ids.empty()) {
+    for (const auto& t : p.targets)
+      ids.push_back(t.id);
+  }
+  std::vector<const ProposedTarget*> taken;
+  for (const auto id : ids) {
+    const auto it = std::find_if(p.targets.begin(), p.targets.end(),
+                                 [&](const ProposedTarget& t) { return t.id == id; });
+    if (it == p.targets.end()) {
+      return Rejection{
+          ReplyCode::kUnknownProposal,
+          fmt::format("no proposed target {} ({} are proposed)", id, p.targets.size())};
+    }
+    if (std::find(taken.begin(), taken.end(), &*it) == taken.end()) taken.push_back(&*it);
+  }
+  if (s.targets.size() + taken.size() > s.policy.limits.max_targets) {
+    return Rejection{
+        ReplyCode::kTooManyTargets,
+        fmt::format("{} more would make {} targets, more than one insertion takes "
+                    "(planning.max_targets {})",
+                    taken.size(), s.targets.size() + taken.size(), s.policy.limits.max_targets)};
+  }
+  // Judged again as they join: the session may have changed since they were proposed.
+  std::string added;
+  std::size_t not_plannable = 0;
+  for (const ProposedTarget* proposed : taken) {
+    Target t;
+    t.id = s.next_target_id++;
+    t.lps_mm = proposed->lps_mm;
+    evaluate(s, t);
+    not_plannable += t.plannable() ? 0 : 1;
+    added += fmt::format("{}{} (proposed {})", added.empty() ? "" : ", ", t.id, proposed->id);
+    out.effects.targets_changed.push_back(t.id);
+    s.targets.push_back(std::move(t));
+  }
+  std::vector<ProposedTarget> left;
+  for (const auto& t : p.targets)
+    if (std::find(taken.begin(), taken.end(), &t) == taken.end()) left.push_back(t);
+  p.targets = std::move(left);
+  out.effects.structures_changed = true;
+  out.note = fmt::format("targets {} added{}; {} still proposed", added,
+                         not_plannable ? fmt::format(" ({} of them no longer plannable: see "
+                                                     "their messages)",
+                                                     not_plannable)
+                                       : "",
+                         p.targets.size());
   return std::nullopt;
 }
 

@@ -73,6 +73,24 @@ std::string staleStructureLoad(const Session& s, const Input& in) {
                      s.structures.loading ? fmt::format("#{}", s.structures.loading) : "none is");
 }
 
+std::optional<BackgroundJob> targetProposal(const Session& s) {
+  const auto& p = s.proposals;
+  if (p.proposing == 0) return std::nullopt;
+  // The session as it was asked: every candidate is judged by the same rules a target is.
+  return BackgroundJob{JobKind::kTargetProposal, p.proposing,
+                       fmt::format("{} {:g} mm", p.structure, p.spacing_mm),
+                       [job = p.proposing, structure = p.structure, spacing = p.spacing_mm,
+                        snapshot = std::make_shared<const Session>(s)](const JobContext& context) {
+                         return proposeTargets(job, structure, spacing, snapshot, context);
+                       }};
+}
+
+std::string staleTargetProposal(const Session& s, const Input& in) {
+  return fmt::format("target proposal #{} ({}) is not the one awaited ({}): ignored", in.job,
+                     in.path,
+                     s.proposals.proposing ? fmt::format("#{}", s.proposals.proposing) : "none is");
+}
+
 std::string staleMeasurement(const Session& s, const Input& in) {
   return fmt::format("confirmation CT measurement #{} ({}) is not the one awaited (#{}): ignored",
                      in.job, in.path, s.confirmation.measuring);
@@ -96,6 +114,9 @@ const std::vector<JobKindSpec> kJobKinds = {
     {JobKind::kStructureLoad, "structure load", InputKind::kStructuresLoaded,
      InputKind::kStructuresLoadFailed, [](const Session& s) { return s.structures.loading; },
      structureLoad, staleStructureLoad},
+    {JobKind::kTargetProposal, "target proposal", InputKind::kTargetsProposed,
+     InputKind::kTargetProposalFailed, [](const Session& s) { return s.proposals.proposing; },
+     targetProposal, staleTargetProposal},
 };
 
 }  // namespace

@@ -124,10 +124,11 @@ const std::vector<ReplyCodeSpec> kCodes = {
      "`reaim` with no re-aim proposed (scan_needle first), or one that would break the plan (a "
      "joint out of range, the rotation limit): the message says which"},
     {C::kNoStructures, "no_structures",
-     "`structure_role` before any structures are loaded (load_structures); `load_structures` "
-     "without a CT"},
+     "`structure_role` or `propose_targets` before any structures are loaded (load_structures); "
+     "`load_structures` without a CT"},
     {C::kUnknownStructure, "unknown_structure",
-     "`structure_role` with a name no loaded structure has; the message lists them"},
+     "`structure_role` or `propose_targets` with a name no loaded structure has; the message "
+     "lists them"},
     {C::kBadRole, "bad_role",
      "`structure_role` text that is not NAME ROLE [MARGIN_MM]: a role other than target, avoid, "
      "shown, or a margin that is not 0-10 mm (avoid needs one)"},
@@ -138,6 +139,11 @@ const std::vector<ReplyCodeSpec> kCodes = {
     {C::kNotTooClose, "not_too_close",
      "`override_clearance` for a target whose clearances all hold"},
     {C::kNoReason, "no_reason", "`override_clearance` without a reason"},
+    {C::kBadSpacing, "bad_spacing",
+     "`propose_targets`: no structure name and spacing, a spacing outside 1-30 mm, or one so "
+     "fine the lattice has too many points to try"},
+    {C::kNoProposals, "no_proposals", "`accept_proposals` with no targets proposed"},
+    {C::kUnknownProposal, "unknown_proposal", "`accept_proposals` names no proposed target"},
     {C::kJournalFailed, "journal_failed",
      "the session journal cannot be written (disk full, I/O error): nothing was done, and every "
      "later change is refused until the server is restarted; `Health.journal` says why "

@@ -4,6 +4,7 @@
 
 #include <memory>
 
+#include "ignav/anatomy/dicom_structures.hpp"
 #include "ignav/anatomy/distance_field.hpp"
 #include "ignav/registration/robot_phantom.hpp"
 #include "ignav/workflow/background_jobs.hpp"
@@ -12,7 +13,7 @@ namespace ignav::workflow {
 
 namespace {
 
-// "prostate (target, 1234 voxels, 5.67 cm³); urethra (avoid 3 mm, ...)".
+// "prostate (target, 1234 voxels, 5.67 cm³); urethra (avoid 3 mm, ...); NOTES".
 std::string describeStructures(const anatomy::StructureSet& set) {
   std::string out;
   for (const auto& s : set.structures) {
@@ -21,7 +22,13 @@ std::string describeStructures(const anatomy::StructureSet& set) {
                        s.role == anatomy::Role::kAvoid ? fmt::format(" {:g} mm", s.margin_mm) : "",
                        s.mask.count(), s.mask.volume_cm3());
   }
+  for (const auto& note : set.notes)
+    out += "; " + note;
   return out;
+}
+
+anatomy::CtFrame ctFrame(const LoadedCt& ct) {
+  return {ct.volume->geometry, ct.volume->frame_of_reference_uid, ct.source};
 }
 
 // The built-in phantom's anatomy on its CT: drawn where the phantom put the robot.
@@ -39,9 +46,17 @@ Expected<anatomy::StructureSet> phantomStructures(const LoadedCt& ct, const conf
   auto set = anatomy::voxelise(ct.volume->geometry, rp->image_to_robot_true,
                                phantomAnatomy(robot.kinematics), kPhantomSource);
   if (set && !context.session_dir.empty()) {
-    // For people (3D Slicer opens it over the phantom's series); a failure here loses nothing.
+    // For people and other tools (3D Slicer opens the segmentation over the phantom's series,
+    // SlicerRT and planning systems the structure set); a failure here loses nothing.
     (void)anatomy::writeSegNrrd(*set, ct.volume->geometry,
                                 (context.session_dir / "phantom_anatomy.seg.nrrd").string());
+    anatomy::RtStructureSetHeader header;
+    header.label = "ignav phantom anatomy";
+    header.patient_name = "IGNAV^PHANTOM";
+    header.patient_id = "IGNAV-PHANTOM";
+    header.referenced_series_uid = ct.volume->series_uid;
+    (void)anatomy::writeRtStructureSet(
+        *set, ctFrame(ct), header, (context.session_dir / "phantom_anatomy_rtstruct.dcm").string());
   }
   return set;
 }
@@ -60,7 +75,7 @@ Input loadStructures(std::uint64_t job, const std::string& source, const LoadedC
     return in;
   }
   auto read = source == kPhantomSource ? phantomStructures(ct, robot, context)
-                                       : anatomy::readStructures(source);
+                                       : anatomy::readStructures(source, ctFrame(ct));
   if (!read) {
     in.error = read.error().message;
     return in;

@@ -209,11 +209,18 @@ std::vector<Transition> buildTable() {
   }
   t.push_back({P::kPlanning, I::kOverrideClearance, always, P::kPlanning, overrideClearance,
                "plan a target too close, for a reason"});
+  t.push_back({P::kPlanning, I::kProposeTargets, always, P::kPlanning, startTargetProposal,
+               "fill a structure with targets"});
+  t.push_back({P::kPlanning, I::kAcceptProposals, always, P::kPlanning, acceptProposals,
+               "proposed targets into the plan"});
   for (Phase p : kAllPhases) {
     if (p == P::kStartup) continue;
     t.push_back({p, I::kStructuresLoaded, always, p, adoptStructures, "structures loaded"});
     t.push_back(
         {p, I::kStructuresLoadFailed, always, p, noteStructureLoadFailure, "structures refused"});
+    t.push_back({p, I::kTargetsProposed, always, p, adoptProposals, "targets proposed"});
+    t.push_back(
+        {p, I::kTargetProposalFailed, always, p, noteProposalFailure, "no targets proposed"});
   }
   // resume returns to the phase the first interruption left (a move in flight: plan_locked, to be
   // approved again), or to done when nothing is left to move. Interruptions taken while

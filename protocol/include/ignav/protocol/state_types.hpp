@@ -192,19 +192,33 @@ struct Fields<StructureInfo> {
       IGNAV_FIELD(voxels), IGNAV_FIELD(volume_cm3), IGNAV_FIELD(bounds_lps));
 };
 
+struct ProposedTargetInfo {
+  std::uint32_t id = 0;
+  std::array<double, 3> lps{};
+};
+template <>
+struct Fields<ProposedTargetInfo> {
+  using T = ProposedTargetInfo;
+  static constexpr auto list = std::make_tuple(IGNAV_FIELD(id), IGNAV_FIELD(lps));
+};
+
 struct StructuresState {
   std::string status;  // none | loading | loaded | failed
   std::string source;
   std::string message;
   std::string site;
   std::vector<StructureInfo> structures;
+  std::string proposal_status;  // none | proposing | proposed | failed
+  std::string proposal_message;
+  std::vector<ProposedTargetInfo> proposed;
 };
 template <>
 struct Fields<StructuresState> {
   using T = StructuresState;
   static constexpr auto list =
       std::make_tuple(IGNAV_FIELD(status), IGNAV_FIELD(source), IGNAV_FIELD(message),
-                      IGNAV_FIELD(site), IGNAV_FIELD(structures));
+                      IGNAV_FIELD(site), IGNAV_FIELD(structures), IGNAV_FIELD(proposal_status),
+                      IGNAV_FIELD(proposal_message), IGNAV_FIELD(proposed));
 };
 IGNAV_TOPIC_OF(StructuresState, topic::kStructures, Qos::kState);
 

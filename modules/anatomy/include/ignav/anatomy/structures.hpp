@@ -63,6 +63,9 @@ struct Structure {
 struct StructureSet {
   std::string source;  // the file read
   std::vector<Structure> structures;
+  // What the file held that did not become a structure, or was not checked, for people (e.g.
+  // "'Isocenter 1' holds points only: not a volume").
+  std::vector<std::string> notes;
   // By name, ignoring case; nullptr when none is so named.
   const Structure* find(std::string_view name) const;
   Structure* find(std::string_view name);
@@ -86,9 +89,18 @@ Status writeSegNrrd(const StructureSet& set, const volume::Geometry& grid, const
 // present must be named there.
 Expected<StructureSet> readLabelMap(const std::string& path, const std::string& colour_table);
 
+// The CT structures are read for: DICOM structures are drawn on its grid and must share its
+// frame of reference.
+struct CtFrame {
+  volume::Geometry geometry;
+  std::string frame_of_reference_uid;  // "" when the CT's files carry none (NRRD, MetaImage)
+  std::string name;                    // for messages: the CT's source
+};
+
 // By name: *.seg.nrrd -> readSegNrrd; another .nrrd/.nhdr/.mha/.mhd -> readLabelMap with the
-// colour table beside it (<stem>.ctbl or <stem>.txt).
-Expected<StructureSet> readStructures(const std::string& path);
+// colour table beside it (<stem>.ctbl or <stem>.txt); anything else is read as DICOM (an RT
+// Structure Set or a Segmentation, dicom_structures.hpp) onto `ct`.
+Expected<StructureSet> readStructures(const std::string& path, const CtFrame& ct);
 
 // A set made on this CT: every mask's axes and spacing the CT's, its voxels on the CT's voxel
 // centres (within 1 % of a voxel) and inside the CT. Otherwise an error saying which structure

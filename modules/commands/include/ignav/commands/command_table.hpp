@@ -54,6 +54,8 @@ enum class InputKind {
   kLoadStructures,
   kStructureRole,
   kOverrideClearance,
+  kProposeTargets,
+  kAcceptProposals,
   kConfigLoaded,
   kVolumeLoaded,
   kVolumeLoadFailed,
@@ -68,6 +70,8 @@ enum class InputKind {
   kNeedleScanFailed,
   kStructuresLoaded,
   kStructuresLoadFailed,
+  kTargetsProposed,
+  kTargetProposalFailed,
 };
 
 // Who may give a command: each role may do what the one before it may, and more. Commands travel
@@ -332,9 +336,10 @@ inline constexpr InputSpec kInputRows[] = {
      "the approval request shows nominal, previously aimed and re-aimed joints with their "
      "predicted landings"},
     {I::kLoadStructures, "load_structures", 31, R::kPlanner, kCommand,
-     kNone.serverFile("a server-side segmentation of the session's CT: 3D Slicer .seg.nrrd, or "
+     kNone.serverFile("a server-side segmentation of the session's CT: 3D Slicer .seg.nrrd, "
                       "a .nrrd/.nhdr/.mha/.mhd label map with a Slicer colour table beside it "
-                      "(<stem>.ctbl)"),
+                      "(<stem>.ctbl), a DICOM RT Structure Set or a DICOM SEG (in the CT's frame "
+                      "of reference)"),
      "load the patient's structures on the CT in the background (their distance fields too): "
      "StructuresState shows loading, then the structures with their roles (the site's, "
      "server.yaml site:), or why the file was refused; every target's path is then checked "
@@ -349,6 +354,16 @@ inline constexpr InputSpec kInputRows[] = {
                "request and the report)"),
      "plan this one target although its needle passes closer to a structure than the margin "
      "allows"},
+    {I::kProposeTargets, "propose_targets", 34, R::kPlanner, kCommand,
+     kNone.text("STRUCTURE SPACING_MM: a loaded structure to fill, and the lattice's spacing in "
+                "mm (1-30)"),
+     "propose targets that fill a structure from this one insertion, in the background: a "
+     "lattice of the spacing, aligned with the robot, clipped to the structure, to what the "
+     "needle reaches and to every clearance, ordered as the plan would visit them "
+     "(StructuresState.proposed); accept_proposals makes them targets"},
+    {I::kAcceptProposals, "accept_proposals", 35, R::kPlanner, kCommand,
+     kNone.withIds(kAnyCount, "proposed targets to accept (none: all of them)"),
+     "make proposed targets the plan's targets, checked again as they are added"},
     {I::kConfigLoaded, "config_loaded", kNoWireKind, R::kApprover, kServer, kNone,
      "the server started with a valid robot config"},
     {I::kVolumeLoaded, "volume_loaded", kNoWireKind, R::kApprover, kServer, kNone,
@@ -379,6 +394,11 @@ inline constexpr InputSpec kInputRows[] = {
      "a structure load the server ran finished: the structures and their distance fields"},
     {I::kStructuresLoadFailed, "structures_load_failed", kNoWireKind, R::kApprover, kServer, kNone,
      "a structure load the server ran failed: why"},
+    {I::kTargetsProposed, "targets_proposed", kNoWireKind, R::kApprover, kServer, kNone,
+     "a target proposal the server ran finished: the targets, in the order they would be "
+     "visited"},
+    {I::kTargetProposalFailed, "target_proposal_failed", kNoWireKind, R::kApprover, kServer, kNone,
+     "a target proposal the server ran found none, or more than the plan can take: why"},
 };
 
 static_assert(inEnumOrder(kInputRows, &InputSpec::kind),

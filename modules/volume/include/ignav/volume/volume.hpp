@@ -81,8 +81,11 @@ class Volume {
   VoxelBuffer voxels;  // i fastest, then j, then k
   double value_scale = 1.0;
   double value_offset = 0.0;
-  std::string modality;     // "CT", "MR", ... ("" when the file format has none)
-  std::string series_uid;   // DICOM SeriesInstanceUID, or "" for NRRD/MetaImage
+  std::string modality;    // "CT", "MR", ... ("" when the file format has none)
+  std::string series_uid;  // DICOM SeriesInstanceUID, or "" for NRRD/MetaImage
+  // DICOM FrameOfReferenceUID: structures and registrations drawn in this frame belong here
+  // ("" for NRRD/MetaImage, which carry none).
+  std::string frame_of_reference_uid;
   std::string description;  // e.g. SeriesDescription or the file name
 
   std::size_t index(int i, int j, int k) const {

@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -31,7 +32,8 @@ enum class JobKind {
   kMarkerDetection,
   kConfirmationMeasurement,
   kNeedleScan,
-  kStructureLoad
+  kStructureLoad,
+  kTargetProposal
 };
 
 // What the job thread gives every run besides its snapshot: the session folder (for files a job
@@ -94,11 +96,29 @@ constexpr double kStructureReach_mm = 15.0;
 // `ct`'s grid, with the site's roles and a distance field per structure, as structures_loaded
 // naming `job` (its summary names each structure with its role and voxels), or
 // structures_load_failed with why. kPhantomSource: the built-in phantom's anatomy, drawn on its
-// CT for `robot` (and written to the session folder as phantom_anatomy.seg.nrrd for people).
+// CT for `robot` (and written to the session folder for people and other tools, as
+// phantom_anatomy.seg.nrrd and as the RT Structure Set phantom_anatomy_rtstruct.dcm). DICOM
+// structures are drawn on the CT and checked against its frame of reference.
 // Replay and crash recovery call it to read them again.
 Input loadStructures(std::uint64_t job, const std::string& source, const LoadedCt& ct,
                      const std::optional<anatomy::Site>& site, const config::Robot& robot,
                      const JobContext& context);
+// The finest lattice propose_targets tries, and the most points it tries (each is a target's
+// whole evaluation: inverse kinematics, aim, clearance).
+constexpr double kMinProposalSpacing_mm = 1.0;
+constexpr double kMaxProposalSpacing_mm = 30.0;
+constexpr std::size_t kMaxProposalCandidates = 20000;
+
+// propose_targets' job (target_proposal.cpp): on `snapshot` (the session when it was asked), the
+// points of a lattice of `spacing_mm` in the robot's frame (through the structure's centroid)
+// that lie inside `structure`, evaluated as targets would be; those reachable with every
+// clearance kept, at most as many as the plan can still take, in the order the plan would visit
+// them, as targets_proposed naming `job` (`points`; `summary` says what was left out and why), or
+// target_proposal_failed with why (none, or more than the plan can take: a spacing that gives
+// fewer).
+Input proposeTargets(std::uint64_t job, const std::string& structure, double spacing_mm,
+                     const std::shared_ptr<const Session>& snapshot, const JobContext& context);
+
 // The built-in phantom's anatomy in the robot's frame (phantom_anatomy.cpp): a prostate filling
 // the feasible volume (target), a urethra through it (avoid 3 mm), a rectum behind (5 mm), a
 // pubic arch in front (2 mm).

@@ -80,6 +80,9 @@ enum class ReplyCode {
   kTooClose,
   kNotTooClose,
   kNoReason,
+  kBadSpacing,
+  kNoProposals,
+  kUnknownProposal,
   // The server.
   kJournalFailed,
   kInternal,

@@ -345,6 +345,22 @@ struct StructuresStatus {
   std::vector<StructureRoleChoice> roles;
 };
 
+// Targets proposed to fill a structure (propose_targets, issue 41): lattice points inside it
+// whose needles reach them with every clearance kept, in the order the plan would visit them.
+struct ProposedTarget {
+  std::uint32_t id = 0;  // 1, 2, ... in that order; accept_proposals names them
+  Eigen::Vector3d lps_mm = Eigen::Vector3d::Zero();
+};
+
+struct TargetProposals {
+  std::string status = "none";          // none | proposing | proposed | failed
+  std::string structure;                // the one filled
+  double spacing_mm = 0.0;              // the lattice's
+  std::string message;                  // what the proposal found, or why none
+  std::uint64_t proposing = 0;          // the propose_targets awaited (its revision); 0: none
+  std::vector<ProposedTarget> targets;  // not yet accepted
+};
+
 struct Session {
   std::string session_id;
   std::string robot_id;      // config_loaded's (journaled); "" before issue 38
@@ -381,6 +397,7 @@ struct Session {
   std::optional<ReaimProposal> reaim;
   // The patient's structures on the CT (issue 41) and the site's roles for them.
   StructuresStatus structures;
+  TargetProposals proposals;
   std::optional<anatomy::Site> site;
   std::vector<FittedTissue> fitted_tissues;
   std::optional<config::TissueProfile> aim_tissue;
