@@ -1,6 +1,8 @@
 // runServer: from the options to a running Server. Loads the robot and the tissue profile, then
 // either replays a recorded session (read only) or opens the session folder, recovers its journal
 // (a record torn by a crash is cut off) and serves.
+#include <dcmtk/config/osconfig.h>  // first, as DCMTK requires
+#include <dcmtk/oflog/oflog.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -53,6 +55,10 @@ bool markUnfinished(const fs::path& marker, const fs::path& dir) {
 }  // namespace
 
 int runServer(const ServerOptions& given, const std::atomic<bool>& stop) {
+  // DCMTK's IOD modules (RT Structure Sets, SEG) warn of every optional attribute a file lacks:
+  // noise in the server's log. Their errors still show; the readers' own errors name the file.
+  for (const char* module : {"dcmtk.dcmrt", "dcmtk.dcmiod", "dcmtk.dcmseg", "dcmtk.dcmfg"})
+    OFLog::getLogger(module).setLogLevel(OFLogger::ERROR_LOG_LEVEL);
   ServerOptions options = given;
   // The network settings first: a wrong interface is named here, not as Cyclone's "Error".
   try {

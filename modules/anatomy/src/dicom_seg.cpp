@@ -41,7 +41,6 @@ Expected<StructureSet> readDicomSeg(const std::string& path, const CtFrame& ct) 
         fmt::format("{}: the segmentation was not made on this CT ({}): {}", path, ct.name, how),
         "other_ct");
   };
-  quietDcmtkModules();
   SegFile in;
   if (OFCondition c = in.file.loadFile(path.c_str()); c.bad()) {
     return makeError(ErrorCode::kIo, path + ": cannot read as DICOM: " + c.text(), "format");

@@ -2,13 +2,11 @@
 #include <dcmtk/config/osconfig.h>  // first, as DCMTK requires
 #include <dcmtk/dcmdata/dcfilefo.h>
 #include <dcmtk/dcmrt/drtstrct.h>
-#include <dcmtk/oflog/oflog.h>
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <mutex>
 #include <numeric>
 #include <optional>
 
@@ -67,16 +65,6 @@ Error contourError(ErrorCode code, const std::string& what, std::size_t number,
 }
 
 }  // namespace
-
-void quietDcmtkModules() {
-  // Their warnings list every optional attribute a file lacks (type 2 "absent"): noise in the
-  // server's log. Errors still show; ours name the file and what is wrong.
-  static std::once_flag once;
-  std::call_once(once, [] {
-    for (const char* module : {"dcmtk.dcmrt", "dcmtk.dcmiod", "dcmtk.dcmseg", "dcmtk.dcmfg"})
-      OFLog::getLogger(module).setLogLevel(OFLogger::ERROR_LOG_LEVEL);
-  });
-}
 
 Expected<Mask> rasteriseContours(const std::vector<PlanarContour>& contours,
                                  const volume::Geometry& ct, const std::string& what) {
@@ -177,7 +165,7 @@ Expected<Mask> rasteriseContours(const std::vector<PlanarContour>& contours,
     by_slice[sc.k].push_back(&sc);
   std::vector<double> xs;
   for (const auto& [k, on_slice] : by_slice) {
-    for (int j = std::max(lo[1], 0); j <= hi[1]; ++j) {
+    for (int j = lo[1]; j <= hi[1]; ++j) {
       xs.clear();
       for (const SliceContour* sc : on_slice) {
         const auto& p = sc->points;
@@ -220,7 +208,6 @@ std::string text(OFCondition (DRTStructureSetROISequence::Item::*get)(OFString&,
 }  // namespace
 
 Expected<StructureSet> readRtStructureSet(const std::string& path, const CtFrame& ct) {
-  quietDcmtkModules();
   DcmFileFormat file;
   if (OFCondition c = file.loadFile(path.c_str()); c.bad()) {
     return makeError(ErrorCode::kIo, path + ": cannot read as DICOM: " + c.text(), "format");

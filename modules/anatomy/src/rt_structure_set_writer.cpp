@@ -73,7 +73,6 @@ std::string decimalString(const std::vector<Eigen::Vector3d>& points) {
 
 Status writeRtStructureSet(const StructureSet& set, const CtFrame& ct,
                            const RtStructureSetHeader& header, const std::string& path) {
-  quietDcmtkModules();
   if (auto on_ct = checkOnCt(set, ct.geometry, ct.name); !on_ct.ok()) return on_ct.error();
   if (set.structures.empty()) {
     return makeError(ErrorCode::kInvalidArgument, path + ": no structure to write");

@@ -205,28 +205,31 @@ Refusal startTargetProposal(Session& s, const Input& in, ActionOutput& out) {
   return std::nullopt;
 }
 
-Refusal adoptProposals(Session& s, const Input& in, ActionOutput& out) {
+namespace {
+
+// The proposal's outcome: its points (none when it failed) and what it said.
+Refusal endProposal(Session& s, const char* status, const std::string& message,
+                    const std::vector<Eigen::Vector3d>& points, ActionOutput& out) {
   auto& p = s.proposals;
   p.proposing = 0;
-  p.status = "proposed";
-  p.message = in.summary;
+  p.status = status;
+  p.message = message;
   p.targets.clear();
-  for (const auto& lps : in.points)
+  for (const auto& lps : points)
     p.targets.push_back({static_cast<std::uint32_t>(p.targets.size() + 1), lps});
   out.effects.structures_changed = true;
-  out.note = in.summary;
+  out.note = message;
   return std::nullopt;
 }
 
+}  // namespace
+
+Refusal adoptProposals(Session& s, const Input& in, ActionOutput& out) {
+  return endProposal(s, "proposed", in.summary, in.points, out);
+}
+
 Refusal noteProposalFailure(Session& s, const Input& in, ActionOutput& out) {
-  auto& p = s.proposals;
-  p.proposing = 0;
-  p.status = "failed";
-  p.message = in.error;
-  p.targets.clear();
-  out.effects.structures_changed = true;
-  out.note = in.error;
-  return std::nullopt;
+  return endProposal(s, "failed", in.error, {}, out);
 }
 
 Refusal acceptProposals(Session& s, const Input& in, ActionOutput& out) {

@@ -60,10 +60,6 @@ struct RtStructureSetHeader {
 Status writeRtStructureSet(const StructureSet& set, const CtFrame& ct,
                            const RtStructureSetHeader& header, const std::string& path);
 
-// DCMTK's IOD modules warn of every optional attribute a file lacks: kept to errors (once per
-// process; the readers call it).
-void quietDcmtkModules();
-
 // Either of the above, by the file's Modality; another DICOM object is refused (unsupported).
 Expected<StructureSet> readDicomStructures(const std::string& path, const CtFrame& ct);
 
