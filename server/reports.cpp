@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 
 #include "ignav/kinematics/reachable_region.hpp"
+#include "ignav/kinematics/workspace_map.hpp"
 #include "ignav/registration/slicer_export.hpp"
 #include "ignav/verification/targeting_report.hpp"
 #include "ignav/volume/slice.hpp"
@@ -226,6 +227,37 @@ void Reports::writeExports(const Session& session) {
                           false});
     (void)registration::writeMarkupsJson("ignav proposed targets", proposed,
                                          (session_dir_ / "proposed_targets.mrk.json").string());
+  }
+  // Where to mount the robot, for Slicer: the best pose as a transform (robot-frame data under it,
+  // such as feasible_volume.ply, shows where the robot would reach) and every pose's entry point.
+  const auto& placed = session.robot_placement;
+  if (placed.status == "placed" && !placed.poses.empty() && session.robot) {
+    const auto& best = placed.poses.front().pose;
+    registration::Registration as_registration;
+    as_registration.kind = registration::TransformKind::kRigid;
+    as_registration.rotation = best.rotation.transpose();
+    as_registration.translation_mm = -best.rotation.transpose() * best.origin_lps_mm;
+    (void)registration::writeItkTransform(as_registration,
+                                          (session_dir_ / "robot_placement.tfm").string());
+    std::vector<registration::MarkupPoint> entries;
+    for (std::size_t n = 0; n < placed.poses.size(); ++n) {
+      const auto& p = placed.poses[n];
+      entries.push_back(
+          {fmt::format("{} {:.1f} %", n == 0 ? "entry" : "alt " + std::to_string(n),
+                       100.0 * p.coverage.fraction()),
+           p.skin.entry_lps_mm,
+           fmt::format("covers {:.1f} % of '{}'; axis ({:.3f}, {:.3f}, {:.3f}) LPS, tilt {:.1f}°",
+                       100.0 * p.coverage.fraction(), placed.structure, p.pose.insertion().x(),
+                       p.pose.insertion().y(), p.pose.insertion().z(), p.tilt_deg),
+           n == 0});
+    }
+    (void)registration::writeMarkupsJson("ignav robot placement", entries,
+                                         (session_dir_ / "robot_placement.mrk.json").string());
+    const auto ply = session_dir_ / "feasible_volume.ply";
+    if (!fs::exists(ply)) {
+      if (auto map = kinematics::computeWorkspaceMap(session.robot->kinematics, 1.0))
+        (void)kinematics::writeWorkspacePly(*map, ply.string());
+    }
   }
   // The structures as the plan used them, roles included (Slicer keeps them as segment tags).
   const auto& st = session.structures;

@@ -59,7 +59,7 @@ void StatePublisher::publishEffects(const Session& s, const workflow::Effects& e
     publishTarget(s, id);
   if (e.approval_changed) publishApproval(s);
   if (e.confirmation_changed || e.robot_changed) publishVerification(s);
-  if (e.structures_changed) publishStructures(s);
+  if (e.structures_changed) publishStructures(s, r.placement_progress);
   if (e.motion_changed || !e.controller.empty()) publishMotion(s, r.controller, r.lifecycle);
   if (e.workflow_changed) publishWorkflow(s);
   if (e.job_outcome) publishJobOutcome(*e.job_outcome);
@@ -69,7 +69,8 @@ void StatePublisher::publishJobOutcome(const workflow::JobOutcome& o) {
   job_outcome_.write({o.job, o.kind, o.input, o.status, o.message, o.revision});
 }
 
-void StatePublisher::publishStructures(const Session& s) {
+void StatePublisher::publishStructures(const Session& s,
+                                       std::pair<std::size_t, std::size_t> placement_progress) {
   const auto& st = s.structures;
   protocol::StructuresState m;
   m.status = st.status;
@@ -100,12 +101,36 @@ void StatePublisher::publishStructures(const Session& s) {
   m.proposal_message = s.proposals.message;
   for (const auto& p : s.proposals.targets)
     m.proposed.push_back({p.id, {p.lps_mm.x(), p.lps_mm.y(), p.lps_mm.z()}});
+  const auto& placed = s.robot_placement;
+  m.placement_status = placed.status;
+  m.placement_message = placed.message;
+  m.placement_structure = placed.structure;
+  if (placed.placing) {
+    m.placement_progress_done = placement_progress.first;
+    m.placement_progress_total = placement_progress.second;
+  }
+  auto array = [](const Eigen::Vector3d& v) { return std::array<double, 3>{v.x(), v.y(), v.z()}; };
+  for (const auto& p : placed.poses) {
+    m.placements.push_back({p.coverage.fraction(), array(p.pose.origin_lps_mm),
+                            array(p.pose.insertion()), array(p.skin.entry_lps_mm), p.tilt_deg,
+                            p.shift_mm, p.skin.skin_distance_mm, p.skin.seen});
+  }
+  m.mounted_status = placed.checking                  ? "measuring"
+                     : placed.mounted                 ? "measured"
+                     : placed.mounted_message.empty() ? "none"
+                                                      : "failed";
+  m.mounted_message = placed.mounted_message;
+  if (placed.mounted) {
+    m.mounted_coverage = placed.mounted->coverage.fraction();
+    m.mounted_entry_mm = placed.mounted->deviation.entry_mm;
+    m.mounted_axis_deg = placed.mounted->deviation.axis_deg;
+  }
   structures_.write(m);
 }
 
 void StatePublisher::publishEverything(const Session& s, const Readings& r) {
   publishVerification(s);
-  publishStructures(s);
+  publishStructures(s, r.placement_progress);
   publishRobot(s);
   publishVolume(s, r.load_progress);
   publishRegistration(s);

@@ -24,7 +24,8 @@ namespace ignav::server {
 struct Readings {
   actuation::ControllerStatus controller;  // the latest reading taken (or replayed)
   const char* lifecycle = "unconfigured";  // the controller component's (controller_component.hpp)
-  std::pair<std::size_t, std::size_t> load_progress{0, 0};  // files read, in all (loading)
+  std::pair<std::size_t, std::size_t> load_progress{0, 0};       // files read, in all (loading)
+  std::pair<std::size_t, std::size_t> placement_progress{0, 0};  // a robot placement's search
 };
 
 // What Health says beside the session.
@@ -60,7 +61,8 @@ class StatePublisher {
                      const char* lifecycle);
   void publishHealth(const workflow::Session& s, const HealthFacts& facts);
   void publishVerification(const workflow::Session& s);
-  void publishStructures(const workflow::Session& s);
+  void publishStructures(const workflow::Session& s,
+                         std::pair<std::size_t, std::size_t> placement_progress);
   void publishJobOutcome(const workflow::JobOutcome& outcome);
 
  private:

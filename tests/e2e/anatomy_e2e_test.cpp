@@ -2,7 +2,8 @@
 // anatomy loaded with ignavctl, a clicked target whose needle crosses the urethra refused by name
 // in TargetState and by lock_plan, an operator's override with a reason that the approval
 // request shows, a segmentation that is no segmentation refused with the structures before kept,
-// the anatomy written for 3D Slicer, and the session replayed offline from its journal.
+// the anatomy written for 3D Slicer, the robot placed on the planning CT and the mounted robot
+// measured against that, and the session replayed offline from its journal.
 #include <gtest/gtest.h>
 
 #include <fmt/format.h>
@@ -11,6 +12,7 @@
 #include <fstream>
 #include <map>
 #include <optional>
+#include <sstream>
 #include <thread>
 
 #include <opencv2/imgcodecs.hpp>
@@ -201,6 +203,75 @@ TEST(AnatomyE2E, TargetsProposedToFillTheProstateAreAcceptedAndLockAsOneInsertio
   server.stop();
   const auto [status, text] = replayVerified(dir);
   EXPECT_EQ(status, 0) << text;
+}
+
+TEST(AnatomyE2E, TheRobotIsPlacedOnThePlanningCtAndTheMountedRobotMeasuredAgainstIt) {
+  constexpr std::uint32_t kPlacementDomain = 192;
+  ServerProcess server(kPlacementDomain);
+  auto op = server.client("operator");
+  op->waitFor([](const json& s) { return s.contains("robot"); }, 10s);
+  auto run = [](const std::string& args) { return ignavctlOn(kPlacementDomain, args); };
+  // The planning CT before the robot is registered: the CT and the structures only.
+  ASSERT_TRUE(op->send("load_volume", {"phantom:", {}, {}}).accepted);
+  op->waitFor([](const json& s) { return stateText(s, "volume", "status") == "loaded"; }, 60s);
+  ASSERT_EQ(run("structures load phantom").exit_code, 0);
+  const auto refused = run("structures place prostate from above");
+  EXPECT_NE(refused.output.find("bad_approach"), std::string::npos) << refused.output;
+  const auto placed = run("structures place prostate from superior");
+  ASSERT_EQ(placed.exit_code, 0) << placed.output;
+  EXPECT_NE(placed.output.find("robot placement placed"), std::string::npos) << placed.output;
+  EXPECT_NE(placed.output.find("alternative 1"), std::string::npos) << placed.output;
+  op->waitFor(
+      [](const json& s) { return stateText(s, "structures", "placement_status") == "placed"; },
+      10s);
+  const json best = op->state()["structures"]["placements"][0];
+  EXPECT_GT(best["coverage"].get<double>(), 0.6);
+  EXPECT_TRUE(best["skin_seen"].get<bool>());
+  EXPECT_LE(best["tilt_deg"].get<double>(), 20.0 + 1e-9);
+
+  // For Slicer: the pose as an ITK transform (image -> robot: the origin to 0, the axis to -Z).
+  const auto tfm = server.sessionDir() / "robot_placement.tfm";
+  for (int i = 0; i < 100 && !std::filesystem::exists(tfm); ++i)
+    std::this_thread::sleep_for(50ms);
+  std::ifstream in(tfm);
+  std::string line, parameters;
+  while (std::getline(in, line))
+    if (line.rfind("Parameters:", 0) == 0) parameters = line.substr(11);
+  std::istringstream numbers(parameters);
+  Eigen::Matrix3d m;
+  Eigen::Vector3d t;
+  for (int k = 0; k < 9; ++k)
+    numbers >> m(k / 3, k % 3);
+  numbers >> t.x() >> t.y() >> t.z();
+  ASSERT_TRUE(numbers) << parameters;
+  Eigen::Vector3d origin, axis;
+  for (int a = 0; a < 3; ++a) {
+    origin[a] = best["origin_lps"][a].get<double>();
+    axis[a] = best["axis_lps"][a].get<double>();
+  }
+  EXPECT_LT((m * origin + t).norm(), 1e-3);
+  EXPECT_LT((m * axis - Eigen::Vector3d(0, 0, -1)).norm(), 1e-6);
+  EXPECT_TRUE(std::filesystem::exists(server.sessionDir() / "feasible_volume.ply"));
+
+  // Mounted (the phantom's robot, placed without this plan) and registered: measured against it.
+  ASSERT_TRUE(op->send("auto_fiducials").accepted);
+  op->waitFor(
+      [](const json& s) { return stateText(s, "structures", "mounted_status") == "measured"; },
+      30s);
+  const json st = op->state()["structures"];
+  ASSERT_EQ(st["mounted_status"], "measured") << st.dump();
+  EXPECT_LT(st["mounted_coverage"].get<double>(), best["coverage"].get<double>());
+  EXPECT_GT(st["mounted_axis_deg"].get<double>(), 1.0);
+  EXPECT_NE(st["mounted_message"].get<std::string>().find("points less"), std::string::npos);
+
+  op.reset();
+  const auto dir = server.sessionDir();
+  server.stop();
+  const auto [status, text] = replayVerified(dir);
+  EXPECT_EQ(status, 0) << text;
+  std::ifstream report(dir / "report.md");
+  const std::string md((std::istreambuf_iterator<char>(report)), {});
+  EXPECT_NE(md.find("## Robot placement ('prostate' from superior)"), std::string::npos);
 }
 
 }  // namespace

@@ -364,5 +364,121 @@ TEST(Proposals, BadRequestsAreRefusedAndTooManyTargetsNamesACoarserSpacing) {
   EXPECT_EQ(b.s.proposals.status, "none");
 }
 
+// ---- Where to mount the robot (place_robot) ----
+
+// The outcome of every job of `kind` the session awaits, fed back.
+void runJobs(Bench& b, JobKind kind) {
+  for (const auto& job : pendingJobs(b.s))
+    if (job.kind == kind) b.feed(job.run({}));
+}
+
+// The coverage model the job builds, made here from the session's own parts: what the job
+// judges a point by, to compare with the session's verdict on a target there.
+placement::CoverageModel sessionModel(const Session& s, double sample_mm) {
+  placement::CoverageInputs in;
+  in.kinematics = std::make_shared<const kinematics::Kinematics>(s.robot->kinematics);
+  in.markers_robot_mm = s.robot->feature_points_mm;
+  in.fle_mm = s.robot->config.registration.fle_mm;
+  in.kind = s.robot->config.registration.kind;
+  const auto& set = s.structures.loaded.set;
+  in.target = std::shared_ptr<const anatomy::Structure>(set, set->find("prostate"));
+  for (std::size_t n = 0; n < set->structures.size(); ++n)
+    if (s.structures.roles[n].role == anatomy::Role::kAvoid)
+      in.avoided.push_back({set->structures[n].name, s.structures.loaded.fields[n],
+                            s.structures.roles[n].margin_mm});
+  return placement::CoverageModel::create(in, sample_mm).value();
+}
+
+TEST(Placement, TheRobotIsPlacedThenTheMountedRobotIsMeasuredAgainstTheProposal) {
+  Bench b;
+  ASSERT_TRUE(loadStructures(b, kPhantomSource).accepted);
+  const Reply started = b.send(withText(b, InputKind::kPlaceRobot, "prostate from superior"));
+  ASSERT_TRUE(started.accepted) << started.message;
+  EXPECT_EQ(b.s.robot_placement.status, "placing");
+  runJobs(b, JobKind::kRobotPlacement);
+  const auto& p = b.s.robot_placement;
+  ASSERT_EQ(p.status, "placed") << p.message;
+  ASSERT_GE(p.poses.size(), 2u);
+  EXPECT_EQ(p.limits.approach, "superior");
+  for (std::size_t n = 1; n < p.poses.size(); ++n)
+    EXPECT_LE(p.poses[n].coverage.covered, p.poses[0].coverage.covered);
+  EXPECT_NE(p.message.find("one insertion covers"), std::string::npos) << p.message;
+
+  // The outcome is journaled with its poses: replay takes them from the record.
+  auto record = parseJournalRecord(b.journal.back());
+  ASSERT_TRUE(record.ok()) << record.error().message;
+  ASSERT_EQ(record->input.placements.size(), p.poses.size());
+  EXPECT_TRUE(record->input.placements[0].pose.rotation.isApprox(p.poses[0].pose.rotation, 1e-12));
+  EXPECT_EQ(record->input.placements[0].coverage.covered, p.poses[0].coverage.covered);
+
+  // Registered already: the mounted robot (where the phantom put it) is measured at once.
+  ASSERT_NE(p.checking, 0u);
+  runJobs(b, JobKind::kPlacementCheck);
+  ASSERT_TRUE(p.mounted.has_value()) << p.mounted_message;
+  EXPECT_LT(p.mounted->coverage.covered * p.poses[0].coverage.samples,
+            p.poses[0].coverage.covered * p.mounted->coverage.samples);
+  EXPECT_GT(p.mounted->deviation.axis_deg, 1.0);
+  EXPECT_NE(p.mounted_message.find("points less"), std::string::npos) << p.mounted_message;
+
+  // The check's coverage counts points by the rules a target is judged by: targets placed at a
+  // sample of its points are plannable exactly where the model says covered (a few may sit on a
+  // margin's edge, where the needle's sampling decides).
+  const auto model = sessionModel(b.s, 2.5);
+  const auto pose = placement::RobotPose::of(*b.s.registration);
+  std::size_t tried = 0, agree = 0, covered = 0;
+  for (std::size_t n = 0; n < model.samples(); n += 23) {
+    const Eigen::Vector3d point = model.samplePoints()[n];
+    const Reply added = b.send(b.command(InputKind::kAddTarget, {point}));
+    ASSERT_TRUE(added.accepted) << added.message;
+    const bool plannable = b.target(added.target_id).plannable();
+    const bool judged = model.judge(pose, point) == 0;
+    ++tried;
+    agree += plannable == judged ? 1 : 0;
+    covered += judged ? 1 : 0;
+    ASSERT_TRUE(b.send(b.command(InputKind::kRemoveTarget, {}, {added.target_id})).accepted);
+  }
+  EXPECT_GT(tried, 150u);
+  EXPECT_GT(covered, tried / 3);
+  EXPECT_GE(agree, tried - tried / 50) << agree << " of " << tried;
+
+  // A registration anew measures again.
+  auto fiducials = registration::makeRobotPhantom(paperRobot()->kinematics,
+                                                  paperRobot()->config.registration.scan)
+                       .value()
+                       .spec.fiducials_lps_mm;
+  for (auto& f : fiducials)
+    f += Eigen::Vector3d(3.0, 0.0, 0.0);  // the robot mounted 3 mm to the left
+  ASSERT_TRUE(b.send(b.command(InputKind::kSetFiducials, fiducials)).accepted);
+  EXPECT_FALSE(p.mounted.has_value());
+  ASSERT_NE(p.checking, 0u);
+  runJobs(b, JobKind::kPlacementCheck);
+  ASSERT_TRUE(p.mounted.has_value());
+  EXPECT_GT(p.mounted->deviation.entry_mm, 1.0);
+
+  // A new set of structures drops the placement.
+  ASSERT_TRUE(loadStructures(b, kPhantomSource).accepted);
+  EXPECT_EQ(b.s.robot_placement.status, "none");
+}
+
+TEST(Placement, BadRequestsAreRefusedAndChangeNothing) {
+  Bench b;
+  EXPECT_EQ(b.send(withText(b, InputKind::kPlaceRobot, "prostate")).error_code, "no_structures");
+  ASSERT_TRUE(loadStructures(b, kPhantomSource).accepted);
+  EXPECT_EQ(b.send(withText(b, InputKind::kPlaceRobot, "bladder")).error_code, "unknown_structure");
+  const Reply bad_side = b.send(withText(b, InputKind::kPlaceRobot, "prostate from above"));
+  EXPECT_EQ(bad_side.error_code, "bad_approach");
+  EXPECT_NE(bad_side.message.find("'above'"), std::string::npos);
+  EXPECT_EQ(b.s.robot_placement.status, "none");
+  ASSERT_TRUE(b.send(withText(b, InputKind::kPlaceRobot, "prostate from superior")).accepted);
+  const auto placing = b.s.robot_placement.placing;
+  EXPECT_EQ(b.send(withText(b, InputKind::kPlaceRobot, "prostate")).error_code, "busy");
+  EXPECT_EQ(b.s.robot_placement.placing, placing);
+  // An outcome of another placement (not the one awaited) is refused as stale.
+  Input stale = Bench::internal(InputKind::kRobotPlaced);
+  stale.job = placing + 1000;
+  stale.path = "prostate from superior";
+  b.feed(stale);
+  EXPECT_EQ(b.s.robot_placement.status, "placing");
+}
 }  // namespace
 }  // namespace ignav::workflow

@@ -32,12 +32,7 @@ int main(int argc, char** argv) {
 
   ignav::protocol::Client c(domain, xml, "operator", nullptr,
                             ignav::protocol::chooseRobot(domain, xml, nullptr, "", 10s));
-  if (!c.waitForServer(10s) || !ignav::bench::loadAndRegister(c, "phantom:")) {
-    std::fprintf(stderr, "no server on domain %u, or the phantom did not register\n", domain);
-    return 3;
-  }
-  const auto loaded = c.send("load_structures", {"phantom:", {}, {}});
-  if (!loaded.accepted || c.waitForJobOutcome(loaded.job, 120s).status != "done") return 4;
+  if (!ignav::bench::phantomWithAnatomy(c, domain)) return 3;
 
   std::vector<double> accept_ms;
   bool before = false;

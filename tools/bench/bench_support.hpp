@@ -44,6 +44,21 @@ inline bool loadAndRegister(protocol::Client& c, const std::string& source) {
   return true;
 }
 
+// The built-in phantom on a server that has just started, waited for: its CT loaded and
+// registered, its anatomy loaded. Says on stderr what did not happen.
+inline bool phantomWithAnatomy(protocol::Client& c, std::uint32_t domain) {
+  if (!c.waitForServer(std::chrono::seconds(10)) || !loadAndRegister(c, "phantom:")) {
+    std::fprintf(stderr, "no server on domain %u, or the phantom did not register\n", domain);
+    return false;
+  }
+  const auto loaded = c.send("load_structures", {"phantom:", {}, {}});
+  if (loaded.accepted &&
+      c.waitForJobOutcome(loaded.job, std::chrono::seconds(120)).status == "done")
+    return true;
+  std::fprintf(stderr, "the phantom's anatomy did not load\n");
+  return false;
+}
+
 // Pings from a client of its own every 5 ms until stopped; the round trips (ms).
 class Pinger {
  public:

@@ -36,6 +36,7 @@ constexpr Alias kAliases[] = {
     {"targets accept", "accept_proposals"},      // [ID...]: none, all of them
     {"structures load", "load_structures"},
     {"structures role", "structure_role"},  // NAME ROLE [MARGIN_MM]
+    {"structures place", "place_robot"},    // STRUCTURE [from SIDE]; waits for the outcome
     {"verify load", "load_confirmation"},   // waits for the measurement; `same-frame`
     {"verify place", "place_seed"},
     {"verify accept", "accept_seed"},

@@ -79,11 +79,24 @@ void printStructures(const protocol::StateMirror& state) {
     std::printf("  %-14s %-7s %7s %10llu voxels %8.2f cm³\n", x.name.c_str(), x.role.c_str(),
                 margin.c_str(), static_cast<unsigned long long>(x.voxels), x.volume_cm3);
   }
-  if (s.proposal_status == "none" || s.proposal_status.empty()) return;
-  std::cout << "targets " << s.proposal_status << ": " << s.proposal_message << "\n";
-  for (const auto& p : s.proposed)
-    std::printf("  P%-4u (%8.2f, %8.2f, %8.2f) mm LPS\n", p.id, p.lps[0], p.lps[1], p.lps[2]);
-  if (!s.proposed.empty()) std::cout << "  (targets accept [ID...] makes them targets)\n";
+  if (!s.proposal_status.empty() && s.proposal_status != "none") {
+    std::cout << "targets " << s.proposal_status << ": " << s.proposal_message << "\n";
+    for (const auto& p : s.proposed)
+      std::printf("  P%-4u (%8.2f, %8.2f, %8.2f) mm LPS\n", p.id, p.lps[0], p.lps[1], p.lps[2]);
+    if (!s.proposed.empty()) std::cout << "  (targets accept [ID...] makes them targets)\n";
+  }
+  if (s.placement_status.empty() || s.placement_status == "none") return;
+  std::cout << "robot placement " << s.placement_status << ": " << s.placement_message << "\n";
+  for (std::size_t n = 0; n < s.placements.size(); ++n) {
+    const auto& p = s.placements[n];
+    std::printf(
+        "  %-13s %5.1f %%  entry (%7.1f, %7.1f, %7.1f) mm LPS  axis (%6.3f, %6.3f, %6.3f)  "
+        "tilt %4.1f°  %5.1f mm outside the skin\n",
+        n == 0 ? "proposed" : fmt::format("alternative {}", n).c_str(), 100.0 * p.coverage,
+        p.entry_lps[0], p.entry_lps[1], p.entry_lps[2], p.axis_lps[0], p.axis_lps[1], p.axis_lps[2],
+        p.tilt_deg, p.skin_distance_mm);
+  }
+  if (!s.mounted_message.empty()) std::cout << "  mounted: " << s.mounted_message << "\n";
 }
 
 void printApproval(const protocol::StateMirror& s) {

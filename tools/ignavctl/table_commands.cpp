@@ -90,8 +90,8 @@ int detectFiducials(Server& s, const AliasCall& call, double wait_s) {
   return registered ? 0 : kExitRejected;
 }
 
-// Waits for the outcome of a structure load or a target proposal, then lists the structures and
-// the targets proposed (or says why not).
+// Waits for the outcome of a structure load, a target proposal or a robot placement, then lists
+// the structures, the targets proposed and the poses (or says why not).
 int structuresJob(Server& s, const AliasCall& call, double wait_s) {
   protocol::Reply r;
   const auto outcome = sendLoad(s, call, wait_s, r);
@@ -100,7 +100,8 @@ int structuresJob(Server& s, const AliasCall& call, double wait_s) {
   s.client.waitUntil(
       [](const protocol::StateMirror& m) {
         return m.structures && m.structures->status != "loading" &&
-               m.structures->proposal_status != "proposing";
+               m.structures->proposal_status != "proposing" &&
+               m.structures->placement_status != "placing";
       },
       std::chrono::seconds(5));
   if (s.as_json) {
@@ -181,14 +182,15 @@ void addAliasCommands(CLI::App& app, Action& chosen) {
   auto* structures = app.add_subcommand("structures", structures_usage);
   auto structures_wait_s = std::make_shared<double>(300.0);
   structures->add_option("--wait-s", *structures_wait_s,
-                         "load: how long to wait for the load (default 300)");
+                         "load, place: how long to wait for the outcome (default 300)");
   onServerReadNow(structures, chosen,
                   [words = wordsOf(structures, structures_usage), structures_usage,
                    structures_wait_s]() -> Work {
                     if (*words == std::vector<std::string>{"ls"}) return listStructures;
                     return [call = aliasCall("structures", *words, structures_usage),
                             structures_wait_s](Server& s) {
-                      if (call.row.kind == commands::InputKind::kLoadStructures)
+                      if (call.row.kind == commands::InputKind::kLoadStructures ||
+                          call.row.kind == commands::InputKind::kPlaceRobot)
                         return structuresJob(s, call, *structures_wait_s);
                       return sendCall(s, call);
                     };

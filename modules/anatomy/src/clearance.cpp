@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace ignav::anatomy {
 namespace {
@@ -37,6 +38,19 @@ ClosestApproach closestApproach(const NeedleBody& body, const DistanceField& fie
                                 double step_mm) {
   ClosestApproach best;
   const double step = std::max(step_mm, 1e-3);
+  // A first bound on the closest approach, from a sample every few millimetres of every piece:
+  // the strides below are measured from it, so a long stretch that runs parallel to the
+  // structure, farther than another piece comes, is crossed in strides rather than steps.
+  constexpr double kBoundSpacing_mm = 2.0;
+  double bound = std::numeric_limits<double>::infinity();
+  for (const auto& pc : body) {
+    if (pc.centreline_lps_mm.empty()) continue;
+    const Polyline line(pc.centreline_lps_mm);
+    for (double s = 0.0;; s += kBoundSpacing_mm) {
+      bound = std::min(bound, field.at(line.at(std::min(s, line.length()))) - pc.radius_mm);
+      if (s >= line.length()) break;
+    }
+  }
   double arc_before = 0.0;
   for (std::size_t piece = 0; piece < body.size(); ++piece) {
     const auto& pc = body[piece];
@@ -49,7 +63,9 @@ ClosestApproach closestApproach(const NeedleBody& body, const DistanceField& fie
       const double d = clearance(s);
       if (d < best_d) best_d = d, best_s = s;
       if (s >= length) break;
-      s = std::min(length, s + std::max(step, (d - best_d) / kSlope));
+      // Nothing before the next sample comes closer than the closest yet (of this piece, or the
+      // bound): this piece's closest is found as finely only where it is the body's.
+      s = std::min(length, s + std::max(step, (d - std::min(best_d, bound)) / kSlope));
     }
     // Golden section about the closest sample.
     double lo = std::max(0.0, best_s - step), hi = std::min(length, best_s + step);
@@ -80,6 +96,24 @@ ClosestApproach closestApproach(const NeedleBody& body, const DistanceField& fie
     arc_before += length;
   }
   return best;
+}
+
+bool staysFarther(const NeedleBody& body, const DistanceField& field, double distance_mm,
+                  double step_mm) {
+  const double step = std::max(step_mm, 1e-3);
+  for (const auto& pc : body) {
+    if (pc.centreline_lps_mm.empty()) continue;
+    const Polyline line(pc.centreline_lps_mm);
+    const double length = line.length();
+    for (double s = 0.0;;) {
+      // Within a step of it: the strides could no longer vouch for what lies between.
+      const double above = field.at(line.at(s)) - pc.radius_mm - distance_mm;
+      if (above < step * kSlope) return false;
+      if (s >= length) break;
+      s = std::min(length, s + above / kSlope);
+    }
+  }
+  return true;
 }
 
 }  // namespace ignav::anatomy

@@ -7,6 +7,35 @@
 #include <yaml-cpp/yaml.h>
 
 namespace ignav::anatomy {
+
+Status PlacementLimits::validate() const {
+  auto bad = [](const std::string& what) {
+    return makeError(ErrorCode::kInvalidArgument, "placement." + what, "bad_placement");
+  };
+  if (!insertion_lps.allFinite() || std::abs(insertion_lps.norm() - 1.0) > 1e-6)
+    return bad("insertion_lps must be a unit direction");
+  if (!std::isfinite(max_tilt_deg) || max_tilt_deg < 0.0 || max_tilt_deg > 45.0)
+    return bad(fmt::format("max_tilt_deg = {} is outside 0-45°", max_tilt_deg));
+  if (!std::isfinite(max_shift_mm) || max_shift_mm < 0.0 || max_shift_mm > 60.0)
+    return bad(fmt::format("max_shift_mm = {} is outside 0-60 mm", max_shift_mm));
+  if (!std::isfinite(min_skin_distance_mm) || min_skin_distance_mm < 0.0 ||
+      min_skin_distance_mm > 300.0)
+    return bad(fmt::format("min_skin_distance_mm = {} is outside 0-300 mm", min_skin_distance_mm));
+  if (!std::isfinite(skin_hu)) return bad("skin_hu must be finite");
+  return Ok{};
+}
+
+std::optional<Eigen::Vector3d> insertionFrom(std::string_view side) {
+  // LPS: +x left, +y posterior, +z superior; a needle from one side goes towards the other.
+  if (namesMatch(side, "inferior")) return Eigen::Vector3d(0, 0, 1);
+  if (namesMatch(side, "superior")) return Eigen::Vector3d(0, 0, -1);
+  if (namesMatch(side, "anterior")) return Eigen::Vector3d(0, 1, 0);
+  if (namesMatch(side, "posterior")) return Eigen::Vector3d(0, -1, 0);
+  if (namesMatch(side, "right")) return Eigen::Vector3d(1, 0, 0);
+  if (namesMatch(side, "left")) return Eigen::Vector3d(-1, 0, 0);
+  return std::nullopt;
+}
+
 const SiteRole* Site::roleFor(const std::string& structure_name) const {
   for (const auto& r : roles) {
     if (namesMatch(r.name, structure_name)) return &r;
@@ -54,6 +83,23 @@ Expected<Site> readSite(const std::string& path) {
       if (e["aliases"]) r.aliases = e["aliases"].as<std::vector<std::string>>();
       if (site.roleFor(r.name)) return bad(where + ": '" + r.name + "' is named twice");
       site.roles.push_back(std::move(r));
+    }
+    if (const auto p = root["placement"]) {
+      auto& limits = site.placement;
+      if (p["approach"]) {
+        limits.approach = p["approach"].as<std::string>();
+        const auto direction = insertionFrom(limits.approach);
+        if (!direction)
+          return bad("placement.approach '" + limits.approach +
+                     "' is none of inferior, superior, anterior, posterior, left, right");
+        limits.insertion_lps = *direction;
+      }
+      if (p["max_tilt_deg"]) limits.max_tilt_deg = p["max_tilt_deg"].as<double>();
+      if (p["max_shift_mm"]) limits.max_shift_mm = p["max_shift_mm"].as<double>();
+      if (p["min_skin_distance_mm"])
+        limits.min_skin_distance_mm = p["min_skin_distance_mm"].as<double>();
+      if (p["skin_hu"]) limits.skin_hu = p["skin_hu"].as<double>();
+      if (auto valid = limits.validate(); !valid.ok()) return bad(valid.error().message);
     }
   } catch (const YAML::Exception& e) {
     return bad(e.what());

@@ -132,4 +132,12 @@ Refusal adoptProposals(Session& s, const Input& in, ActionOutput& out);
 Refusal noteProposalFailure(Session& s, const Input& in, ActionOutput& out);
 Refusal acceptProposals(Session& s, const Input& in, ActionOutput& out);
 
+// ---- Actions: where to mount the robot (placement_actions.cpp) ----
+
+Refusal startRobotPlacement(Session& s, const Input& in, ActionOutput& out);
+Refusal adoptRobotPlacement(Session& s, const Input& in, ActionOutput& out);
+Refusal noteRobotPlacementFailure(Session& s, const Input& in, ActionOutput& out);
+Refusal adoptPlacementCheck(Session& s, const Input& in, ActionOutput& out);
+Refusal notePlacementCheckFailure(Session& s, const Input& in, ActionOutput& out);
+
 }  // namespace ignav::workflow::detail

@@ -57,7 +57,8 @@ Refusal adoptStructures(Session& s, const Input& in, ActionOutput& out) {
   st.status = "loaded";
   st.source = in.path;
   st.message = in.summary;
-  s.proposals = {};  // proposed in the structures before (one under way is ignored)
+  s.proposals = {};        // proposed in the structures before (one under way is ignored)
+  s.robot_placement = {};  // placed for them likewise
   out.effects.structures_changed = true;
   evaluateAll(s, out.effects);
   out.note = "structures loaded: " + in.summary;

@@ -67,12 +67,6 @@ std::optional<BackgroundJob> structureLoad(const Session& s) {
                        }};
 }
 
-std::string staleStructureLoad(const Session& s, const Input& in) {
-  return fmt::format("structure load #{} ({}) is not the one awaited ({}): ignored", in.job,
-                     in.path,
-                     s.structures.loading ? fmt::format("#{}", s.structures.loading) : "none is");
-}
-
 std::optional<BackgroundJob> targetProposal(const Session& s) {
   const auto& p = s.proposals;
   if (p.proposing == 0) return std::nullopt;
@@ -85,10 +79,32 @@ std::optional<BackgroundJob> targetProposal(const Session& s) {
                        }};
 }
 
-std::string staleTargetProposal(const Session& s, const Input& in) {
-  return fmt::format("target proposal #{} ({}) is not the one awaited ({}): ignored", in.job,
-                     in.path,
-                     s.proposals.proposing ? fmt::format("#{}", s.proposals.proposing) : "none is");
+std::optional<BackgroundJob> robotPlacement(const Session& s) {
+  const auto& p = s.robot_placement;
+  if (p.placing == 0) return std::nullopt;
+  return BackgroundJob{JobKind::kRobotPlacement, p.placing,
+                       fmt::format("{} from {}", p.structure, p.limits.approach),
+                       [job = p.placing, structure = p.structure, limits = p.limits,
+                        scene = placementScene(s)](const JobContext& context) {
+                         return placeRobot(job, structure, limits, scene, context);
+                       }};
+}
+
+std::optional<BackgroundJob> placementCheck(const Session& s) {
+  const auto& p = s.robot_placement;
+  if (p.checking == 0 || p.poses.empty() || !s.registration) return std::nullopt;
+  return BackgroundJob{
+      JobKind::kPlacementCheck, p.checking, p.structure,
+      [job = p.checking, structure = p.structure, proposed = p.poses.front(), limits = p.limits,
+       registration = *s.registration, scene = placementScene(s)](const JobContext& context) {
+        return checkPlacement(job, structure, proposed, limits, registration, scene, context);
+      }};
+}
+
+// "robot placement #12 (prostate) is not the one awaited (#15): ignored"
+std::string staleJob(const char* what, std::uint64_t awaited, const Input& in) {
+  return fmt::format("{} #{} ({}) is not the one awaited ({}): ignored", what, in.job, in.path,
+                     awaited ? fmt::format("#{}", awaited) : "none is");
 }
 
 std::string staleMeasurement(const Session& s, const Input& in) {
@@ -113,10 +129,28 @@ const std::vector<JobKindSpec> kJobKinds = {
      staleNeedleScan},
     {JobKind::kStructureLoad, "structure load", InputKind::kStructuresLoaded,
      InputKind::kStructuresLoadFailed, [](const Session& s) { return s.structures.loading; },
-     structureLoad, staleStructureLoad},
+     structureLoad,
+     [](const Session& s, const Input& in) {
+       return staleJob("structure load", s.structures.loading, in);
+     }},
     {JobKind::kTargetProposal, "target proposal", InputKind::kTargetsProposed,
      InputKind::kTargetProposalFailed, [](const Session& s) { return s.proposals.proposing; },
-     targetProposal, staleTargetProposal},
+     targetProposal,
+     [](const Session& s, const Input& in) {
+       return staleJob("target proposal", s.proposals.proposing, in);
+     }},
+    {JobKind::kRobotPlacement, "robot placement", InputKind::kRobotPlaced,
+     InputKind::kRobotPlacementFailed, [](const Session& s) { return s.robot_placement.placing; },
+     robotPlacement,
+     [](const Session& s, const Input& in) {
+       return staleJob("robot placement", s.robot_placement.placing, in);
+     }},
+    {JobKind::kPlacementCheck, "placement check", InputKind::kPlacementChecked,
+     InputKind::kPlacementCheckFailed, [](const Session& s) { return s.robot_placement.checking; },
+     placementCheck,
+     [](const Session& s, const Input& in) {
+       return staleJob("placement check", s.robot_placement.checking, in);
+     }},
 };
 
 }  // namespace

@@ -60,6 +60,32 @@ json reaimJson(const ReaimProposal& r) {
           {"aims", aims}};
 }
 
+json coverageJson(const placement::Coverage& c) {
+  return {{"samples", c.samples},
+          {"covered", c.covered},
+          {"unreachable", c.unreachable},
+          {"too_close", c.too_close}};
+}
+
+json skinJson(const placement::SkinEntry& k) {
+  return {{"entry_lps", vec3(k.entry_lps_mm)},
+          {"skin_distance_mm", k.skin_distance_mm},
+          {"seen", k.seen}};
+}
+
+json placedJson(const placement::PlacedPose& p) {
+  json rotation = json::array();
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c)
+      rotation.push_back(p.pose.rotation(r, c));
+  return {{"origin_lps", vec3(p.pose.origin_lps_mm)},
+          {"rotation", rotation},  // robot -> image, row-major
+          {"coverage", coverageJson(p.coverage)},
+          {"skin", skinJson(p.skin)},
+          {"tilt_deg", p.tilt_deg},
+          {"shift_mm", p.shift_mm}};
+}
+
 json journalRecord(const Input& in, const Session& after) {
   json points = json::array();
   for (const auto& p : in.points)
@@ -103,6 +129,20 @@ json journalRecord(const Input& in, const Session& after) {
     record["seeds"] = seeds;
   }
   if (in.reaim) record["reaim"] = reaimJson(*in.reaim);
+  if (!in.placements.empty()) {
+    json placed = json::array();
+    for (const auto& p : in.placements)
+      placed.push_back(placedJson(p));
+    record["placements"] = placed;
+  }
+  if (in.mounted) {
+    const auto& d = in.mounted->deviation;
+    record["mounted"] = {{"entry_mm", d.entry_mm},
+                         {"axis_deg", d.axis_deg},
+                         {"depth_mm", d.depth_mm},
+                         {"coverage", coverageJson(in.mounted->coverage)},
+                         {"skin", skinJson(in.mounted->skin)}};
+  }
   if (!in.error.empty()) record["error"] = in.error;
   if (in.job != 0) record["job"] = in.job;
   if (!in.summary.empty()) record["summary"] = in.summary;
@@ -122,7 +162,16 @@ json journalRecord(const Input& in, const Session& after) {
                        {"role", anatomy::toString(r.role)},
                        {"margin_mm", r.margin_mm}});
     }
-    record["site"] = {{"name", in.site->name}, {"roles", roles}};
+    const auto& limits = in.site->placement;
+    record["site"] = {{"name", in.site->name},
+                      {"roles", roles},
+                      {"placement",
+                       {{"approach", limits.approach},
+                        {"insertion_lps", vec3(limits.insertion_lps)},
+                        {"max_tilt_deg", limits.max_tilt_deg},
+                        {"max_shift_mm", limits.max_shift_mm},
+                        {"min_skin_distance_mm", limits.min_skin_distance_mm},
+                        {"skin_hu", limits.skin_hu}}}};
   }
   if (in.tissue) {
     record["tissue"] = {{"name", in.tissue->name},
@@ -180,6 +229,25 @@ Int integer(const json& v, const char* field) {
 template <typename Int>
 Int integer(const json& object, const char* field, Int fallback) {
   return object.contains(field) ? integer<Int>(object.at(field), field) : fallback;
+}
+
+placement::Coverage coverageFrom(const json& j) {
+  placement::Coverage c;
+  c.samples = integer<std::size_t>(j.at("samples"), "coverage.samples");
+  c.covered = integer<std::size_t>(j.at("covered"), "coverage.covered");
+  c.unreachable = integer<std::size_t>(j.at("unreachable"), "coverage.unreachable");
+  for (const auto& n : j.at("too_close"))
+    c.too_close.push_back(integer<std::size_t>(n, "coverage.too_close"));
+  if (c.covered > c.samples) throw std::invalid_argument("coverage: more covered than samples");
+  return c;
+}
+
+placement::SkinEntry skinFrom(const json& j) {
+  placement::SkinEntry k;
+  k.entry_lps_mm = vec3From(j.at("entry_lps"), "skin.entry_lps");
+  k.skin_distance_mm = j.at("skin_distance_mm").get<double>();
+  k.seen = j.at("seen").get<bool>();
+  return k;
 }
 
 std::optional<actuation::ControllerStatus> readingFromJson(const json& j) {
@@ -327,6 +395,31 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
       }
       e.input.reaim = std::move(p);
     }
+    for (const auto& j : r.value("placements", json::array())) {
+      placement::PlacedPose p;
+      p.pose.origin_lps_mm = vec3From(j.at("origin_lps"), "placements.origin_lps");
+      const json& m = j.at("rotation");
+      if (!m.is_array() || m.size() != 9) throw std::invalid_argument("placements.rotation");
+      for (int k = 0; k < 9; ++k)
+        p.pose.rotation(k / 3, k % 3) = m.at(k).get<double>();
+      if (!p.pose.rotation.allFinite() || !(p.pose.rotation.transpose() * p.pose.rotation)
+                                               .isApprox(Eigen::Matrix3d::Identity(), 1e-6))
+        throw std::invalid_argument("placements.rotation: not a rotation");
+      p.coverage = coverageFrom(j.at("coverage"));
+      p.skin = skinFrom(j.at("skin"));
+      p.tilt_deg = j.at("tilt_deg").get<double>();
+      p.shift_mm = j.at("shift_mm").get<double>();
+      e.input.placements.push_back(std::move(p));
+    }
+    if (r.contains("mounted")) {
+      const json& j = r.at("mounted");
+      MountedPlacement m;
+      m.deviation = {j.at("entry_mm").get<double>(), j.at("axis_deg").get<double>(),
+                     j.at("depth_mm").get<double>()};
+      m.coverage = coverageFrom(j.at("coverage"));
+      m.skin = skinFrom(j.at("skin"));
+      e.input.mounted = std::move(m);
+    }
     if (r.contains("site")) {
       const json& j = r.at("site");
       anatomy::Site site;
@@ -340,6 +433,18 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
         role.role = *named;
         role.margin_mm = entry.value("margin_mm", 0.0);
         site.roles.push_back(std::move(role));
+      }
+      if (j.contains("placement")) {  // since issue 41's placement; before: the defaults
+        const json& l = j.at("placement");
+        auto& limits = site.placement;
+        limits.approach = l.at("approach").get<std::string>();
+        limits.insertion_lps = vec3From(l.at("insertion_lps"), "site.placement.insertion_lps");
+        limits.max_tilt_deg = l.at("max_tilt_deg").get<double>();
+        limits.max_shift_mm = l.at("max_shift_mm").get<double>();
+        limits.min_skin_distance_mm = l.at("min_skin_distance_mm").get<double>();
+        limits.skin_hu = l.at("skin_hu").get<double>();
+        if (auto valid = limits.validate(); !valid.ok())
+          throw std::invalid_argument("site." + valid.error().message);
       }
       e.input.site = std::move(site);
     }

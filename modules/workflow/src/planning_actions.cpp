@@ -33,6 +33,7 @@ Refusal startVolumeLoad(Session& s, const Input& in, ActionOutput& out) {
   s.detecting = 0;    // a detection on the CT before is ignored when it ends
   s.structures = {};  // drawn on the CT before (a load under way is ignored when it ends)
   s.proposals = {};   // in them
+  s.robot_placement = {};
   e.structures_changed = true;
   e.start_jobs.push_back(JobKind::kVolumeLoad);  // its outcome names this step's revision
   e.volume_changed = e.registration_changed = true;
@@ -151,6 +152,7 @@ Refusal registerByMatrix(Session& s, const Input& in, ActionOutput& out) {
       false};
   out.effects.registration_changed = true;
   evaluateAll(s, out.effects);
+  checkMountedRobot(s, out.effects);
   out.note = s.registration_status.message + dropDetection(s);
   return std::nullopt;
 }

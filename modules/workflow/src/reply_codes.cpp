@@ -144,6 +144,9 @@ const std::vector<ReplyCodeSpec> kCodes = {
      "fine the lattice has too many points to try"},
     {C::kNoProposals, "no_proposals", "`accept_proposals` with no targets proposed"},
     {C::kUnknownProposal, "unknown_proposal", "`accept_proposals` names no proposed target"},
+    {C::kBadApproach, "bad_approach",
+     "`place_robot` naming a side the needle cannot come from (not inferior, superior, anterior, "
+     "posterior, left or right)"},
     {C::kJournalFailed, "journal_failed",
      "the session journal cannot be written (disk full, I/O error): nothing was done, and every "
      "later change is refused until the server is restarted; `Health.journal` says why "

@@ -119,6 +119,35 @@ std::string anatomySection(const Session& s) {
   return out;
 }
 
+// Where the robot was proposed to stand (place_robot) and, once mounted, where it stands.
+std::string placementSection(const Session& s) {
+  const auto& p = s.robot_placement;
+  if (p.status == "none") return "";
+  std::string out = fmt::format("\n## Robot placement ('{}' from {})\n\n- {}: {}\n", p.structure,
+                                p.limits.approach, p.status, p.message);
+  if (!p.poses.empty()) {
+    out +=
+        "- for 3D Slicer: `robot_placement.tfm` (the best pose; put `feasible_volume.ply`, in "
+        "the robot's frame, under it), `robot_placement.mrk.json` (the entry points)\n";
+    out +=
+        "\n| pose | coverage | entry (mm LPS) | axis (LPS) | tilt | shift | origin outside the "
+        "skin |\n|---|---|---|---|---|---|---|\n";
+    for (std::size_t n = 0; n < p.poses.size(); ++n) {
+      const auto& q = p.poses[n];
+      const auto& e = q.skin.entry_lps_mm;
+      const Eigen::Vector3d a = q.pose.insertion();
+      out += fmt::format(
+          "| {} | {:.1f} % | ({:.1f}, {:.1f}, {:.1f}) | ({:.3f}, {:.3f}, {:.3f}) | {:.1f}° | "
+          "{:.1f} mm | {:.1f} mm{} |\n",
+          n == 0 ? "proposed" : "alternative " + std::to_string(n), 100.0 * q.coverage.fraction(),
+          e.x(), e.y(), e.z(), a.x(), a.y(), a.z(), q.tilt_deg, q.shift_mm, q.skin.skin_distance_mm,
+          q.skin.seen ? "" : " (no skin on the CT)");
+    }
+  }
+  if (!p.mounted_message.empty()) out += "\n- mounted: " + p.mounted_message + "\n";
+  return out;
+}
+
 }  // namespace
 
 std::string procedureReport(const Session& s, const std::vector<std::string>& images) {
@@ -147,7 +176,8 @@ std::string procedureReport(const Session& s, const std::vector<std::string>& im
     out += "- registration: none\n";
   }
   out += "\n## Targets (`targets.mrk.json`)\n\n";
-  if (s.targets.empty()) return out + "None.\n" + motionSection(s);
+  if (s.targets.empty())
+    return out + "None.\n" + anatomySection(s) + placementSection(s) + motionSection(s);
   // (no slices without targets)
   out +=
       "| # | id | status | LPS (mm) | robot (mm) | θc (°) | zc (mm) | zs (mm) | steps | TRE (mm) "
@@ -181,6 +211,7 @@ std::string procedureReport(const Session& s, const std::vector<std::string>& im
   }
   if (!notes.empty()) out += "\n" + notes;
   out += anatomySection(s);
+  out += placementSection(s);
   out += motionSection(s);
   out += verificationSection(s);
   if (!images.empty()) {

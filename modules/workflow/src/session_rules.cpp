@@ -189,6 +189,7 @@ std::optional<Rejection> adoptRegistration(Session& s, const std::vector<Eigen::
       auto_detected};
   e.registration_changed = true;
   evaluateAll(s, e);
+  checkMountedRobot(s, e);
   return std::nullopt;
 }
 

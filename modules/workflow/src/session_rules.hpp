@@ -27,6 +27,9 @@ std::optional<Rejection> checkInsideCt(const Session& s, const Eigen::Vector3d& 
 // has been (reached) stays.
 void evaluate(const Session& s, Target& t);
 void evaluateAll(Session& s, Effects& e);
+// After the registration changed: with a robot placement proposed, measure the robot where it now
+// stands against it (a placement check job); without a registration, forget the last check.
+void checkMountedRobot(Session& s, Effects& e);
 
 // The registration of the robot's feature points onto `image` (in their order), or why none.
 Expected<registration::Registration> registerOnRobot(const config::Robot& robot,

@@ -213,6 +213,9 @@ std::vector<Transition> buildTable() {
                "fill a structure with targets"});
   t.push_back({P::kPlanning, I::kAcceptProposals, always, P::kPlanning, acceptProposals,
                "proposed targets into the plan"});
+  // Where to mount the robot: on the planning CT before it is registered, or after.
+  for (Phase p : {P::kRegistration, P::kPlanning})
+    t.push_back({p, I::kPlaceRobot, always, p, startRobotPlacement, "where to mount the robot"});
   for (Phase p : kAllPhases) {
     if (p == P::kStartup) continue;
     t.push_back({p, I::kStructuresLoaded, always, p, adoptStructures, "structures loaded"});
@@ -221,6 +224,13 @@ std::vector<Transition> buildTable() {
     t.push_back({p, I::kTargetsProposed, always, p, adoptProposals, "targets proposed"});
     t.push_back(
         {p, I::kTargetProposalFailed, always, p, noteProposalFailure, "no targets proposed"});
+    t.push_back({p, I::kRobotPlaced, always, p, adoptRobotPlacement, "robot placed"});
+    t.push_back(
+        {p, I::kRobotPlacementFailed, always, p, noteRobotPlacementFailure, "no placement"});
+    t.push_back(
+        {p, I::kPlacementChecked, always, p, adoptPlacementCheck, "mounted robot measured"});
+    t.push_back({p, I::kPlacementCheckFailed, always, p, notePlacementCheckFailure,
+                 "mounted robot not measured"});
   }
   // resume returns to the phase the first interruption left (a move in flight: plan_locked, to be
   // approved again), or to done when nothing is left to move. Interruptions taken while

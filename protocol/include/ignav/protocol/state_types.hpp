@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <tuple>
@@ -202,6 +203,25 @@ struct Fields<ProposedTargetInfo> {
   static constexpr auto list = std::make_tuple(IGNAV_FIELD(id), IGNAV_FIELD(lps));
 };
 
+struct PlacementInfo {
+  double coverage = 0.0;
+  std::array<double, 3> origin_lps{};
+  std::array<double, 3> axis_lps{};
+  std::array<double, 3> entry_lps{};
+  double tilt_deg = 0.0;
+  double shift_mm = 0.0;
+  double skin_distance_mm = 0.0;
+  bool skin_seen = false;
+};
+template <>
+struct Fields<PlacementInfo> {
+  using T = PlacementInfo;
+  static constexpr auto list =
+      std::make_tuple(IGNAV_FIELD(coverage), IGNAV_FIELD(origin_lps), IGNAV_FIELD(axis_lps),
+                      IGNAV_FIELD(entry_lps), IGNAV_FIELD(tilt_deg), IGNAV_FIELD(shift_mm),
+                      IGNAV_FIELD(skin_distance_mm), IGNAV_FIELD(skin_seen));
+};
+
 struct StructuresState {
   std::string status;  // none | loading | loaded | failed
   std::string source;
@@ -211,14 +231,29 @@ struct StructuresState {
   std::string proposal_status;  // none | proposing | proposed | failed
   std::string proposal_message;
   std::vector<ProposedTargetInfo> proposed;
+  std::string placement_status;  // none | placing | placed | failed
+  std::string placement_message;
+  std::string placement_structure;
+  std::uint64_t placement_progress_done = 0;  // placing: the search's units done, of total
+  std::uint64_t placement_progress_total = 0;
+  std::vector<PlacementInfo> placements;  // the best first
+  std::string mounted_status;             // none | measuring | measured | failed
+  std::string mounted_message;
+  double mounted_coverage = std::numeric_limits<double>::quiet_NaN();
+  double mounted_entry_mm = std::numeric_limits<double>::quiet_NaN();
+  double mounted_axis_deg = std::numeric_limits<double>::quiet_NaN();
 };
 template <>
 struct Fields<StructuresState> {
   using T = StructuresState;
-  static constexpr auto list =
-      std::make_tuple(IGNAV_FIELD(status), IGNAV_FIELD(source), IGNAV_FIELD(message),
-                      IGNAV_FIELD(site), IGNAV_FIELD(structures), IGNAV_FIELD(proposal_status),
-                      IGNAV_FIELD(proposal_message), IGNAV_FIELD(proposed));
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(status), IGNAV_FIELD(source), IGNAV_FIELD(message), IGNAV_FIELD(site),
+      IGNAV_FIELD(structures), IGNAV_FIELD(proposal_status), IGNAV_FIELD(proposal_message),
+      IGNAV_FIELD(proposed), IGNAV_FIELD(placement_status), IGNAV_FIELD(placement_message),
+      IGNAV_FIELD(placement_structure), IGNAV_FIELD(placement_progress_done),
+      IGNAV_FIELD(placement_progress_total), IGNAV_FIELD(placements), IGNAV_FIELD(mounted_status),
+      IGNAV_FIELD(mounted_message), IGNAV_FIELD(mounted_coverage), IGNAV_FIELD(mounted_entry_mm),
+      IGNAV_FIELD(mounted_axis_deg));
 };
 IGNAV_TOPIC_OF(StructuresState, topic::kStructures, Qos::kState);
 

@@ -36,4 +36,12 @@ struct ClosestApproach {
 ClosestApproach closestApproach(const NeedleBody& body, const DistanceField& field,
                                 double step_mm = 0.1);
 
+// Whether the needle's surface stays at least `distance_mm` from the structure everywhere: the
+// same strides, as long as the distance above `distance_mm` allows (sphere tracing), so a body
+// far from it costs a few samples where the closest approach measures every `step_mm` near its
+// best. True says for certain that nothing comes closer; false that a sample came within
+// `step_mm` of that distance or closer (an empty body stays far).
+bool staysFarther(const NeedleBody& body, const DistanceField& field, double distance_mm,
+                  double step_mm = 0.1);
+
 }  // namespace ignav::anatomy

@@ -56,6 +56,7 @@ enum class InputKind {
   kOverrideClearance,
   kProposeTargets,
   kAcceptProposals,
+  kPlaceRobot,
   kConfigLoaded,
   kVolumeLoaded,
   kVolumeLoadFailed,
@@ -72,6 +73,10 @@ enum class InputKind {
   kStructuresLoadFailed,
   kTargetsProposed,
   kTargetProposalFailed,
+  kRobotPlaced,
+  kRobotPlacementFailed,
+  kPlacementChecked,
+  kPlacementCheckFailed,
 };
 
 // Who may give a command: each role may do what the one before it may, and more. Commands travel
@@ -364,6 +369,14 @@ inline constexpr InputSpec kInputRows[] = {
     {I::kAcceptProposals, "accept_proposals", 35, R::kPlanner, kCommand,
      kNone.withIds(kAnyCount, "proposed targets to accept (none: all of them)"),
      "make proposed targets the plan's targets, checked again as they are added"},
+    {I::kPlaceRobot, "place_robot", 36, R::kPlanner, kCommand,
+     kNone.text("STRUCTURE [from SIDE]: a loaded structure to cover, and the side the needle "
+                "comes from (inferior, superior, anterior, posterior, left, right; default: the "
+                "site's approach)"),
+     "propose where to mount the robot, in the background: the entry point and insertion axis, "
+     "within the site's limits, from which one insertion covers the most of the structure with "
+     "every clearance kept, with alternatives (StructuresState.placements); once the robot is "
+     "mounted and registered, how far it stands from the proposal and what it covers there"},
     {I::kConfigLoaded, "config_loaded", kNoWireKind, R::kApprover, kServer, kNone,
      "the server started with a valid robot config"},
     {I::kVolumeLoaded, "volume_loaded", kNoWireKind, R::kApprover, kServer, kNone,
@@ -399,6 +412,14 @@ inline constexpr InputSpec kInputRows[] = {
      "visited"},
     {I::kTargetProposalFailed, "target_proposal_failed", kNoWireKind, R::kApprover, kServer, kNone,
      "a target proposal the server ran found none, or more than the plan can take: why"},
+    {I::kRobotPlaced, "robot_placed", kNoWireKind, R::kApprover, kServer, kNone,
+     "a robot placement the server ran finished: the poses, the best first"},
+    {I::kRobotPlacementFailed, "robot_placement_failed", kNoWireKind, R::kApprover, kServer, kNone,
+     "a robot placement the server ran found no pose: why"},
+    {I::kPlacementChecked, "placement_checked", kNoWireKind, R::kApprover, kServer, kNone,
+     "the mounted robot measured against the placement proposed: how far, what it covers"},
+    {I::kPlacementCheckFailed, "placement_check_failed", kNoWireKind, R::kApprover, kServer, kNone,
+     "the mounted robot could not be measured against the placement: why"},
 };
 
 static_assert(inEnumOrder(kInputRows, &InputSpec::kind),

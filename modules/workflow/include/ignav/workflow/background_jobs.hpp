@@ -33,7 +33,9 @@ enum class JobKind {
   kConfirmationMeasurement,
   kNeedleScan,
   kStructureLoad,
-  kTargetProposal
+  kTargetProposal,
+  kRobotPlacement,
+  kPlacementCheck
 };
 
 // What the job thread gives every run besides its snapshot: the session folder (for files a job
@@ -118,6 +120,33 @@ constexpr std::size_t kMaxProposalCandidates = 20000;
 // fewer).
 Input proposeTargets(std::uint64_t job, const std::string& structure, double spacing_mm,
                      const std::shared_ptr<const Session>& snapshot, const JobContext& context);
+
+// What robot placement (robot_placement.cpp) works on, taken from the session when it was asked:
+// the robot, the CT (for the skin), the structures with their roles and fields, the tissue (its
+// predicted drift widens every margin, as in the session's clearance).
+struct PlacementScene {
+  std::shared_ptr<const config::Robot> robot;
+  std::shared_ptr<const volume::Volume> ct;
+  LoadedStructures structures;
+  std::vector<StructureRoleChoice> roles;
+  std::optional<config::TissueProfile> tissue;
+};
+PlacementScene placementScene(const Session& session);
+
+// place_robot's job (robot_placement.cpp): the poses within `limits` from which one insertion
+// covers the most of `structure` with every clearance kept (the best and up to three distinct
+// alternatives), as robot_placed naming `job` (`placements`, `summary`), or
+// robot_placement_failed with why.
+Input placeRobot(std::uint64_t job, const std::string& structure,
+                 const anatomy::PlacementLimits& limits, const PlacementScene& scene,
+                 const JobContext& context);
+// After a registration, with a placement proposed: how far the robot stands from the best pose
+// (`proposed`) and what it covers of `structure` from there, as placement_checked naming `job`
+// (`mounted`, `summary`), or placement_check_failed with why.
+Input checkPlacement(std::uint64_t job, const std::string& structure,
+                     const placement::PlacedPose& proposed, const anatomy::PlacementLimits& limits,
+                     const registration::Registration& registration, const PlacementScene& scene,
+                     const JobContext& context);
 
 // The built-in phantom's anatomy in the robot's frame (phantom_anatomy.cpp): a prostate filling
 // the feasible volume (target), a urethra through it (avoid 3 mm), a rectum behind (5 mm), a

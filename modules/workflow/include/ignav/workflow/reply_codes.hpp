@@ -83,6 +83,7 @@ enum class ReplyCode {
   kBadSpacing,
   kNoProposals,
   kUnknownProposal,
+  kBadApproach,
   // The server.
   kJournalFailed,
   kInternal,

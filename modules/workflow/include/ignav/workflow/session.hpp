@@ -19,6 +19,7 @@
 #include "ignav/config/robot_config.hpp"
 #include "ignav/config/tissue_profiles.hpp"
 #include "ignav/kinematics/solver.hpp"
+#include "ignav/placement/robot_placement.hpp"
 #include "ignav/planning/insertion_plan.hpp"
 #include "ignav/registration/fiducial_detection.hpp"
 #include "ignav/registration/point_registration.hpp"
@@ -105,6 +106,15 @@ struct StructureClearance {
   bool tooClose() const { return distance_mm - uncertainty_mm < margin_mm; }
 };
 
+// Where to mount the robot (place_robot, issue 41): on a CT taken before it is mounted, the poses
+// from which one insertion covers the most of a structure with every clearance kept; once it is
+// mounted and registered, how far it stands from the best of them and what it covers there.
+struct MountedPlacement {
+  placement::PoseDeviation deviation;
+  placement::Coverage coverage;  // from where it stands
+  placement::SkinEntry skin;     // where its axis meets the skin
+};
+
 struct Input {
   InputKind kind = InputKind::kQuery;
   double time_s = 0.0;    // Unix seconds, stamped by the server; the reducer never reads a clock
@@ -149,6 +159,9 @@ struct Input {
   // kStructuresLoaded: the structures read and their fields (`path` the file; `summary` names
   // each with its voxels, so replay can tell a changed file).
   LoadedStructures structures;
+  // kRobotPlaced: the poses found, the best first; kPlacementChecked: the mounted robot's.
+  std::vector<placement::PlacedPose> placements;
+  std::optional<MountedPlacement> mounted;
   // kConfigLoaded: the site's roles for structures by name (server.yaml site:); none: every
   // structure is shown only until structure_role gives it a role.
   std::optional<anatomy::Site> site;
@@ -361,6 +374,21 @@ struct TargetProposals {
   std::vector<ProposedTarget> targets;  // not yet accepted
 };
 
+// place_robot's outcome in the session (MountedPlacement above).
+struct RobotPlacement {
+  std::string status = "none";               // none | placing | placed | failed
+  std::string structure;                     // the one covered
+  anatomy::PlacementLimits limits;           // the site's, with the approach asked for
+  std::string message;                       // what the search found, or why nothing
+  std::uint64_t placing = 0;                 // the place_robot awaited (its revision); 0: none
+  std::vector<placement::PlacedPose> poses;  // the best first, then alternatives
+  double structure_cm3 = 0.0;                // the structure's volume, for the figures
+  // After a registration: the check awaited (its revision; 0: none) and its outcome.
+  std::uint64_t checking = 0;
+  std::optional<MountedPlacement> mounted;
+  std::string mounted_message;
+};
+
 struct Session {
   std::string session_id;
   std::string robot_id;      // config_loaded's (journaled); "" before issue 38
@@ -398,6 +426,7 @@ struct Session {
   // The patient's structures on the CT (issue 41) and the site's roles for them.
   StructuresStatus structures;
   TargetProposals proposals;
+  RobotPlacement robot_placement;
   std::optional<anatomy::Site> site;
   std::vector<FittedTissue> fitted_tissues;
   std::optional<config::TissueProfile> aim_tissue;
