@@ -88,7 +88,7 @@ bool admissible(const Frame& f, const PoseParameters& x) {
 }
 
 // The best depth by reach alone for one axis, by sweeping the depths at which each sample is
-// within reach (an interval as long as the cannula's travel); nullopt when none is reached.
+// within reach (an interval as long as the cannula's travel); `reached` 0 when none is.
 struct SweptAxis {
   PoseParameters x;
   std::size_t reached = 0;
