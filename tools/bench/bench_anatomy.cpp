@@ -1,11 +1,14 @@
 // The patient's structures (issue 41): distance fields for five structures of a prostate CT on a
-// 512 x 512 x 300 grid (0.7 x 0.7 x 1.0 mm), and one target's whole-needle clearance once they
-// exist. Google Benchmark; docs/PERFORMANCE.md has the figures.
+// 512 x 512 x 300 grid (0.7 x 0.7 x 1.0 mm), one target's whole-needle clearance once they
+// exist, and those five written as a DICOM RT Structure Set and read back onto the grid.
+// Google Benchmark; docs/PERFORMANCE.md has the figures.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <filesystem>
 
 #include "ignav/anatomy/clearance.hpp"
+#include "ignav/anatomy/dicom_structures.hpp"
 #include "prostate_shapes.hpp"
 
 namespace {
@@ -70,6 +73,38 @@ void BM_ClearanceOneTarget(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_ClearanceOneTarget)->Unit(benchmark::kMicrosecond);
+
+// The five as an RT Structure Set (written once, ~3 contours per structure and slice), read and
+// rasterised back onto the CT's grid as load_structures does: the file parsed by DCMTK, every
+// contour checked and drawn by the even-odd rule.
+void BM_RtStructureSetRead(benchmark::State& state) {
+  const auto path = std::filesystem::temp_directory_path() / "ignav_bench_rtstruct.dcm";
+  const ignav::anatomy::CtFrame ct{ignav::bench::prostateCtGrid(), "1.2.826.0.1.3680043.10.1.1",
+                                   "bench"};
+  if (!ignav::anatomy::writeRtStructureSet(structures(), ct, {}, path.string()).ok()) {
+    state.SkipWithError("the RT Structure Set was not written");
+    return;
+  }
+  std::size_t voxels = 0;
+  for (auto _ : state) {
+    auto read = ignav::anatomy::readStructures(path.string(), ct);
+    if (!read) {
+      state.SkipWithError(read.error().message.c_str());
+      break;
+    }
+    voxels = 0;
+    for (const auto& s : read->structures)
+      voxels += s.mask.count();
+  }
+  state.counters["MB"] = static_cast<double>(std::filesystem::file_size(path)) / 1e6;
+  std::size_t written = 0;
+  for (const auto& s : structures().structures)
+    written += s.mask.count();
+  state.counters["voxels"] = static_cast<double>(voxels);
+  state.counters["voxels_written"] = static_cast<double>(written);
+  std::filesystem::remove(path);
+}
+BENCHMARK(BM_RtStructureSetRead)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 
