@@ -32,6 +32,13 @@ CommandRun ctl(const std::string& args) {
   return ignavctlOn(kDomain, args);
 }
 
+// The reports thread writes the Slicer files a moment after the state says why: up to 5 s.
+bool waitForFile(const std::filesystem::path& path) {
+  for (int i = 0; i < 100 && !std::filesystem::exists(path); ++i)
+    std::this_thread::sleep_for(50ms);
+  return std::filesystem::exists(path);
+}
+
 TEST(AnatomyE2E, ATargetWhoseNeedleCrossesTheUrethraIsRefusedUntilOverriddenWithAReason) {
   ServerProcess server(kDomain);
   auto op = server.client("operator");
@@ -176,8 +183,7 @@ TEST(AnatomyE2E, TargetsProposedToFillTheProstateAreAcceptedAndLockAsOneInsertio
   ASSERT_GT(count, 10u);
   // For Slicer: one control point per proposal, where the state says.
   const auto markups = server.sessionDir() / "proposed_targets.mrk.json";
-  for (int i = 0; i < 100 && !std::filesystem::exists(markups); ++i)
-    std::this_thread::sleep_for(50ms);
+  ASSERT_TRUE(waitForFile(markups));
   std::ifstream in(markups);
   const json slicer = json::parse(in);
   ASSERT_EQ(slicer["markups"][0]["controlPoints"].size(), count);
@@ -231,8 +237,7 @@ TEST(AnatomyE2E, TheRobotIsPlacedOnThePlanningCtAndTheMountedRobotMeasuredAgains
 
   // For Slicer: the pose as an ITK transform (image -> robot: the origin to 0, the axis to -Z).
   const auto tfm = server.sessionDir() / "robot_placement.tfm";
-  for (int i = 0; i < 100 && !std::filesystem::exists(tfm); ++i)
-    std::this_thread::sleep_for(50ms);
+  ASSERT_TRUE(waitForFile(tfm));
   std::ifstream in(tfm);
   std::string line, parameters;
   while (std::getline(in, line))
@@ -251,7 +256,7 @@ TEST(AnatomyE2E, TheRobotIsPlacedOnThePlanningCtAndTheMountedRobotMeasuredAgains
   }
   EXPECT_LT((m * origin + t).norm(), 1e-3);
   EXPECT_LT((m * axis - Eigen::Vector3d(0, 0, -1)).norm(), 1e-6);
-  EXPECT_TRUE(std::filesystem::exists(server.sessionDir() / "feasible_volume.ply"));
+  EXPECT_TRUE(waitForFile(server.sessionDir() / "feasible_volume.ply"));
 
   // Mounted (the phantom's robot, placed without this plan) and registered: measured against it.
   ASSERT_TRUE(op->send("auto_fiducials").accepted);
