@@ -125,7 +125,33 @@ double CoverageModel::depthAtHome_mm(double radius_mm) const {
   return depth_table_mm_[row] + f * (depth_table_mm_[row + 1] - depth_table_mm_[row]);
 }
 
+// The needle comes closest to a structure within its field's box (beyond it, the field's reach
+// exceeds any margin and uncertainty), where the expected registration error, a convex quadratic,
+// is largest at a corner: per avoided structure, that largest error for this pose.
+std::vector<double> CoverageModel::largestTre_mm(const RobotPose& pose) const {
+  std::vector<double> out;
+  for (const auto& avoided : inputs_.avoided) {
+    const auto& grid = avoided.field->grid();
+    double tre_max_mm = 0.0;
+    for (int corner = 0; corner < 8; ++corner) {
+      const Eigen::Vector3d ijk((corner & 1) ? grid.dims[0] - 1 : 0,
+                                (corner & 2) ? grid.dims[1] - 1 : 0,
+                                (corner & 4) ? grid.dims[2] - 1 : 0);
+      tre_max_mm =
+          std::max(tre_max_mm, registration::expectedTre_mm(markers_, pose.toRobot(grid.toLps(ijk)),
+                                                            inputs_.fle_mm, inputs_.kind));
+    }
+    out.push_back(tre_max_mm);
+  }
+  return out;
+}
+
 int CoverageModel::judge(const RobotPose& pose, const Eigen::Vector3d& lps_mm) const {
+  return judge(pose, lps_mm, largestTre_mm(pose));
+}
+
+int CoverageModel::judge(const RobotPose& pose, const Eigen::Vector3d& lps_mm,
+                         const std::vector<double>& largest_tre_mm) const {
   const auto& kin = *inputs_.kinematics;
   const auto solution = kin.inverse(pose.toRobot(lps_mm));
   if (!solution || !solution->reachable()) return -1;
@@ -151,20 +177,9 @@ int CoverageModel::judge(const RobotPose& pose, const Eigen::Vector3d& lps_mm) c
   }
   for (std::size_t n = 0; n < inputs_.avoided.size(); ++n) {
     const auto& avoided = inputs_.avoided[n];
-    // The needle comes closest to a structure within its field's box (beyond it, the field's
-    // reach exceeds any margin and uncertainty), where the expected registration error, a convex
-    // quadratic, is largest at a corner. A body that stays farther than the margin and that much
-    // is cleared at once; only one that may come near is measured exactly, as the session does.
-    const auto& grid = avoided.field->grid();
-    double tre_max_mm = 0.0;
-    for (int corner = 0; corner < 8; ++corner) {
-      const Eigen::Vector3d ijk((corner & 1) ? grid.dims[0] - 1 : 0,
-                                (corner & 2) ? grid.dims[1] - 1 : 0,
-                                (corner & 4) ? grid.dims[2] - 1 : 0);
-      tre_max_mm =
-          std::max(tre_max_mm, registration::expectedTre_mm(markers_, pose.toRobot(grid.toLps(ijk)),
-                                                            inputs_.fle_mm, inputs_.kind));
-    }
+    // A body that stays farther than the margin and the largest uncertainty is cleared at once;
+    // only one that may come near is measured exactly, as the session does.
+    const double tre_max_mm = largest_tre_mm.at(n);
     const double uncertainty_max_mm = 2.0 * std::sqrt(tre_max_mm * tre_max_mm / 3.0) + drift_mm;
     if (anatomy::staysFarther(body, *avoided.field, avoided.margin_mm + uncertainty_max_mm,
                               kSearchStep_mm))
@@ -183,8 +198,9 @@ Coverage CoverageModel::coverage(const RobotPose& pose) const {
   Coverage c;
   c.samples = samples_lps_mm_.size();
   c.too_close.assign(inputs_.avoided.size(), 0);
+  const auto largest_tre_mm = largestTre_mm(pose);  // once per pose, not per sample
   for (const auto& p : samples_lps_mm_) {
-    const int verdict = judge(pose, p);
+    const int verdict = judge(pose, p, largest_tre_mm);
     if (verdict == 0)
       ++c.covered;
     else if (verdict < 0)

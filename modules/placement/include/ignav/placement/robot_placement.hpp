@@ -119,6 +119,9 @@ class CoverageModel {
   double depthAtHome_mm(double radius_mm) const;
 
  private:
+  std::vector<double> largestTre_mm(const RobotPose& pose) const;
+  int judge(const RobotPose& pose, const Eigen::Vector3d& lps_mm,
+            const std::vector<double>& largest_tre_mm) const;
   CoverageInputs inputs_;
   double sample_mm_ = 0.0;
   std::vector<Eigen::Vector3d> samples_lps_mm_;
