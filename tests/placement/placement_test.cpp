@@ -153,6 +153,32 @@ TEST(Search, OneInsertionCoversAtLeast95PercentWhenTheAnatomyAllowsIt) {
   EXPECT_LT(final->coverage(straight).covered, best.coverage.covered);
 }
 
+TEST(Search, AStructureNoNeedleMayReachIsRefusedNotPlacedWithNothingCovered) {
+  // A gland wrapped in a structure to avoid: every needle that reaches it passes through the
+  // wrapping, so no pose covers any of it and there is no alternative to offer.
+  const auto grid = gridAround(Eigen::Vector3d::Zero(), Eigen::Vector3d(25, 25, 25), 1.0);
+  const auto set =
+      draw(grid, Eigen::Matrix4d::Identity(),
+           {{"gland",
+             {1, 0, 0},
+             anatomy::Role::kTarget,
+             0.0,
+             [](const Eigen::Vector3d& p) { return p.norm() - 8.0; }},
+            {"capsule", {0, 1, 0}, anatomy::Role::kAvoid, 1.0, [](const Eigen::Vector3d& p) {
+               return p.norm() - 20.0;
+             }}});
+  auto search = CoverageModel::create(inputsFor(set), 3.0);
+  auto final = CoverageModel::create(inputsFor(set), 2.0);
+  ASSERT_TRUE(search.ok() && final.ok());
+  const auto placed = placeRobot(*search, *final, PlacementLimits{});
+  ASSERT_FALSE(placed.ok()) << placed->poses.size() << " poses, the best covering "
+                            << placed->poses.front().coverage.covered;
+  EXPECT_EQ(placed.error().reason, "no_placement");
+  EXPECT_NE(placed.error().message.find("covers any of the target with every clearance kept"),
+            std::string::npos)
+      << placed.error().message;
+}
+
 TEST(Skin, TheEntryIsWhereTheAxisCrossesTheSkinAndTheOriginStaysOutside) {
   // A CT of tissue (40 HU) below z = 0.5 mm (voxel centres every mm; z <= 0 tissue) and air
   // above: the -300 HU level lies 0.3 of a voxel above the last tissue centre (trilinear).

@@ -297,12 +297,15 @@ Expected<Placement> placeRobot(const CoverageModel& search_model, const Coverage
   }
 
   // 3. The best first, then those distinct from every better one, judged on the finer lattice.
+  // A start whose reach looked promising may keep no clearance anywhere: a pose that covers
+  // nothing is no alternative.
   std::stable_sort(found.begin(), found.end(), [](const Found& a, const Found& b) {
     return a.coverage.covered > b.coverage.covered;
   });
   std::vector<PoseParameters> kept;
   for (const auto& candidate : found) {
     if (kept.size() == alternatives + 1) break;
+    if (candidate.coverage.covered == 0 && !kept.empty()) break;
     if (std::all_of(kept.begin(), kept.end(),
                     [&](const PoseParameters& y) { return distinct(f, candidate.x, y); }))
       kept.push_back(candidate.x);
@@ -316,6 +319,16 @@ Expected<Placement> placeRobot(const CoverageModel& search_model, const Coverage
                    [](const PlacedPose& a, const PlacedPose& b) {
                      return a.coverage.covered > b.coverage.covered;
                    });
+  if (placement.poses.front().coverage.covered == 0) {
+    return makeError(ErrorCode::kInvalidArgument,
+                     fmt::format("no pose within the site's limits (tilt ≤ {:g}°, shift ≤ {:g} mm) "
+                                 "covers any of the target with every clearance kept",
+                                 limits.max_tilt_deg, limits.max_shift_mm),
+                     "no_placement");
+  }
+  // The finer lattice may find nothing where the coarser found a little.
+  while (placement.poses.back().coverage.covered == 0)
+    placement.poses.pop_back();
   placement.samples = final_model.samples();
   if (progress) progress(total, total);
   return placement;

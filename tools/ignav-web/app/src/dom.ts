@@ -1,0 +1,48 @@
+// Small DOM helpers the panels share: an element by id (index.html must have it), an element with
+// attributes and children, and a definition list of facts.
+
+export function byId<T extends HTMLElement = HTMLElement>(id: string): T {
+  const element = document.getElementById(id);
+  if (!element) throw new Error(`index.html has no #${id}`);
+  return element as T;
+}
+
+export function el<K extends keyof HTMLElementTagNameMap>(
+  tag: K,
+  attributes: Record<string, string> = {},
+  ...children: (Node | string)[]
+): HTMLElementTagNameMap[K] {
+  const element = document.createElement(tag);
+  for (const [name, value] of Object.entries(attributes)) element.setAttribute(name, value);
+  element.append(...children);
+  return element;
+}
+
+// Definition-list rows: [term, value, data-testid?, tooltip?].
+export function facts(rows: [string, string, string?, string?][]): HTMLElement {
+  const dl = el("dl");
+  for (const [term, value, testid, title] of rows) {
+    const attributes: Record<string, string> = {};
+    if (testid) attributes["data-testid"] = testid;
+    if (title) attributes.title = title;
+    dl.append(el("dt", {}, term), el("dd", attributes, value));
+  }
+  return dl;
+}
+
+// A button that acts on a click and nothing else (not also its row's "go to").
+export function actionButton(
+  label: string,
+  testid: string,
+  enabled: boolean,
+  title: string,
+  act: () => void,
+): HTMLButtonElement {
+  const b = el("button", { "data-testid": testid, title }, label);
+  b.disabled = !enabled;
+  b.addEventListener("click", (event) => {
+    event.stopPropagation();
+    act();
+  });
+  return b;
+}
