@@ -318,7 +318,10 @@ void StatePublisher::publishTarget(const Session& s, std::uint32_t id) {
     m.status = t.status();
     m.outside_volume = t.outside_volume;
     m.path_warning = t.path_warning;
-    if (m.reachable) m.path_lps = toPoints3(workflow::needlePathLps(s, j));
+    // The needle's path wherever the robot reaches, refused or not: a path too close to a
+    // structure is what a viewer must show.
+    if (t.registered && t.solution.reachable())
+      m.path_lps = toPoints3(workflow::needlePathLps(s, j));
     target_.write(m);
     return;
   }
