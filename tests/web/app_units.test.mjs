@@ -1,5 +1,5 @@
 // The web viewer's pure helpers (tools/ignav-web/app/src/geometry.ts, status.ts, clock.ts,
-// approval.ts, alerts.ts and verification.ts), bundled on the fly with the app's own esbuild and checked against
+// approval.ts, alerts.ts, verification.ts and structures.ts), bundled on the fly with the app's own esbuild and checked against
 // closed-form cases.
 //   node --test tests/web/app_units.test.mjs
 import assert from "node:assert/strict";
@@ -26,6 +26,7 @@ const clock = await load("clock.ts");
 const ap = await load("approval.ts");
 const alerts = await load("alerts.ts");
 const ver = await load("verification.ts");
+const st = await load("structures.ts");
 
 const near = (actual, expected, tolerance = 1e-9) =>
   assert.ok(
@@ -387,4 +388,86 @@ test("the reply line: accepted (a new target's id, a started job's message), ref
     "add_target: rejected: wrong_phase: not now");
   assert.equal(s.replyText("stop", { type: "error", seq: 2, code: "timeout", message: "no answer" }),
     "stop: failed: timeout: no answer");
+});
+
+// ---- structures.ts (issue 41) ----------------------------------------------------------------
+
+const clearance = (structure, distance_mm, margin_mm, uncertainty_mm, extra = {}) => ({
+  structure, distance_mm, margin_mm, uncertainty_mm, part: "stylet", needle_lps: [0, 0, 0],
+  structure_lps: [0, 0, 0], beyond_reach: false, too_close: distance_mm < margin_mm + uncertainty_mm, ...extra,
+});
+
+test("a target's clearance cell: the structure with the least room after margin and uncertainty, not the nearest", () => {
+  // The rectum is nearer (4 mm) but leaves 4 - 1 - 0.5 = 2.5 mm; the urethra, at 5 mm, 1.5 mm.
+  const target = {
+    clearances: [clearance("rectum", 4, 1, 0.5), clearance("urethra", 5, 3, 0.5), clearance("pubic_arch", 9, 2, 0.5)],
+    clearance_refusal: "", clearance_override: "",
+  };
+  const cell = st.clearanceCell(target);
+  assert.equal(cell.text, "urethra 5.00 mm");
+  assert.equal(cell.too_close, false);
+  assert.equal(cell.title.split("\n").length, 3);
+  assert.match(cell.title, /^rectum: 4\.00 mm at the stylet, margin 1\.0 mm \+ uncertainty 0\.50 mm$/m);
+  assert.equal(st.slack_mm(target.clearances[1]), 1.5);
+});
+
+test("a clearance cell: into a structure and refused, then overridden; a lower bound; none at all", () => {
+  const refusal = "too_close: the stylet passes 1.20 mm into 'urethra' …";
+  const into = { clearances: [clearance("urethra", -1.2, 3, 0.4), clearance("rectum", 20, 5, 0.4)], clearance_refusal: refusal, clearance_override: "" };
+  const cell = st.clearanceCell(into);
+  assert.equal(cell.text, "urethra 1.20 mm into: too close");
+  assert.equal(cell.too_close, true);
+  assert.match(cell.title, /urethra: 1\.20 mm into .*: TOO CLOSE/);
+  assert.ok(cell.title.endsWith(refusal));
+  const overridden = st.clearanceCell({ ...into, clearance_override: "catheter in place" });
+  assert.equal(overridden.text, "urethra 1.20 mm into (overridden)");
+  assert.equal(overridden.too_close, false);
+  assert.equal(overridden.overridden, true);
+  assert.match(overridden.title, /overridden \(catheter in place\): too_close/);
+  const far = st.clearanceCell({ clearances: [clearance("rectum", 30, 5, 0.4, { beyond_reach: true })] });
+  assert.equal(far.text, "rectum > 30.00 mm");
+  assert.equal(st.clearanceCell({ clearances: [] }).text, "–");
+  assert.equal(st.clearanceCell({}).text, "–"); // a server before issue 41
+});
+
+test("a target refused for a structure shows as too close until overridden; reached stays reached", () => {
+  // As the server gives it: within reach (`reach`), not plannable (`reachable`, status) while refused.
+  const base = { id: 1, status: "unreachable", registered: true, reachable: false, reach: "reachable", message: "m",
+    clearance_refusal: "too_close: …", clearance_override: "" };
+  assert.equal(s.targetDisplay(base, "planning", undefined, undefined).status, "too_close");
+  assert.equal(s.withinReach(base), true);
+  const overridden = { ...base, status: "planned", reachable: true, clearance_override: "why" };
+  assert.equal(s.targetDisplay(overridden, "planning", undefined, undefined).status, "reachable");
+  assert.equal(s.targetDisplay({ ...overridden, status: "reached" }, "at_target", undefined, undefined).status, "reached");
+  const beyond = { ...base, reach: "beyond_max_radius" }; // out of reach: that is what it shows
+  assert.equal(s.targetDisplay(beyond, "planning", undefined, undefined).status, "unreachable");
+  assert.equal(s.withinReach(beyond), false);
+});
+
+test("the panel's commands: structure_role, propose_targets and place_robot texts", () => {
+  assert.equal(st.roleCommand("pubic arch", "avoid", 4), "pubic arch avoid 4");
+  assert.equal(st.roleCommand("prostate", "target", 4), "prostate target"); // only avoid takes a margin
+  assert.equal(st.proposeCommand("prostate", 7.5), "prostate 7.5");
+  assert.equal(st.placeCommand("prostate", "superior"), "prostate from superior");
+  assert.equal(st.placeCommand("prostate", ""), "prostate"); // the site's approach
+  const structures = [{ name: "urethra", role: "avoid" }, { name: "prostate", role: "target" }, { name: "skin", role: "shown" }];
+  assert.deepEqual(st.structureChoices(structures), ["prostate", "urethra", "skin"]);
+});
+
+test("colours, progress and the placement axis through the structure's far corner", () => {
+  assert.equal(st.cssColour([1, 0.5, 0]), "rgb(255, 128, 0)");
+  assert.equal(st.cssColour([2, -1, 0.2]), "rgb(255, 0, 51)");
+  assert.equal(st.progressText(0, 0), "");
+  assert.equal(st.progressText(31, 124), "25 % (31 of 124)");
+  assert.equal(st.placementLabel(0), "proposed");
+  assert.equal(st.placementLabel(2), "alternative 2");
+  // The axis along +S from (0, 0, 0), the skin at 50 mm: a box up to z = 100 mm ends it there.
+  const placement = { origin_lps: [0, 0, 0], axis_lps: [0, 0, 1], entry_lps: [0, 0, 50] };
+  near(st.placementAxis(placement, [-5, -5, 60, 5, 5, 100])[1], [0, 0, 100]);
+  // Tilted 45° in x-z: the farthest corner (5, 5, 100) is (5 + 100)/√2 along it.
+  const c = Math.SQRT1_2;
+  const tilted = st.placementAxis({ ...placement, axis_lps: [c, 0, c] }, [-5, -5, 60, 5, 5, 100]);
+  near(tilted[1], [105 * c * c, 0, 105 * c * c], 1e-9);
+  // No structure known: to the skin's entry.
+  near(st.placementAxis(placement, undefined)[1], [0, 0, 50]);
 });

@@ -245,7 +245,8 @@ async function run(pages) {
     const shown = parseFloat(await byTestId(page, `structure-volume-${name}`).textContent());
     const voxels_cm3 = seg.count(segment) * seg.voxelCm3;
     check(Math.abs(shown - voxels_cm3) <= 0.051, `${name}: ${shown} cm³ shown, the segmentation's voxels ${voxels_cm3.toFixed(3)}`);
-    console.log(`   ${name}: ${role}${role === "avoid" ? ` ${margin} mm` : ""}, ${shown} cm³ (voxels: ${voxels_cm3.toFixed(3)}), ${swatch}`);
+    const what = `${role}${role === "avoid" ? ` ${margin} mm` : ""}`;
+    console.log(`   ${name}: ${what}, ${shown} cm³ (voxels: ${voxels_cm3.toFixed(3)}), ${swatch}`);
   }
 
   step("the urethra's outline in its colour around its voxels on the axial slice");
@@ -373,10 +374,12 @@ async function run(pages) {
   const cell = await waitText(page, `target-clearance-${urethralId}`, /^urethra .*: too close$/);
   check((await byTestId(page, `target-clearance-${urethralId}`).getAttribute("class")).includes("warning"), "not shown as a warning");
   const status = await byTestId(page, `target-status-${urethralId}`).textContent();
-  check(status === "too close", `T${urethralId} shows "${status}": ${await byTestId(page, `target-reach-${urethralId}`).textContent()}`);
+  const reach = await byTestId(page, `target-reach-${urethralId}`).textContent();
+  check(status === "too close", `T${urethralId} shows "${status}": ${reach}`);
   console.log(`   T${urethralId} at ${fmt(urethralLps)}: ${cell}`);
   const refused = await replyTo(page, () => byTestId(page, "action-lock_plan").click());
-  check(refused.startsWith("lock_plan: rejected: too_close:") && refused.includes(`target ${urethralId}`) && refused.includes("urethra"),
+  check(/^lock_plan: rejected: too_close:/.test(refused) && refused.includes(`target ${urethralId}`) &&
+    refused.includes("urethra"),
     `lock_plan: "${refused}"`);
   await shot(page, "04-too-close.png");
 

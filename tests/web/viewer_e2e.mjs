@@ -20,169 +20,44 @@ import { execFileSync } from "node:child_process";
 import fs from "node:fs";
 import os from "node:os";
 import path from "node:path";
-import { createRequire } from "node:module";
-import { parseArgs } from "node:util";
-import { children, kill, startGateway as startGatewayProcess, startServer, stopChildren } from "./children.mjs";
+import {
+  apply,
+  appState,
+  axialSlice,
+  byTestId,
+  check,
+  clickLps,
+  dist,
+  dragLps,
+  expectAccepted,
+  fmt,
+  goTo,
+  invertRigid,
+  kTimeoutMs,
+  openPage,
+  rows4,
+  runBrowserTest,
+  startBrowser,
+  sleep,
+  step,
+  sub,
+  testArgs,
+  waitText,
+} from "./browser_test.mjs";
+import { kill, startGateway as startGatewayProcess, startServer } from "./children.mjs";
 
-const { values: args } = parseArgs({
-  options: {
-    source: { type: "string" },
-    build: { type: "string" },
-    out: { type: "string" },
-    chromium: { type: "string", default: "/usr/bin/chromium" },
-    domain: { type: "string", default: "150" },
-    "app-dir": { type: "string" },
-  },
-});
-if (!args.source || !args.build || !args.out) {
-  console.error("usage: viewer_e2e.mjs --source SRC --build BUILD --out DIR [--chromium PATH] [--domain N]");
-  process.exit(2);
-}
-const source = path.resolve(args.source);
-const build = path.resolve(args.build);
-const outDir = path.resolve(args.out);
-const appDir = path.resolve(args["app-dir"] ?? path.join(build, "tools/ignav-web/app"));
-const appPackage = path.join(source, "tools/ignav-web/app/package.json");
-const { chromium } = createRequire(appPackage)("playwright-core");
+const { source, build, outDir, appDir, chromium, chromiumPath, domain } = testArgs("viewer_e2e.mjs", 150);
 
 const kReachableRobotMm = [8, 12, -175]; // inside the workspace of configs/robots/torabi2014.yaml
 const kUnreachableRobotMm = [30, 0, -180]; // 30 mm off the axis: beyond the maximum radius
 const kMaxFreMm = 0.5; // clicks land on whole CSS pixels, about 0.3 mm here
 const kMaxRegistrationErrorMm = 0.5; // at the fiducials and targets, against the true transform
 const kMaxTipMissMm = 0.5; // motor steps are about 0.003 mm
-const kTimeoutMs = 15000;
 const kMotionTimeoutMs = 40000;
 // The server runs with this approval expiry (a copy of configs/server.yaml), so that the test can
 // see a request expire; long enough for what is checked while the first request is pending.
 const kExpiryS = 20;
 const kViews = ["axial", "sagittal", "coronal"];
-
-const started = Date.now();
-let stepNumber = 0;
-function step(text) {
-  console.log(`[${((Date.now() - started) / 1000).toFixed(1)} s] ${++stepNumber}. ${text}`);
-}
-function check(condition, message) {
-  if (!condition) throw new Error(message);
-}
-
-// ---- linear algebra for the ground truth (independent of the app's own geometry) -----------
-
-const sub = (a, b) => a.map((x, i) => x - b[i]);
-const dot = (a, b) => a.reduce((s, x, i) => s + x * b[i], 0);
-const dist = (a, b) => Math.hypot(...sub(a, b));
-const apply = (m, p) => [0, 1, 2].map((r) => m[r][0] * p[0] + m[r][1] * p[1] + m[r][2] * p[2] + m[r][3]);
-const rows4 = (flat) => [0, 1, 2, 3].map((r) => flat.slice(4 * r, 4 * r + 4));
-// The inverse of a rigid transform [R t]: [Rᵀ, -Rᵀt].
-function invertRigid(m) {
-  const rt = [0, 1, 2].map((r) => [0, 1, 2].map((c) => m[c][r]));
-  const t = [m[0][3], m[1][3], m[2][3]];
-  return [...rt.map((row) => [...row, -dot(row, t)]), [0, 0, 0, 1]];
-}
-const fmt = (p) => p.map((x) => x.toFixed(2)).join(", ");
-
-// ---- page helpers -----------------------------------------------------------------------------
-
-const byTestId = (page, id) => page.locator(`[data-testid="${id}"]`);
-
-async function waitText(page, testid, pattern, timeout = kTimeoutMs) {
-  try {
-    await page.waitForFunction(
-      ([id, source, flags]) => {
-        const element = document.querySelector(`[data-testid="${id}"]`);
-        return element !== null && new RegExp(source, flags).test(element.textContent ?? "");
-      },
-      [testid, pattern.source, pattern.flags],
-      { timeout },
-    );
-  } catch (error) {
-    const now = await byTestId(page, testid).first().textContent({ timeout: 1000 }).catch(() => "(absent)");
-    throw new Error(`[data-testid=${testid}] never matched ${pattern} (it shows "${now}"): ${error.message}`);
-  }
-  return byTestId(page, testid).first().textContent();
-}
-
-// Does `act`, then returns the reply line it produced (the line counts replies).
-async function replyTo(page, act) {
-  const before = Number(await byTestId(page, "last-reply").getAttribute("data-count"));
-  await act();
-  await page.waitForFunction(
-    (n) => Number(document.querySelector('[data-testid="last-reply"]').dataset.count) > n,
-    before,
-    { timeout: kTimeoutMs },
-  );
-  return (await byTestId(page, "last-reply").textContent()).trim();
-}
-
-async function expectAccepted(page, what, act) {
-  const reply = await replyTo(page, act);
-  check(reply.startsWith(`${what}: accepted`), `${what} was not accepted: "${reply}"`);
-  console.log(`   reply: ${reply}`);
-  return reply;
-}
-
-// The axial slice on screen: its pixel_to_lps rows and the canvas' resolution and box.
-async function axialSlice(page) {
-  const canvas = page.locator('canvas[data-view="axial"]');
-  const { matrix, widthPx, heightPx } = await canvas.evaluate((c) => ({
-    matrix: JSON.parse(c.dataset.pixelToLps),
-    widthPx: c.width,
-    heightPx: c.height,
-  }));
-  const m = rows4(matrix);
-  const axis = (j) => [m[0][j], m[1][j], m[2][j]];
-  return { m, axis, widthPx, heightPx, box: await canvas.boundingBox() };
-}
-
-// Centres the views on `lps` moved in the axial plane by offset_mm (along the slice's u and v),
-// with the "go to" field, and waits until the axial view shows that centre. The offset puts the
-// point off the middle of the view, so that a click on it is a real test of the mapping.
-async function goTo(page, lps, [du_mm, dv_mm] = [0, 0]) {
-  const { axis } = await axialSlice(page);
-  const unit = (v) => v.map((x) => x / Math.hypot(...v));
-  const centre = lps.map((x, i) => x + du_mm * unit(axis(0))[i] + dv_mm * unit(axis(1))[i]);
-  await byTestId(page, "goto").fill(centre.map(String).join(","));
-  await byTestId(page, "goto-button").click();
-  await page.waitForFunction(
-    (want) => {
-      const shown = document.querySelector('canvas[data-view="axial"]')?.dataset.centreLps;
-      return shown !== undefined && JSON.parse(shown).every((x, i) => Math.abs(x - want[i]) < 1e-9);
-    },
-    centre,
-    { timeout: kTimeoutMs },
-  );
-}
-
-// Where the LPS point is on the screen in the rendered axial slice: through the slice's own
-// pixel_to_lps (LPS = M·(u, v, 0, 1), pixel centres at integers) and the canvas' box.
-async function screenPoint(page, lps) {
-  const { m, axis, widthPx, heightPx, box } = await axialSlice(page);
-  const d = sub(lps, axis(3));
-  // The slice's axes are orthogonal: project onto each.
-  const u = dot(d, axis(0)) / dot(axis(0), axis(0));
-  const v = dot(d, axis(1)) / dot(axis(1), axis(1));
-  const offPlane = dist(apply(m, [u, v, 0]), lps);
-  check(offPlane < 1e-6, `the axial slice does not pass through ${fmt(lps)} (off by ${offPlane} mm)`);
-  check(u >= 0 && v >= 0 && u < widthPx && v < heightPx, `${fmt(lps)} is outside the axial view`);
-  return { x: box.x + ((u + 0.5) * box.width) / widthPx, y: box.y + ((v + 0.5) * box.height) / heightPx };
-}
-
-async function clickLps(page, lps) {
-  const { x, y } = await screenPoint(page, lps);
-  await page.mouse.click(x, y);
-}
-
-async function dragLps(page, from, to) {
-  const a = await screenPoint(page, from);
-  const b = await screenPoint(page, to);
-  await page.mouse.move(a.x, a.y);
-  await page.mouse.down();
-  await page.mouse.move(b.x, b.y, { steps: 8 });
-  await page.mouse.up();
-}
-
-const appState = (page) => page.evaluate(() => window.ignav.state());
-const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
 
 // How many slices each view has put on its canvas.
 const slicesShown = (page) =>
@@ -327,35 +202,16 @@ async function run(pages) {
   fs.writeFileSync(path.join(configDir, "server.yaml"), shortExpiry);
   const dds = path.join(source, "configs/dds/loopback.xml");
   const server = await startServer({
-    build, config: path.join(configDir, "server.yaml"), domain: args.domain, sessionDir: path.join(tmp, "session"), dds,
+    build, config: path.join(configDir, "server.yaml"), domain, sessionDir: path.join(tmp, "session"), dds,
   });
-  const startGateway = (port) => startGatewayProcess({ build, domain: args.domain, dds, port, appDir });
+  const startGateway = (port) => startGatewayProcess({ build, domain, dds, port, appDir });
   let gateway = await startGateway(0);
   const url = gateway.match[1];
   const port = Number(new URL(url).port);
   console.log(`   ${url}`);
 
-  step(`chromium (${args.chromium})`);
-  check(fs.existsSync(args.chromium), `${args.chromium} is missing (tools/setup.sh installs Debian's chromium)`);
-  const browser = await chromium.launch({ executablePath: args.chromium, args: ["--no-sandbox"] });
-  pages.browser = browser;
-  // clockShift_ms: the page's Date.now() is off by this much (a browser machine's wrong clock).
-  const newPage = async (name, { clockShift_ms = 0 } = {}) => {
-    const context = await browser.newContext({ viewport: { width: 1600, height: 1000 } });
-    if (clockShift_ms) {
-      await context.addInitScript((shift) => {
-        const real = Date.now.bind(Date);
-        Date.now = () => real() + shift;
-      }, clockShift_ms);
-    }
-    const page = await context.newPage();
-    page.on("console", (m) => pages.log.push(`[${name} ${m.type()}] ${m.text()}`));
-    page.on("pageerror", (e) => pages.log.push(`[${name} pageerror] ${e.message}`));
-    pages.open.push(page);
-    await page.goto(url);
-    await waitText(page, "connection", /gateway: connected · server: connected/);
-    return page;
-  };
+  await startBrowser(pages, chromium, chromiumPath);
+  const newPage = (name, options) => openPage(pages, url, name, options);
   const page = await newPage("page1");
 
   step(`load the CT by its path (${path.join(tmp, "ct")})`);
@@ -714,26 +570,4 @@ async function run(pages) {
   fs.rmSync(tmp, { recursive: true, force: true });
 }
 
-const pages = { browser: null, open: [], log: [] };
-let failed = false;
-try {
-  await run(pages);
-  console.log(`web viewer e2e: passed in ${((Date.now() - started) / 1000).toFixed(1)} s`);
-} catch (error) {
-  failed = true;
-  console.error(`web viewer e2e: FAILED: ${error.stack ?? error}`);
-  if (pages.open[0]) {
-    fs.mkdirSync(outDir, { recursive: true });
-    await pages.open[0].screenshot({ path: path.join(outDir, "failure.png") }).catch(() => {});
-    console.error(`   screenshot ${path.join(outDir, "failure.png")}`);
-  }
-  console.error("---- browser console ----");
-  for (const line of pages.log) console.error(line);
-  for (const { name, output } of children) {
-    console.error(`---- ${name} (last 3000 characters) ----\n${output.slice(-3000)}`);
-  }
-} finally {
-  await pages.browser?.close().catch(() => {});
-  await stopChildren();
-}
-process.exit(failed ? 1 : 0);
+await runBrowserTest("web viewer e2e", outDir, run);

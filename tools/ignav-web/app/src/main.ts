@@ -14,10 +14,13 @@ import {
   viewCentre,
   volumeCentre,
 } from "./geometry";
-import { Panels, byId } from "./panels";
+import { byId } from "./dom";
+import { Panels } from "./panels";
 import { GatewaySocket, type SocketStatus } from "./socket";
 import type { Answer, HelloMessage, Request, ServerState, Vec3, ViewName } from "./state";
 import { targetDisplay } from "./status";
+import { placementAxis } from "./structures";
+import { StructuresPanel } from "./structures_panel";
 import { seedMarkers } from "./verification";
 import {
   type ClickMode,
@@ -54,9 +57,14 @@ const localNow_s = () => performance.now() / 1000;
 
 const panels = new Panels({
   goTo: (lps) => setCentre(lps),
-  command: (kind, ids) => void command(kind, { ids }),
+  command: (kind, ids, path) => void command(kind, { ids, path: path ?? "" }),
   approve: (plan_id, digest) => ask("approve", { op: "approve", plan_id, digest }),
   serverNow_s: () => serverClock.now_s(localNow_s()),
+});
+
+const structuresPanel = new StructuresPanel({
+  goTo: (lps) => setCentre(lps),
+  command: (kind, args) => void command(kind, args),
 });
 
 // Whether a command from this page can reach the server now.
@@ -226,8 +234,19 @@ function overlay(): Overlay {
     }),
     tip_lps: state.motion?.tip_lps ?? null,
     seeds: seedMarkers(state.verification, state.registration, state.targets),
+    proposals: state.structures?.proposed ?? [],
+    placement: placementOverlay(),
     centre_lps: settings?.centre_lps ?? null,
   };
+}
+
+// The proposed placement (the best pose): its skin entry and its axis through the structure.
+function placementOverlay(): Overlay["placement"] {
+  const s = state.structures;
+  const best = s?.placement_status === "placed" ? s.placements[0] : undefined;
+  if (!best) return null;
+  const structure = s?.structures.find((x) => x.name === s.placement_structure);
+  return { entry_lps: best.entry_lps, axis_lps: placementAxis(best, structure?.bounds_lps) };
 }
 
 async function clickedFiducial(lps: Vec3): Promise<void> {
@@ -282,6 +301,7 @@ function render(): void {
   panels.volume(state.volume);
   panels.registration(state.registration, pendingFiducials);
   panels.targets(state.targets, state.workflow, state.approval, state.motion, state.verification, hello);
+  structuresPanel.render(state.structures, panels.allowed(state.workflow, hello));
   panels.verification(state.verification);
   panels.approval(state.approval, hello);
   panels.motion(state.motion);

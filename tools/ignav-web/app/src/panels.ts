@@ -6,6 +6,7 @@
 // (alerts.ts).
 import { connectionView, phaseBanner } from "./alerts";
 import { approvalView } from "./approval";
+import { actionButton, byId, el, facts } from "./dom";
 import { formatLps } from "./geometry";
 import type { SocketStatus } from "./socket";
 import type {
@@ -22,46 +23,18 @@ import type {
   VolumeState,
   WorkflowState,
 } from "./state";
-import { jobOutcomeText, jobStartedText, replyText, targetDisplay } from "./status";
+import { jobOutcomeText, jobStartedText, replyText, targetDisplay, withinReach } from "./status";
+import { clearanceCell } from "./structures";
 import { extremes, fixed, meanSd, measuredByTarget, registrationText, withSe } from "./verification";
 
 export interface PanelActions {
   goTo(lps: Vec3): void;
-  command(kind: string, ids: number[]): void;
+  command(kind: string, ids: number[], path?: string): void;
   approve(plan_id: number, digest: string): Promise<Answer>;
   serverNow_s(): number | null; // the page's estimate of the server's clock (clock.ts)
 }
 
 const kDegPerRad = 180 / Math.PI;
-
-export function byId<T extends HTMLElement = HTMLElement>(id: string): T {
-  const element = document.getElementById(id);
-  if (!element) throw new Error(`index.html has no #${id}`);
-  return element as T;
-}
-
-function el<K extends keyof HTMLElementTagNameMap>(
-  tag: K,
-  attributes: Record<string, string> = {},
-  ...children: (Node | string)[]
-): HTMLElementTagNameMap[K] {
-  const element = document.createElement(tag);
-  for (const [name, value] of Object.entries(attributes)) element.setAttribute(name, value);
-  element.append(...children);
-  return element;
-}
-
-// Definition-list rows: [term, value, data-testid?, tooltip?].
-function facts(rows: [string, string, string?, string?][]): HTMLElement {
-  const dl = el("dl");
-  for (const [term, value, testid, title] of rows) {
-    const attributes: Record<string, string> = {};
-    if (testid) attributes["data-testid"] = testid;
-    if (title) attributes.title = title;
-    dl.append(el("dt", {}, term), el("dd", attributes, value));
-  }
-  return dl;
-}
 
 const mm = (x: number, digits = 2) => `${x.toFixed(digits)} mm`;
 
@@ -95,6 +68,14 @@ function errorCell(id: number, row: MeasuredTargetState | undefined, missing: bo
   }
   if (missing) return el("td", { "data-testid": testid, class: "warning", title: "reached, and no seed found" }, "no seed");
   return el("td", { "data-testid": testid }, "–");
+}
+
+// The avoided structure with the least room (structures.ts), the list and any override in its
+// tooltip; too close shows as a warning until an operator overrides it.
+function clearanceTd(target: TargetState): HTMLElement {
+  const cell = clearanceCell(target);
+  const kind = cell.too_close ? "clearance warning" : cell.overridden ? "clearance overridden" : "clearance";
+  return el("td", { "data-testid": `target-clearance-${target.id}`, class: kind, title: cell.title }, cell.text);
 }
 
 export class Panels {
@@ -137,9 +118,13 @@ export class Panels {
   // A button is enabled when the page reaches the server, the workflow allows its command now
   // and the gateway's identity may send it at all (a viewer's gateway shows the plan but cannot
   // change it).
-  workflow(workflow: WorkflowState | undefined, hello: HelloMessage | null, motion: MotionState | undefined): void {
+  allowed(workflow: WorkflowState | undefined, hello: HelloMessage | null): Set<string> {
     const permitted = new Set(this.connected ? (hello?.permitted ?? []) : []);
-    const allowed = new Set((workflow?.allowed_commands ?? []).filter((c) => permitted.has(c)));
+    return new Set((workflow?.allowed_commands ?? []).filter((c) => permitted.has(c)));
+  }
+
+  workflow(workflow: WorkflowState | undefined, hello: HelloMessage | null, motion: MotionState | undefined): void {
+    const allowed = this.allowed(workflow, hello);
     byId("phase").textContent = workflow?.phase ?? "";
     byId("phase").dataset.phase = workflow?.phase ?? "";
     byId("allowed").textContent = workflow ? workflow.allowed_commands.join(", ") : "";
@@ -212,8 +197,7 @@ export class Panels {
   ): void {
     const phase = workflow?.phase ?? "";
     // As the workflow buttons: allowed now, and permitted to this gateway's identity at all.
-    const permitted = new Set(this.connected ? (hello?.permitted ?? []) : []);
-    const allowed = (workflow?.allowed_commands ?? []).filter((c) => permitted.has(c));
+    const allowed = [...this.allowed(workflow, hello)];
     // Motion matters to the table only as "which target is it moving to".
     const moving = motion ? { state: motion.state, target_id: motion.target_id } : undefined;
     const pending = approval ? { status: approval.status, target_id: approval.target_id } : undefined;
@@ -227,20 +211,13 @@ export class Panels {
     const canRemove = allowed.includes("remove_target");
     const canAccept = allowed.includes("accept_seed");
     const canReject = allowed.includes("reject_seed");
+    const canOverride = allowed.includes("override_clearance");
     const rows = list.map((target, index) => {
       const shown = targetDisplay(target, phase, approval, motion);
       const [theta_c_rad, z_c_mm, z_s_mm] = target.joints;
-      const known = target.registered && target.reachable;
+      const known = withinReach(target);
       const row = measured.get(target.id);
-      const button = (label: string, testid: string, enabled: boolean, title: string, act: () => void) => {
-        const b = el("button", { "data-testid": testid, title }, label);
-        b.disabled = !enabled;
-        b.addEventListener("click", (event) => {
-          event.stopPropagation(); // not also "go to"
-          act();
-        });
-        return b;
-      };
+      const button = actionButton; // not also "go to"
       const reorder = (offset: number) => {
         const ids = list.map((t) => t.id);
         [ids[index], ids[index + offset]] = [ids[index + offset]!, ids[index]!];
@@ -276,6 +253,7 @@ export class Panels {
         el("td", {}, known ? target.steps.join(", ") : "–"),
         el("td", { class: target.tre_warning ? "warning" : "" }, target.registered ? target.tre_mm.toFixed(2) : "–"),
         el("td", {}, target.predicted_deviation_mm === null ? "–" : target.predicted_deviation_mm.toFixed(2)),
+        clearanceTd(target),
         aimCell(target),
         errorCell(target.id, row, missing.has(target.id)),
         el(
@@ -292,6 +270,14 @@ export class Panels {
             this.actions.command("remove_target", [target.id]),
           ),
           ...seedButtons,
+          ...(target.clearance_refusal && !target.clearance_override
+            ? [
+                button("override", `target-override-${target.id}`, canOverride,
+                  `plan T${target.id} although its needle passes so close, for the reason written below the table`, () =>
+                    this.actions.command("override_clearance", [target.id], byId<HTMLInputElement>("override-reason").value),
+                ),
+              ]
+            : []),
         ),
       );
       tr.addEventListener("click", () => this.actions.goTo(target.lps));

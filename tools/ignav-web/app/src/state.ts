@@ -76,6 +76,75 @@ export interface TargetState {
   nominal_joints?: [number, number, number];
   nominal_landing_robot?: Vec3;
   predicted_landing_robot?: Vec3;
+  // The whole needle against every avoided structure (issue 41; absent before it): one row per
+  // structure, the refusal lock_plan would give ("" none) and the operator's reason to plan it
+  // all the same ("" none).
+  clearances?: ClearanceState[];
+  clearance_refusal?: string;
+  clearance_override?: string;
+}
+
+// One avoided structure against one target's needle (cannula and stylet with their radii).
+export interface ClearanceState {
+  structure: string;
+  distance_mm: number; // the needle's surface to the structure's at the closest; < 0: into it
+  margin_mm: number; // the structure's, by the site or structure_role
+  uncertainty_mm: number; // registration error and predicted deflection there
+  part: string; // cannula | stylet: where on the needle the closest point is
+  needle_lps: Vec3;
+  structure_lps: Vec3;
+  beyond_reach: boolean; // farther than the search looked: distance_mm is a lower bound
+  too_close: boolean; // distance < margin + uncertainty
+}
+
+// The patient's structures on the CT (load_structures), the targets proposed to fill one
+// (propose_targets) and where to place the robot (place_robot); issue 41, docs/ANATOMY.md.
+export interface StructureInfo {
+  name: string;
+  colour_rgb: Vec3; // 0-1
+  role: string; // target | avoid | shown
+  margin_mm: number;
+  voxels: number;
+  volume_cm3: number;
+  bounds_lps: number[]; // min x, y, z, max x, y, z
+}
+
+export interface ProposedTargetInfo {
+  id: number;
+  lps: Vec3;
+}
+
+export interface PlacementInfo {
+  coverage: number; // 0-1 of the structure
+  origin_lps: Vec3; // the robot's origin (the cannula's proximal end)
+  axis_lps: Vec3; // unit, the direction of insertion
+  entry_lps: Vec3; // where the axis enters the skin
+  tilt_deg: number; // from the approach
+  shift_mm: number; // of the axis from the structure's centroid
+  skin_distance_mm: number; // origin to entry
+  skin_seen: boolean; // false: no skin along the axis within the CT
+}
+
+export interface StructuresState {
+  status: string; // none | loading | loaded | failed
+  source: string;
+  message: string;
+  site: string;
+  structures: StructureInfo[];
+  proposal_status: string; // none | proposing | proposed | failed
+  proposal_message: string;
+  proposed: ProposedTargetInfo[];
+  placement_status: string; // none | placing | placed | failed
+  placement_message: string;
+  placement_structure: string;
+  placement_progress_done: number;
+  placement_progress_total: number;
+  placements: PlacementInfo[]; // the best first
+  mounted_status: string; // none | measuring | measured | failed
+  mounted_message: string;
+  mounted_coverage: number | null; // null before it is measured (NaN on the wire)
+  mounted_entry_mm: number | null;
+  mounted_axis_deg: number | null;
 }
 
 export interface PlannedMove {
@@ -223,6 +292,7 @@ export interface ServerState {
   motion?: MotionState;
   health?: HealthState;
   verification?: VerificationState; // absent from servers before issue 23
+  structures?: StructuresState; // absent from servers before issue 41
 }
 
 // ---- gateway messages (docs/WEB.md) ------------------------------------------------------

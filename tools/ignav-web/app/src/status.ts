@@ -6,6 +6,7 @@ export type DisplayStatus =
   | "outside_volume" // outside the loaded CT: never imaged, so lock_plan refuses it
   | "unregistered" // no registration yet: no robot coordinates
   | "unreachable" // outside the workspace (the server says why)
+  | "too_close" // its needle passes closer to an avoided structure than the margin: lock_plan refuses it
   | "reachable" // feasible, the plan still editable
   | "planned" // feasible, in a locked plan
   | "awaiting_approval" // the pending approval request moves the robot to it
@@ -24,6 +25,7 @@ const kLabel: Record<DisplayStatus, string> = {
   outside_volume: "outside the CT",
   unregistered: "unregistered",
   unreachable: "unreachable",
+  too_close: "too close",
   reachable: "reachable",
   planned: "planned",
   awaiting_approval: "awaiting approval",
@@ -35,6 +37,7 @@ export const kStatusColour: Record<DisplayStatus, string> = {
   outside_volume: "#8d6e63",
   unregistered: "#9e9e9e",
   unreachable: "#f44336",
+  too_close: "#ff5722",
   reachable: "#4caf50",
   planned: "#00bcd4",
   awaiting_approval: "#ff9800",
@@ -67,6 +70,12 @@ export function targetDisplay(
   return { status, label: kLabel[status], colour: kStatusColour[status], detail, path_warning };
 }
 
+// The robot reaches the target (its joints are known), whether or not the plan may take it:
+// `reachable` is "plannable" (within reach, and no structure or compensation refuses it).
+export function withinReach(target: TargetState): boolean {
+  return target.registered && (target.reachable || target.reach === "reachable");
+}
+
 function displayStatus(
   target: TargetState,
   phase: string,
@@ -78,6 +87,11 @@ function displayStatus(
     return "outside_volume";
   }
   if (target.status === "unregistered" || !target.registered) return "unregistered";
+  // Within reach but refused for a structure until an operator overrides it (issue 41; the
+  // server's `reachable` and status then say not plannable); a reached one stays reached.
+  if (withinReach(target) && target.clearance_refusal && !target.clearance_override && target.status !== "reached") {
+    return "too_close";
+  }
   if (target.status === "unreachable" || !target.reachable) return "unreachable";
   if (motion?.state === "moving" && motion.target_id === target.id) return "moving";
   if (approval?.status === "pending" && approval.target_id === target.id) return "awaiting_approval";

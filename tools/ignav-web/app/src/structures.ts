@@ -48,7 +48,8 @@ export function clearanceCell(target: TargetState): ClearanceCell {
   const refused = (target.clearance_refusal ?? "") !== "";
   const overridden = refused && (target.clearance_override ?? "") !== "";
   const lines = rows.map(clearanceLine);
-  if (refused) lines.push(overridden ? `overridden (${target.clearance_override}): ${target.clearance_refusal}` : target.clearance_refusal!);
+  const refusal = target.clearance_refusal ?? "";
+  if (refused) lines.push(overridden ? `overridden (${target.clearance_override}): ${refusal}` : refusal);
   return {
     text: `${tightest.structure} ${distanceText(tightest)}${overridden ? " (overridden)" : refused ? ": too close" : ""}`,
     too_close: refused && !overridden,

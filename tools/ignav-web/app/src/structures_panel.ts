@@ -184,7 +184,9 @@ export class StructuresPanel {
     const m = s?.mounted_status ?? "none";
     mounted.className = m === "failed" ? "bad" : "small";
     mounted.textContent =
-      m === "measuring" ? "the mounted robot: measuring…" : m === "none" || m === "" ? "" : `the mounted robot: ${s?.mounted_message ?? ""}`;
+      m === "measuring" ? "the mounted robot: measuring…"
+        : m === "none" || m === "" ? ""
+          : `the mounted robot: ${s?.mounted_message ?? ""}`;
   }
 }
 

@@ -18,6 +18,7 @@ import {
 } from "./geometry";
 import type { Answer, SliceRequest, Vec3, ViewName } from "./state";
 import { drawMarker, drawPath, drawSeeds } from "./overlay_drawing";
+import { kPlacementColour, kProposalColour } from "./structures";
 import type { SeedMarker } from "./verification";
 
 export const kSizePx = 512;
@@ -52,6 +53,8 @@ export interface Overlay {
   targets: TargetMarker[];
   tip_lps: Vec3 | null;
   seeds: SeedMarker[]; // on the planning CT (verification.ts)
+  proposals: { id: number; lps: Vec3 }[]; // targets proposed to fill a structure (not yet accepted)
+  placement: { entry_lps: Vec3; axis_lps: Vec3[] } | null; // where to mount the robot (its axis)
   centre_lps: Vec3 | null;
 }
 
@@ -294,6 +297,20 @@ export class SliceView {
         ctx.stroke();
       }
     }
+
+    // Beneath the plan: the proposed robot placement's axis and skin entry, and the proposed
+    // targets on this plane (a lattice of up to 100 would hide the slice if all were drawn). Where
+    // the entry was drawn is told to tests.
+    if (overlay.placement) {
+      const { entry_lps, axis_lps } = overlay.placement;
+      drawPath(ctx, frame, axis_lps, kPlacementColour, tolerance);
+      const [u, v] = at(entry_lps);
+      drawMarker(ctx, [u, v], near(entry_lps), kPlacementColour, "entry", "square");
+      this.canvas.dataset.placementEntry = JSON.stringify({ u, v, on_plane: near(entry_lps) });
+    } else {
+      delete this.canvas.dataset.placementEntry;
+    }
+    for (const p of overlay.proposals) if (near(p.lps)) drawMarker(ctx, at(p.lps), true, kProposalColour, `P${p.id}`, "ring");
 
     for (const target of overlay.targets) drawPath(ctx, frame, target.path_lps, target.colour, tolerance);
 
