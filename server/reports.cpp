@@ -98,7 +98,8 @@ volume::Overlays overlaysFor(const Session& session) {
                            {},
                            {channel(rgb[0]), channel(rgb[1]), channel(rgb[2])},
                            1.0,
-                           true});
+                           true,
+                           set->structures[n].name});
     }
   }
   for (const auto& t : session.targets) {

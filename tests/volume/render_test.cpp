@@ -185,6 +185,39 @@ TEST(Render, ARegionDrawnAsAnOutlineColoursOnlyItsEdge) {
   EXPECT_LT(edge, 60);
 }
 
+// Its name beside it: up and to the right of the outline's topmost pixel, in its colour; nothing
+// else on the slice changes.
+TEST(Render, AnOutlinesLabelIsDrawnByItsTopmostPixel) {
+  const Slice s = flatSlice(40.0f);
+  RegionOverlay ball;  // a 3 mm disc at (0, 0): pixels (32, 24) +- 6, its top row v = 18
+  ball.contains = [](const Eigen::Vector3d& p) {
+    return (p - Eigen::Vector3d(0, 0, 7)).norm() <= 3.0;
+  };
+  ball.colour = {255, 230, 51};
+  ball.opacity = 1.0;
+  ball.outline = true;
+  Overlays plain_ov, labelled_ov;
+  plain_ov.regions = {ball};
+  ball.label = "urethra";
+  labelled_ov.regions = {ball};
+  const cv::Mat plain_img = decode(renderPng(s, plain_ov, plain()));
+  const cv::Mat labelled = decode(renderPng(s, labelled_ov, plain()));
+  int changed = 0, inked = 0;
+  for (int v = 0; v < labelled.rows; ++v)
+    for (int u = 0; u < labelled.cols; ++u) {
+      if (rgbAt(labelled, u, v) == rgbAt(plain_img, u, v)) continue;
+      ++changed;
+      // Within the text's box: from the top pixel's column, ending a few rows below its row.
+      EXPECT_GE(u, 32 + 3 - 5) << u << ", " << v;
+      EXPECT_LE(v, 18) << u << ", " << v;
+      EXPECT_GE(v, 18 - 20) << u << ", " << v;
+      const cv::Vec3i c = rgbAt(labelled, u, v);
+      inked += c[0] > 160 && c[1] > 140 && c[2] < 110;  // the outline's yellow, antialiased
+    }
+  EXPECT_GT(changed, 50);
+  EXPECT_GT(inked, 5);
+}
+
 TEST(Render, PathIsDrawnThroughProjectedPoints) {
   const Slice s = flatSlice(40.0f);
   Overlays ov;

@@ -169,15 +169,15 @@ const parseLps = (text) => text.split(",").map(Number);
 const shownAs = (shown, exact) => shown.length === 3 && shown.every((x, i) => Math.abs(x - exact[i]) <= 0.05 + 1e-6);
 const rgb255 = (colour) => colour.map((x) => Math.round(255 * x));
 
-// Pixels of the axial canvas within `radius_px` of (u, v) whose colour is within the tolerance of
-// `rgb` (0-255).
-function pixelsNear(page, [u, v], radius_px, rgb, { from_px = 0 } = {}) {
+// Pixels of the axial canvas within `radius_px` of (u, v) (from `from_px`; below v only when
+// `below`) whose colour is within the tolerance of `rgb` (0-255).
+function pixelsNear(page, [u, v], radius_px, rgb, { from_px = 0, below = false } = {}) {
   return page.locator('canvas[data-view="axial"]').evaluate(
-    (canvas, [u, v, radius, from, rgb, tolerance]) => {
+    (canvas, [u, v, radius, from, below, rgb, tolerance]) => {
       const ctx = canvas.getContext("2d");
       const image = ctx.getImageData(0, 0, canvas.width, canvas.height).data;
       let n = 0;
-      for (let y = Math.floor(v - radius); y <= Math.ceil(v + radius); ++y)
+      for (let y = Math.floor(below ? v + 1 : v - radius); y <= Math.ceil(v + radius); ++y)
         for (let x = Math.floor(u - radius); x <= Math.ceil(u + radius); ++x) {
           const r = Math.hypot(x - u, y - v);
           if (r > radius || r < from || x < 0 || y < 0 || x >= canvas.width || y >= canvas.height) continue;
@@ -186,7 +186,7 @@ function pixelsNear(page, [u, v], radius_px, rgb, { from_px = 0 } = {}) {
         }
       return n;
     },
-    [u, v, radius_px, from_px, rgb, kColourTolerance],
+    [u, v, radius_px, from_px, below, rgb, kColourTolerance],
   );
 }
 
@@ -260,10 +260,11 @@ async function run(pages) {
     const pixel_mm = Math.hypot(...slice.axis(0));
     const colour = rgb255(urethra.colour);
     // Its section is about 3 mm in radius (an ellipse on this oblique grid): the outline within 6 mm,
-    // none of its colour from 12 to 20 mm (the prostate, the rectum and the arch are other colours).
+    // none of its colour from 12 to 20 mm below it (the prostate, the rectum and the arch are other
+    // colours; its name is written above it).
     const near = await pixelsNear(page, [u, v], 6 / pixel_mm, colour);
-    const far = await pixelsNear(page, [u, v], 20 / pixel_mm, colour, { from_px: 12 / pixel_mm });
-    console.log(`   ${near} pixels of the urethra's colour within 6 mm of its centroid, ${far} from 12 to 20 mm`);
+    const far = await pixelsNear(page, [u, v], 20 / pixel_mm, colour, { from_px: 12 / pixel_mm, below: true });
+    console.log(`   ${near} pixels of the urethra's colour within 6 mm of its centroid, ${far} from 12 to 20 mm below`);
     check(near >= 10 && far === 0, `the urethra's outline: ${near} pixels near its centroid, ${far} far from it`);
   }
   await shot(page, "01-structures.png");

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <unordered_map>
@@ -64,7 +65,8 @@ cv::Rect askedPixels(const cv::Mat& img, const Slice& slice, const RegionOverlay
   return box & whole;
 }
 
-void drawRegion(cv::Mat& img, const Slice& slice, const RegionOverlay& region) {
+// Returns, for an outline, its topmost pixel (the leftmost of those), where its label goes.
+std::optional<cv::Point> drawRegion(cv::Mat& img, const Slice& slice, const RegionOverlay& region) {
   const double alpha = std::clamp(region.opacity, 0.0, 1.0);
   cv::Mat mask;
   if (region.polygon_lps_mm.size() >= 3) {
@@ -83,10 +85,11 @@ void drawRegion(cv::Mat& img, const Slice& slice, const RegionOverlay& region) {
       }
     }
   }
-  if (!region.contains) return;
+  if (!region.contains) return std::nullopt;
   const cv::Rect asked = askedPixels(img, slice, region);
   if (region.outline) {
-    if (asked.empty()) return;
+    if (asked.empty()) return std::nullopt;
+    std::optional<cv::Point> top;
     cv::Mat inside = cv::Mat::zeros(asked.height + 2, asked.width + 2, CV_8U);  // a ring outside
     for (int v = 0; v < asked.height; ++v)
       for (int u = 0; u < asked.width; ++u)
@@ -97,9 +100,10 @@ void drawRegion(cv::Mat& img, const Slice& slice, const RegionOverlay& region) {
         if (inside.at<uchar>(v, u) && !(inside.at<uchar>(v - 1, u) && inside.at<uchar>(v + 1, u) &&
                                         inside.at<uchar>(v, u - 1) && inside.at<uchar>(v, u + 1))) {
           blend(img, u - 1 + asked.x, v - 1 + asked.y, region.colour, alpha);
+          if (!top) top = cv::Point(u - 1 + asked.x, v - 1 + asked.y);  // rows top down
         }
       }
-    return;
+    return top;
   }
   for (int v = asked.y; v < asked.y + asked.height; ++v) {
     for (int u = asked.x; u < asked.x + asked.width; ++u) {
@@ -107,6 +111,7 @@ void drawRegion(cv::Mat& img, const Slice& slice, const RegionOverlay& region) {
       if (region.contains(slice.pixelToLps(u, v))) blend(img, u, v, region.colour, alpha);
     }
   }
+  return std::nullopt;
 }
 
 cv::Size textSize(const std::string& text) {
@@ -276,8 +281,12 @@ Expected<std::vector<std::uint8_t>> SliceRenderer::renderPng(const Slice& slice,
         row[3 * u + 2] = outside ? out.r : g;
       }
     }
-    for (const auto& region : overlays.regions)
-      drawRegion(img, slice, region);
+    for (const auto& region : overlays.regions) {
+      const auto top = drawRegion(img, slice, region);
+      // An outline's name just above and right of its topmost pixel, in its colour.
+      if (top && !region.label.empty())
+        buffers_->labels.draw(img, region.label, {top->x + 3, top->y - 3}, bgr(region.colour));
+    }
     for (const auto& path : overlays.paths) {
       std::vector<cv::Point> pts;
       for (const auto& p : path.lps_mm) {

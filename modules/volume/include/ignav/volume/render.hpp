@@ -48,6 +48,7 @@ struct RegionOverlay {
   // contains() drawn as its outline only (the pixels inside with a neighbour outside), as
   // segmentations are shown over a CT.
   bool outline = false;
+  std::string label{};  // an outline's name, drawn by its topmost pixel; "" for none
 };
 
 struct Overlays {
