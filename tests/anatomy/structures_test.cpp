@@ -216,6 +216,20 @@ TEST_F(Structures, BadSegmentationsAreRefusedByName) {
     unnamed.push_back(kv);
   expectRefused(write("unnamed.seg.nrrd", unnamed), "names_missing", "segment 1 has no name");
   expectRefused(write("none.seg.nrrd", {}), "names_missing", "no segment is described");
+  // ignav's own tags: a role it does not know, a margin that is no distance or beyond 10 mm (as
+  // the site file and structure_role would refuse it).
+  for (const auto& [tags, says] : std::vector<std::pair<std::string, std::string>>{
+           {"ignav.role:shield|", "role 'shield' is unknown"},
+           {"ignav.role:avoid|ignav.margin_mm:3mm|", "margin '3mm' is not a distance"},
+           {"ignav.role:avoid|ignav.margin_mm:15|", "margin 15 mm is outside 0-10 mm"}}) {
+    auto tagged = two;
+    tagged.emplace_back("Segment1_Tags", tags);
+    expectRefused(write("tagged.seg.nrrd", tagged), "bad_segment", says);
+  }
+  auto ten = two;
+  ten.emplace_back("Segment1_Tags", "ignav.role:avoid|ignav.margin_mm:10|");
+  ASSERT_TRUE(write("ten.seg.nrrd", ten).ok());
+  EXPECT_EQ(write("ten.seg.nrrd", ten)->structures[1].margin_mm, 10.0);
   // A label map without its colour table, or with a label it does not name.
   volume::Volume labels;
   labels.geometry = ct_;

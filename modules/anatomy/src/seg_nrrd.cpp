@@ -9,6 +9,7 @@
 
 #include <fmt/format.h>
 
+#include "ignav/anatomy/site.hpp"
 #include "ignav/anatomy/structures.hpp"
 #include "ignav/volume/image_io.hpp"
 
@@ -95,8 +96,14 @@ Expected<StructureSet> readSegNrrd(const std::string& path) {
       if (const auto it = tag.find("ignav.margin_mm"); it != tag.end()) {
         char* end = nullptr;
         s.margin_mm = std::strtod(it->second.c_str(), &end);
-        if (end == it->second.c_str() || !std::isfinite(s.margin_mm) || s.margin_mm < 0.0) {
+        if (end == it->second.c_str() || *end != '\0' || !std::isfinite(s.margin_mm) ||
+            s.margin_mm < 0.0) {
           return bad(path, fmt::format("{}: margin '{}' is not a distance", what, it->second));
+        }
+        // As a site file or structure_role would have it: a wider margin is no margin but a ban.
+        if (s.margin_mm > kMaxMargin_mm) {
+          return bad(path, fmt::format("{}: margin {:g} mm is outside 0-{:g} mm", what, s.margin_mm,
+                                       kMaxMargin_mm));
         }
       }
     }
