@@ -233,11 +233,11 @@ void Reports::writeExports(const Session& session) {
   // such as feasible_volume.ply, shows where the robot would reach) and every pose's entry point.
   const auto& placed = session.robot_placement;
   if (placed.status == "placed" && !placed.poses.empty() && session.robot) {
-    const auto& best = placed.poses.front().pose;
+    const Eigen::Matrix4d image_to_robot = placed.poses.front().pose.imageToRobot();
     registration::Registration as_registration;
     as_registration.kind = registration::TransformKind::kRigid;
-    as_registration.rotation = best.rotation.transpose();
-    as_registration.translation_mm = -best.rotation.transpose() * best.origin_lps_mm;
+    as_registration.rotation = image_to_robot.topLeftCorner<3, 3>();
+    as_registration.translation_mm = image_to_robot.topRightCorner<3, 1>();
     (void)registration::writeItkTransform(as_registration,
                                           (session_dir_ / "robot_placement.tfm").string());
     std::vector<registration::MarkupPoint> entries;

@@ -180,7 +180,7 @@ int CoverageModel::judge(const RobotPose& pose, const Eigen::Vector3d& lps_mm,
     // A body that stays farther than the margin and the largest uncertainty is cleared at once;
     // only one that may come near is measured exactly, as the session does.
     const double tre_max_mm = largest_tre_mm.at(n);
-    const double uncertainty_max_mm = 2.0 * std::sqrt(tre_max_mm * tre_max_mm / 3.0) + drift_mm;
+    const double uncertainty_max_mm = anatomy::clearanceUncertainty_mm(tre_max_mm, 0.0, drift_mm);
     if (anatomy::staysFarther(body, *avoided.field, avoided.margin_mm + uncertainty_max_mm,
                               kSearchStep_mm))
       continue;
@@ -188,7 +188,7 @@ int CoverageModel::judge(const RobotPose& pose, const Eigen::Vector3d& lps_mm,
     if (!std::isfinite(closest.distance_mm)) continue;
     const double tre_mm = registration::expectedTre_mm(
         markers_, pose.toRobot(closest.needle_lps_mm), inputs_.fle_mm, inputs_.kind);
-    const double uncertainty_mm = 2.0 * std::sqrt(tre_mm * tre_mm / 3.0) + drift_mm;
+    const double uncertainty_mm = anatomy::clearanceUncertainty_mm(tre_mm, 0.0, drift_mm);
     if (closest.distance_mm - uncertainty_mm < avoided.margin_mm) return 1 + static_cast<int>(n);
   }
   return 0;

@@ -76,14 +76,11 @@ void checkClearance(const Session& s, Target& t) {
     c.needle_lps_mm = closest.needle_lps_mm;
     c.structure_lps_mm = closest.structure_lps_mm;
     c.beyond_reach = closest.distance_mm + body[closest.piece].radius_mm >= field.reach_mm();
-    // The expected registration error there (RMS, 3-D: per direction TRE/√3), the aim's landing
-    // spread likewise, 2 SD along the way to the structure; without fiducials (a matrix given),
-    // the TRE the robot config accepts at most.
+    // Without fiducials (a matrix given), the TRE the robot config accepts at most.
     const double tre_mm = tre_known ? registration::expectedTre_mm(fiducials, closest.needle_lps_mm,
                                                                    settings.fle_mm, reg.kind)
                                     : settings.max_tre_mm;
-    c.uncertainty_mm =
-        2.0 * std::sqrt((tre_mm * tre_mm + landing_se_mm * landing_se_mm) / 3.0) + drift_mm;
+    c.uncertainty_mm = anatomy::clearanceUncertainty_mm(tre_mm, landing_se_mm, drift_mm);
     if (c.tooClose() && refusal.empty()) {
       const auto& p = c.needle_lps_mm;
       refusal = fmt::format(

@@ -3,6 +3,7 @@
 // structure's.
 #pragma once
 
+#include <cmath>
 #include <limits>
 #include <vector>
 
@@ -43,5 +44,13 @@ ClosestApproach closestApproach(const NeedleBody& body, const DistanceField& fie
 // `step_mm` of that distance or closer (an empty body stays far).
 bool staysFarther(const NeedleBody& body, const DistanceField& field, double distance_mm,
                   double step_mm = 0.1);
+
+// The uncertainty a clearance is judged with, where the needle passes closest: the expected
+// registration error there (an RMS over three directions: per direction TRE/√3) and the aim's
+// landing spread likewise, two standard deviations along the way to the structure, plus a drift
+// the tissue predicts and the aim leaves uncompensated (it shifts the whole path).
+inline double clearanceUncertainty_mm(double tre_mm, double landing_se_mm, double drift_mm) {
+  return 2.0 * std::sqrt((tre_mm * tre_mm + landing_se_mm * landing_se_mm) / 3.0) + drift_mm;
+}
 
 }  // namespace ignav::anatomy
