@@ -47,5 +47,19 @@ TEST(ItkTransformFile, ItkReadsTheSameImageToRobotMap) {
   }
 }
 
+// A rotation about one axis has exact zeros that arithmetic may make negative (-R^T t, R^T of a
+// -0 term): the file says 0, as any tool would write it.
+TEST(ItkTransformFile, ExactZerosAreWrittenWithoutASign) {
+  Registration reg;
+  reg.kind = TransformKind::kRigid;
+  reg.rotation = Eigen::AngleAxisd(0.35, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  reg.rotation(1, 0) = -0.0;
+  reg.rotation(0, 1) = -0.0;
+  reg.translation_mm = Eigen::Vector3d(8.5, -0.0, -161.0);
+  const std::string text = itkTransformText(reg);
+  EXPECT_EQ(text.find("-0 "), std::string::npos) << text;
+  EXPECT_EQ(text.find(" -0\n"), std::string::npos) << text;
+}
+
 }  // namespace
 }  // namespace ignav::registration

@@ -36,7 +36,8 @@ Status writeText(const std::string& text, const std::string& path) {
 }  // namespace
 
 std::string itkTransformText(const Registration& registration) {
-  const Eigen::Matrix4d m = registration.imageToRobot();
+  // + 0.0 writes a negative zero (from a rotation's exact terms) as 0, not -0.
+  const Eigen::Matrix4d m = registration.imageToRobot().array() + 0.0;
   std::string text = "#Insight Transform File V1.0\n#Transform 0\n";
   text += "Transform: AffineTransform_double_3_3\nParameters:";
   for (int r = 0; r < 3; ++r) {
