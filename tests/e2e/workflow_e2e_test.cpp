@@ -130,7 +130,7 @@ TEST(WorkflowE2E, FullPlanningWorkflow) {
   std::ifstream journal(server.sessionDir() / "journal.jsonl");
   std::size_t records = 0;
   for (std::string line; std::getline(journal, line);) {
-    EXPECT_NO_THROW(json::parse(line)) << line;
+    EXPECT_TRUE(json::accept(line)) << line;
     ++records;
   }
   EXPECT_GE(records, 8u);
