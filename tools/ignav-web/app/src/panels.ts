@@ -217,7 +217,6 @@ export class Panels {
       const [theta_c_rad, z_c_mm, z_s_mm] = target.joints;
       const known = withinReach(target);
       const row = measured.get(target.id);
-      const button = actionButton; // not also "go to"
       const reorder = (offset: number) => {
         const ids = list.map((t) => t.id);
         [ids[index], ids[index + offset]] = [ids[index + offset]!, ids[index]!];
@@ -225,11 +224,11 @@ export class Panels {
       };
       const seedButtons = row
         ? [
-            button(`✓S${row.seed_id}`, `target-accept-seed-${target.id}`, canAccept && row.matched === "detected",
+            actionButton(`✓S${row.seed_id}`, `target-accept-seed-${target.id}`, canAccept && row.matched === "detected",
               `accept: S${row.seed_id} is T${target.id}'s seed (keep the pair)`, () =>
                 this.actions.command("accept_seed", [target.id]),
             ),
-            button(`✗S${row.seed_id}`, `target-reject-seed-${target.id}`, canReject,
+            actionButton(`✗S${row.seed_id}`, `target-reject-seed-${target.id}`, canReject,
               `reject: S${row.seed_id} is no seed of this plan (match again without it)`, () =>
                 this.actions.command("reject_seed", [row.seed_id]),
             ),
@@ -264,15 +263,15 @@ export class Panels {
         el(
           "td",
           { class: "actions" },
-          button("↑", `target-up-${target.id}`, canReorder && index > 0, "earlier", () => reorder(-1)),
-          button("↓", `target-down-${target.id}`, canReorder && index < list.length - 1, "later", () => reorder(1)),
-          button("✕", `target-delete-${target.id}`, canRemove, "delete", () =>
+          actionButton("↑", `target-up-${target.id}`, canReorder && index > 0, "earlier", () => reorder(-1)),
+          actionButton("↓", `target-down-${target.id}`, canReorder && index < list.length - 1, "later", () => reorder(1)),
+          actionButton("✕", `target-delete-${target.id}`, canRemove, "delete", () =>
             this.actions.command("remove_target", [target.id]),
           ),
           ...seedButtons,
           ...(target.clearance_refusal && !target.clearance_override
             ? [
-                button("override", `target-override-${target.id}`, canOverride,
+                actionButton("override", `target-override-${target.id}`, canOverride,
                   `plan T${target.id} although its needle passes so close, for the reason written below the table`, () =>
                     this.actions.command("override_clearance", [target.id], byId<HTMLInputElement>("override-reason").value),
                 ),

@@ -54,7 +54,8 @@ export class StructuresPanel {
   // `allowed`: the commands the workflow allows now and this page may send.
   render(structures: StructuresState | undefined, allowed: Set<string>): void {
     const s = structures;
-    const names = s?.status === "loaded" ? structureChoices(s.structures) : [];
+    // A load that failed (or is under way) leaves the structures before in use: listed, usable.
+    const names = structureChoices(s?.structures ?? []);
     byId<HTMLButtonElement>("propose").disabled = !allowed.has("propose_targets") || names.length === 0;
     byId<HTMLButtonElement>("place").disabled = !allowed.has("place_robot") || names.length === 0;
     byId<HTMLButtonElement>("accept-all").disabled = !allowed.has("accept_proposals") || !s?.proposed.length;
@@ -77,7 +78,7 @@ export class StructuresPanel {
         ? `loading ${s.source}…`
         : `${s.status}: ${s.source}${s.site ? ` (site: ${s.site})` : ""}${s.status === "loaded" ? "" : `: ${s.message}`}`;
     status.title = s?.message ?? "";
-    const rows = s?.status === "loaded" ? s.structures.map((x) => this.structureRow(x, canSetRole)) : [];
+    const rows = (s?.structures ?? []).map((x) => this.structureRow(x, canSetRole));
     byId("structures-body").replaceChildren(...rows);
   }
 
