@@ -442,6 +442,8 @@ test("a target refused for a structure shows as too close until overridden; reac
   const beyond = { ...base, reach: "beyond_max_radius" }; // out of reach: that is what it shows
   assert.equal(s.targetDisplay(beyond, "planning", undefined, undefined).status, "unreachable");
   assert.equal(s.withinReach(beyond), false);
+  // Reached, then refused by structures loaded after the motion: still where the needle has been.
+  assert.equal(s.targetDisplay({ ...base, status: "reached" }, "at_target", undefined, undefined).status, "reached");
 });
 
 test("the panel's commands: structure_role, propose_targets and place_robot texts", () => {

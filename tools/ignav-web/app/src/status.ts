@@ -92,10 +92,12 @@ function displayStatus(
   if (withinReach(target) && target.clearance_refusal && !target.clearance_override && target.status !== "reached") {
     return "too_close";
   }
+  // Where the needle has been stays reached, whatever is refused about it since (structures
+  // loaded after the motion make `reachable`, "plannable", false).
+  if (target.status === "reached") return "reached";
   if (target.status === "unreachable" || !target.reachable) return "unreachable";
   if (motion?.state === "moving" && motion.target_id === target.id) return "moving";
   if (approval?.status === "pending" && approval.target_id === target.id) return "awaiting_approval";
-  if (target.status === "reached") return "reached";
   return isPlanLocked(phase) ? "planned" : "reachable";
 }
 
