@@ -216,6 +216,24 @@ TEST(Render, AnOutlinesLabelIsDrawnByItsTopmostPixel) {
     }
   EXPECT_GT(changed, 50);
   EXPECT_GT(inked, 5);
+
+  // A structure cut by the image's top edge: its name below the edge, not above it (unseen).
+  RegionOverlay cut = ball;
+  cut.contains = [](const Eigen::Vector3d& p) {
+    return (p - Eigen::Vector3d(0, -12, 7)).norm() <= 3.0;  // centred on the top row
+  };
+  Overlays cut_plain, cut_labelled;
+  cut.label = "";
+  cut_plain.regions = {cut};
+  cut.label = "rectum";
+  cut_labelled.regions = {cut};
+  const cv::Mat a = decode(renderPng(s, cut_plain, plain()));
+  const cv::Mat b = decode(renderPng(s, cut_labelled, plain()));
+  int shown = 0;
+  for (int v = 0; v < a.rows; ++v)
+    for (int u = 0; u < a.cols; ++u)
+      shown += rgbAt(a, u, v) != rgbAt(b, u, v);
+  EXPECT_GT(shown, 50);
 }
 
 TEST(Render, PathIsDrawnThroughProjectedPoints) {

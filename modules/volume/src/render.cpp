@@ -283,9 +283,12 @@ Expected<std::vector<std::uint8_t>> SliceRenderer::renderPng(const Slice& slice,
     }
     for (const auto& region : overlays.regions) {
       const auto top = drawRegion(img, slice, region);
-      // An outline's name just above and right of its topmost pixel, in its colour.
-      if (top && !region.label.empty())
-        buffers_->labels.draw(img, region.label, {top->x + 3, top->y - 3}, bgr(region.colour));
+      // An outline's name just above and right of its topmost pixel, in its colour; below the
+      // image's top edge when the outline reaches it (a structure cut by the view).
+      if (top && !region.label.empty()) {
+        const int baseline = std::max(top->y - 3, textSize(region.label).height + 2);
+        buffers_->labels.draw(img, region.label, {top->x + 3, baseline}, bgr(region.colour));
+      }
     }
     for (const auto& path : overlays.paths) {
       std::vector<cv::Point> pts;
