@@ -29,6 +29,7 @@
 
 #include "ignav/anatomy/dicom_structures.hpp"
 #include "ignav/volume/image_io.hpp"
+#include "support/command_output.hpp"
 
 namespace ignav::anatomy {
 namespace {
@@ -41,17 +42,7 @@ const std::string kReference =
 // The frame of reference rtstruct.dcm's ROIs name.
 const std::string kPydicomFrame = "1.2.826.0.1.3680043.8.498.2010020400001.2";
 
-std::string output(const std::string& cmd) {
-  std::string out;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (p == nullptr) return out;
-  char buf[4096];
-  std::size_t n = 0;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0)
-    out.append(buf, n);
-  EXPECT_EQ(::pclose(p), 0) << cmd;
-  return out;
-}
+using test::commandOutput;
 
 std::string gridJson(const volume::Geometry& g) {
   nlohmann::json j;
@@ -92,8 +83,9 @@ class DicomStructures : public ::testing::Test {
   std::map<std::string, volume::Volume> plastimatch(const std::string& rtstruct,
                                                     const volume::Geometry& g) const {
     const std::string out = path("plastimatch");
-    output("plastimatch convert --input " + rtstruct + " --fixed " + ctNrrd(g) +
-           " --xor-contours --output-prefix " + out + " --prefix-format nrrd >/dev/null 2>&1");
+    commandOutput("plastimatch convert --input " + rtstruct + " --fixed " + ctNrrd(g) +
+                  " --xor-contours --output-prefix " + out +
+                  " --prefix-format nrrd >/dev/null 2>&1");
     std::map<std::string, volume::Volume> masks;
     if (!fs::exists(out)) {
       ADD_FAILURE() << "plastimatch wrote nothing: tools/setup.sh installs it";
@@ -107,8 +99,8 @@ class DicomStructures : public ::testing::Test {
     return masks;
   }
   nlohmann::json dicompyler(const std::string& rtstruct, const volume::Geometry& g) const {
-    return nlohmann::json::parse(output("/usr/bin/python3 " + kReference + " volumes " + rtstruct +
-                                        " '" + gridJson(g) + "'"));
+    return nlohmann::json::parse(commandOutput("/usr/bin/python3 " + kReference + " volumes " +
+                                               rtstruct + " '" + gridJson(g) + "'"));
   }
 
   fs::path dir_;
@@ -170,8 +162,8 @@ TEST_F(DicomStructures, PydicomsStructureSetMatchesDicompylerAndPlastimatch) {
 
 TEST_F(DicomStructures, HolesIslandsAndConcaveContoursMatchDicompylerAndPlastimatch) {
   const std::string file = path("shapes.dcm");
-  output("/usr/bin/python3 " + kReference + " make " + file + " " + ct_.frame_of_reference_uid +
-         " '" + gridJson(ct_.geometry) + "'");
+  commandOutput("/usr/bin/python3 " + kReference + " make " + file + " " +
+                ct_.frame_of_reference_uid + " '" + gridJson(ct_.geometry) + "'");
   auto set = readStructures(file, ct_);
   ASSERT_TRUE(set.ok()) << set.error().message;
   ASSERT_EQ(set->structures.size(), 4u);
@@ -287,8 +279,8 @@ TEST_F(DicomStructures, BadContoursAreRefusedByName) {
 
 TEST_F(DicomStructures, AStructureSetOfAnotherFrameIsRefused) {
   const std::string file = path("shapes.dcm");
-  output("/usr/bin/python3 " + kReference + " make " + file + " 1.2.3.999 '" +
-         gridJson(ct_.geometry) + "'");
+  commandOutput("/usr/bin/python3 " + kReference + " make " + file + " 1.2.3.999 '" +
+                gridJson(ct_.geometry) + "'");
   auto set = readStructures(file, ct_);
   ASSERT_FALSE(set.ok());
   EXPECT_EQ(set.error().reason, "other_ct");

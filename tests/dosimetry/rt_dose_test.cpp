@@ -13,6 +13,7 @@
 #include "ignav/dosimetry/dose_grid.hpp"
 #include "ignav/dosimetry/dvh.hpp"
 #include "ignav/dosimetry/rt_dose.hpp"
+#include "support/command_output.hpp"
 
 namespace ignav::dosimetry {
 namespace {
@@ -20,17 +21,7 @@ namespace fs = std::filesystem;
 
 const std::string kReference = IGNAV_SOURCE_DIR "/tests/dosimetry/dvh_reference.py";
 
-std::string output(const std::string& cmd) {
-  std::string out;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (p == nullptr) return out;
-  char buf[4096];
-  std::size_t n = 0;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0)
-    out.append(buf, n);
-  EXPECT_EQ(::pclose(p), 0) << cmd;
-  return out;
-}
+using test::commandOutput;
 
 // The doses at a structure's voxels (its mask lies on the dose grid's voxels: the CT's).
 std::vector<double> dosesIn(const anatomy::Structure& s, const volume::Geometry& grid,
@@ -104,8 +95,8 @@ TEST(RtDose, DicompylerCoreReadsTheSameHistogramsFromTheExportedFiles) {
       DoseVolumeHistogram::of(dosesIn(*set->find("prostate"), ct, dose_Gy), 0.0015).value();
   const double rx_Gy = std::round(target.doseToHottestFraction_Gy(0.93));
   const auto theirs = nlohmann::json::parse(
-      output("/usr/bin/python3 " + kReference + " dvh " + (dir / "rtstruct.dcm").string() + " " +
-             (dir / "rtdose.dcm").string() + " " + std::to_string(rx_Gy)));
+      commandOutput("/usr/bin/python3 " + kReference + " dvh " + (dir / "rtstruct.dcm").string() +
+                    " " + (dir / "rtdose.dcm").string() + " " + std::to_string(rx_Gy)));
   for (const auto& s : set->structures) {
     const auto ours = DoseVolumeHistogram::of(dosesIn(s, ct, dose_Gy), 0.0015).value();
     ASSERT_TRUE(theirs.contains(s.name)) << theirs.dump();
