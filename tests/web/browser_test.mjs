@@ -53,7 +53,7 @@ export function check(condition, message) {
 // ---- linear algebra for the ground truth (independent of the app's own geometry) -----------
 
 export const sub = (a, b) => a.map((x, i) => x - b[i]);
-export const dot = (a, b) => a.reduce((s, x, i) => s + x * b[i], 0);
+const dot = (a, b) => a.reduce((s, x, i) => s + x * b[i], 0);
 export const dist = (a, b) => Math.hypot(...sub(a, b));
 export const apply = (m, p) => [0, 1, 2].map((r) => m[r][0] * p[0] + m[r][1] * p[1] + m[r][2] * p[2] + m[r][3]);
 export const rows4 = (flat) => [0, 1, 2, 3].map((r) => flat.slice(4 * r, 4 * r + 4));

@@ -17,33 +17,15 @@ std::vector<IsodoseLevel> standardIsodoseLevels() {
 
 double doseAt(const std::vector<float>& dose_Gy, const volume::Geometry& grid,
               const Eigen::Vector3d& lps_mm) {
-  const Eigen::Vector3d ijk = grid.toIjk(lps_mm);
   const auto& n = grid.dims;
-  int i0[3];
-  double f[3];
-  for (int a = 0; a < 3; ++a) {
-    const double x = ijk[a];
-    if (!(x >= 0.0) || x > n[static_cast<std::size_t>(a)] - 1) {
-      return std::numeric_limits<double>::quiet_NaN();
-    }
-    // The last voxel centre interpolates with itself.
-    i0[a] = std::min(static_cast<int>(x), std::max(n[static_cast<std::size_t>(a)] - 2, 0));
-    f[a] = n[static_cast<std::size_t>(a)] > 1 ? x - i0[a] : 0.0;
-  }
-  const auto at = [&](int di, int dj, int dk) {
-    const auto idx = (static_cast<std::size_t>(std::min(i0[2] + dk, n[2] - 1)) * n[1] +
-                      static_cast<std::size_t>(std::min(i0[1] + dj, n[1] - 1))) *
-                         n[0] +
-                     static_cast<std::size_t>(std::min(i0[0] + di, n[0] - 1));
-    return static_cast<double>(dose_Gy[idx]);
-  };
-  double sum = 0.0;
-  for (int c = 0; c < 8; ++c) {
-    const int di = c & 1, dj = (c >> 1) & 1, dk = (c >> 2) & 1;
-    const double w = (di ? f[0] : 1.0 - f[0]) * (dj ? f[1] : 1.0 - f[1]) * (dk ? f[2] : 1.0 - f[2]);
-    if (w != 0.0) sum += w * at(di, dj, dk);
-  }
-  return sum;
+  return volume::trilinear(
+             n, grid.toIjk(lps_mm),
+             [&](int i, int j, int k) {
+               return dose_Gy[(static_cast<std::size_t>(k) * n[1] + static_cast<std::size_t>(j)) *
+                                  n[0] +
+                              static_cast<std::size_t>(i)];
+             })
+      .value_or(std::numeric_limits<double>::quiet_NaN());
 }
 
 std::vector<volume::RegionOverlay> isodoseOverlays(

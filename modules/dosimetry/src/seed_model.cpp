@@ -48,52 +48,46 @@ double number(const YAML::Node& node, const std::string& field) {
   return node.as<double>();
 }
 
+// The first thing wrong with a model, or "".
+std::string problem(const SeedModel& m) {
+  if (m.name.empty()) return "name is empty";
+  const double lambda = m.dose_rate_constant_cGy_per_h_per_U;
+  if (!std::isfinite(lambda) || lambda <= 0.0 || lambda > 2.0)
+    return fmt::format("dose_rate_constant_cGy_per_h_per_U = {} is outside 0-2", lambda);
+  if (!std::isfinite(m.active_length_cm) || m.active_length_cm <= 0.0 || m.active_length_cm > 1.0)
+    return fmt::format("active_length_cm = {} is outside 0-1 cm", m.active_length_cm);
+  if (!std::isfinite(m.half_life_h) || m.half_life_h <= 0.0)
+    return fmt::format("half_life_days = {} is not a positive number", m.half_life_h / 24.0);
+  for (const std::string& why :
+       {checkAxis(m.radial_r_cm, "radial_dose.r_cm", 2, 1e-3, 20.0),
+        checkValues(m.radial_g, m.radial_r_cm.size(), "radial_dose.g_L", true),
+        checkAxis(m.anisotropy_r_cm, "anisotropy.r_cm", 1, 1e-3, 20.0),
+        checkAxis(m.anisotropy_theta_deg, "anisotropy.theta_deg", 2, 0.0, 90.0)}) {
+    if (!why.empty()) return why;
+  }
+  if (m.anisotropy_theta_deg.front() != 0.0 || m.anisotropy_theta_deg.back() != 90.0)
+    return "anisotropy.theta_deg must run from 0 to 90";
+  if (m.anisotropy_f.size() != m.anisotropy_theta_deg.size())
+    return fmt::format("anisotropy.F holds {} rows for {} angles", m.anisotropy_f.size(),
+                       m.anisotropy_theta_deg.size());
+  for (std::size_t k = 0; k < m.anisotropy_f.size(); ++k) {
+    const auto field = fmt::format("anisotropy.F[{}] ({:g}°)", k, m.anisotropy_theta_deg[k]);
+    if (auto why = checkValues(m.anisotropy_f[k], m.anisotropy_r_cm.size(), field, false);
+        !why.empty())
+      return why;
+  }
+  if (m.phi_an_r_cm.empty() && m.phi_an.empty()) return "";  // φ_an is optional
+  if (auto why = checkAxis(m.phi_an_r_cm, "anisotropy_factor.r_cm", 1, 1e-3, 20.0); !why.empty())
+    return why;
+  return checkValues(m.phi_an, m.phi_an_r_cm.size(), "anisotropy_factor.phi_an", true);
+}
+
 }  // namespace
 
 Status validate(const SeedModel& m) {
-  auto check = [](const std::string& why) -> Status {
-    if (why.empty()) return Ok{};
-    return bad(why);
-  };
-  if (m.name.empty()) return bad("name is empty");
-  if (!std::isfinite(m.dose_rate_constant_cGy_per_h_per_U) ||
-      m.dose_rate_constant_cGy_per_h_per_U <= 0.0 || m.dose_rate_constant_cGy_per_h_per_U > 2.0)
-    return bad(fmt::format("dose_rate_constant_cGy_per_h_per_U = {} is outside 0-2",
-                           m.dose_rate_constant_cGy_per_h_per_U));
-  if (!std::isfinite(m.active_length_cm) || m.active_length_cm <= 0.0 || m.active_length_cm > 1.0)
-    return bad(fmt::format("active_length_cm = {} is outside 0-1 cm", m.active_length_cm));
-  if (!std::isfinite(m.half_life_h) || m.half_life_h <= 0.0)
-    return bad(fmt::format("half_life_days = {} is not a positive number", m.half_life_h / 24.0));
-  if (auto s = check(checkAxis(m.radial_r_cm, "radial_dose.r_cm", 2, 1e-3, 20.0)); !s.ok())
-    return s;
-  if (auto s = check(checkValues(m.radial_g, m.radial_r_cm.size(), "radial_dose.g_L", true));
-      !s.ok())
-    return s;
-  if (auto s = check(checkAxis(m.anisotropy_r_cm, "anisotropy.r_cm", 1, 1e-3, 20.0)); !s.ok())
-    return s;
-  if (auto s = check(checkAxis(m.anisotropy_theta_deg, "anisotropy.theta_deg", 2, 0.0, 90.0));
-      !s.ok())
-    return s;
-  if (m.anisotropy_theta_deg.front() != 0.0 || m.anisotropy_theta_deg.back() != 90.0)
-    return bad("anisotropy.theta_deg must run from 0 to 90");
-  if (m.anisotropy_f.size() != m.anisotropy_theta_deg.size())
-    return bad(fmt::format("anisotropy.F holds {} rows for {} angles", m.anisotropy_f.size(),
-                           m.anisotropy_theta_deg.size()));
-  for (std::size_t k = 0; k < m.anisotropy_f.size(); ++k) {
-    const auto field = fmt::format("anisotropy.F[{}] ({:g}°)", k, m.anisotropy_theta_deg[k]);
-    if (auto s = check(checkValues(m.anisotropy_f[k], m.anisotropy_r_cm.size(), field, false));
-        !s.ok())
-      return s;
-  }
-  if (!m.phi_an_r_cm.empty() || !m.phi_an.empty()) {
-    if (auto s = check(checkAxis(m.phi_an_r_cm, "anisotropy_factor.r_cm", 1, 1e-3, 20.0)); !s.ok())
-      return s;
-    if (auto s =
-            check(checkValues(m.phi_an, m.phi_an_r_cm.size(), "anisotropy_factor.phi_an", true));
-        !s.ok())
-      return s;
-  }
-  return Ok{};
+  const std::string why = problem(m);
+  if (why.empty()) return Ok{};
+  return bad(why);
 }
 
 Expected<SeedModel> readSeedModel(const std::string& path) {

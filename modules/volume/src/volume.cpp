@@ -110,25 +110,9 @@ Status Geometry::validate(const std::string& what) const {
 }
 
 double Volume::sampleIjk(const Eigen::Vector3d& p, double outside) const {
-  const auto& d = geometry.dims;
-  if (!p.allFinite()) return outside;
-  const double x = p.x(), y = p.y(), z = p.z();
-  if (x < 0.0 || y < 0.0 || z < 0.0 || x > d[0] - 1 || y > d[1] - 1 || z > d[2] - 1) {
-    return outside;
-  }
-  const int i0 = std::min(static_cast<int>(x), std::max(0, d[0] - 2));
-  const int j0 = std::min(static_cast<int>(y), std::max(0, d[1] - 2));
-  const int k0 = std::min(static_cast<int>(z), std::max(0, d[2] - 2));
-  const int i1 = std::min(i0 + 1, d[0] - 1), j1 = std::min(j0 + 1, d[1] - 1),
-            k1 = std::min(k0 + 1, d[2] - 1);
-  const double fx = x - i0, fy = y - j0, fz = z - k0;
-  auto v = [&](int i, int j, int k) { return static_cast<double>(voxels[index(i, j, k)]); };
-  const double c00 = v(i0, j0, k0) * (1 - fx) + v(i1, j0, k0) * fx;
-  const double c10 = v(i0, j1, k0) * (1 - fx) + v(i1, j1, k0) * fx;
-  const double c01 = v(i0, j0, k1) * (1 - fx) + v(i1, j0, k1) * fx;
-  const double c11 = v(i0, j1, k1) * (1 - fx) + v(i1, j1, k1) * fx;
-  const double c0 = c00 * (1 - fy) + c10 * fy, c1 = c01 * (1 - fy) + c11 * fy;
-  return (c0 * (1 - fz) + c1 * fz) * value_scale + value_offset;
+  const auto raw =
+      trilinear(geometry.dims, p, [this](int i, int j, int k) { return voxels[index(i, j, k)]; });
+  return raw ? *raw * value_scale + value_offset : outside;
 }
 
 std::pair<double, double> Volume::valueRange() const {

@@ -30,6 +30,20 @@ export function facts(rows: [string, string, string?, string?][]): HTMLElement {
   return dl;
 }
 
+// What a panel showed last, per slot: a panel is rebuilt only when what it shows has changed, so
+// that a stream of updates neither flickers it nor swallows a click on it.
+export class ShownSlots {
+  private readonly keys = new Map<string, string>();
+
+  // True when `value` differs from what `slot` showed last (and remembers it).
+  changed(slot: string, value: unknown): boolean {
+    const key = JSON.stringify(value);
+    if (this.keys.get(slot) === key) return false;
+    this.keys.set(slot, key);
+    return true;
+  }
+}
+
 // A button that acts on a click and nothing else (not also its row's "go to").
 export function actionButton(
   label: string,

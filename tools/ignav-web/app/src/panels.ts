@@ -6,7 +6,7 @@
 // (alerts.ts).
 import { connectionView, phaseBanner } from "./alerts";
 import { approvalView } from "./approval";
-import { actionButton, byId, el, facts } from "./dom";
+import { ShownSlots, actionButton, byId, el, facts } from "./dom";
 import { formatLps } from "./geometry";
 import type { SocketStatus } from "./socket";
 import type {
@@ -79,21 +79,13 @@ function clearanceTd(target: TargetState): HTMLElement {
 }
 
 export class Panels {
-  private readonly keys = new Map<string, string>();
+  private readonly shown = new ShownSlots();
   private replies = 0;
   private connected = false; // commands from this page reach the server
   private pending: { approval: ApprovalState; may_approve: boolean } | null = null;
   private approving: string | null = null; // approvalKey of the approval on its way
 
   constructor(private readonly actions: PanelActions) {}
-
-  // True when `value` differs from what `slot` showed last (and remembers it).
-  private changed(slot: string, value: unknown): boolean {
-    const key = JSON.stringify(value);
-    if (this.keys.get(slot) === key) return false;
-    this.keys.set(slot, key);
-    return true;
-  }
 
   // Whether the page reaches the server; the other panels follow what this last said.
   connection(status: SocketStatus, server: boolean | null): void {
@@ -143,7 +135,7 @@ export class Panels {
   }
 
   volume(volume: VolumeState | undefined): void {
-    if (!this.changed("volume", volume)) return;
+    if (!this.shown.changed("volume", volume)) return;
     const body = byId("volume-body");
     if (!volume) {
       body.replaceChildren("no volume state yet");
@@ -162,7 +154,7 @@ export class Panels {
   }
 
   registration(registration: RegistrationState | undefined, pending: Vec3[]): void {
-    if (this.changed("registration", registration)) {
+    if (this.shown.changed("registration", registration)) {
       const body = byId("registration-body");
       if (!registration) {
         body.replaceChildren("no registration state yet");
@@ -180,7 +172,7 @@ export class Panels {
         );
       }
     }
-    if (this.changed("pending-fiducials", pending)) {
+    if (this.shown.changed("pending-fiducials", pending)) {
       byId("pending-fiducials").replaceChildren(
         ...pending.map((p, i) => el("li", {}, `F${i + 1}: ${formatLps(p)}`)),
       );
@@ -204,7 +196,7 @@ export class Panels {
     // The confirmation CT matters as each target's measured row and the targets without a seed.
     const measured = measuredByTarget(verification);
     const missing = new Set(verification?.status === "measured" ? verification.missing_targets : []);
-    if (!this.changed("targets", [targets, phase, allowed, moving, pending, [...measured.values()], [...missing]])) return;
+    if (!this.shown.changed("targets", [targets, phase, allowed, moving, pending, [...measured.values()], [...missing]])) return;
 
     const list = Object.values(targets ?? {}).sort((a, b) => a.order - b.order || a.id - b.id);
     const canReorder = allowed.includes("reorder_targets");
@@ -290,7 +282,7 @@ export class Panels {
     const waiting = current?.status === "pending" ? current : undefined;
     // An approval on its way is for the request it was clicked on; any other request is new.
     if (this.approving !== null && (!waiting || approvalKey(waiting) !== this.approving)) this.approving = null;
-    if (!this.changed("approval", [current, hello])) return this.tick();
+    if (!this.shown.changed("approval", [current, hello])) return this.tick();
     const body = byId("approval-body");
     const approve = byId<HTMLButtonElement>("approve");
     if (!waiting) {
@@ -362,7 +354,7 @@ export class Panels {
   // The confirmation CT's measurement: where it stands, the summary (mean ± SD, max, min, RMS),
   // the targets without a seed and the extra seeds, and the tissues fitted from the errors.
   verification(verification: VerificationState | undefined): void {
-    if (!this.changed("verification", verification)) return;
+    if (!this.shown.changed("verification", verification)) return;
     const body = byId("verification-body");
     if (!verification || verification.status === "none" || verification.status === "") {
       body.replaceChildren(
@@ -421,7 +413,7 @@ export class Panels {
   }
 
   motion(motion: MotionState | undefined): void {
-    if (!this.changed("motion", motion && { ...motion, uptime_s: 0 })) return;
+    if (!this.shown.changed("motion", motion && { ...motion, uptime_s: 0 })) return;
     const body = byId("motion-body");
     if (!motion) {
       body.replaceChildren("no motion state yet");

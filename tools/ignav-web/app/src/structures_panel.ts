@@ -3,7 +3,7 @@
 // one or all at once) and where to mount the robot (the proposal, its alternatives, then the
 // mounted robot against it). Rebuilt only when what it shows changes; the command buttons follow
 // what the workflow allows and the gateway's identity may send, as every other button does.
-import { actionButton, byId, el } from "./dom";
+import { ShownSlots, actionButton, byId, el } from "./dom";
 import { formatLps } from "./geometry";
 import type { StructureInfo, StructuresState, Vec3 } from "./state";
 import {
@@ -27,7 +27,7 @@ const boundsCentre = (b: number[]): Vec3 => [0, 1, 2].map((i) => (b[i]! + b[i + 
 const percent = (x: number | null) => (x === null || !Number.isFinite(x) ? "–" : `${(100 * x).toFixed(1)} %`);
 
 export class StructuresPanel {
-  private readonly keys = new Map<string, string>();
+  private readonly shown = new ShownSlots();
 
   constructor(private readonly actions: StructuresActions) {
     const side = byId<HTMLSelectElement>("placement-side");
@@ -44,13 +44,6 @@ export class StructuresPanel {
     byId("accept-all").addEventListener("click", () => this.actions.command("accept_proposals", { ids: [] }));
   }
 
-  private changed(slot: string, value: unknown): boolean {
-    const key = JSON.stringify(value);
-    if (this.keys.get(slot) === key) return false;
-    this.keys.set(slot, key);
-    return true;
-  }
-
   // `allowed`: the commands the workflow allows now and this page may send.
   render(structures: StructuresState | undefined, allowed: Set<string>): void {
     const s = structures;
@@ -59,7 +52,7 @@ export class StructuresPanel {
     byId<HTMLButtonElement>("propose").disabled = !allowed.has("propose_targets") || names.length === 0;
     byId<HTMLButtonElement>("place").disabled = !allowed.has("place_robot") || names.length === 0;
     byId<HTMLButtonElement>("accept-all").disabled = !allowed.has("accept_proposals") || !s?.proposed.length;
-    if (this.changed("choices", names)) {
+    if (this.shown.changed("choices", names)) {
       for (const id of ["proposal-structure", "placement-structure"]) fillChoices(byId<HTMLSelectElement>(id), names);
     }
     this.structures(s, allowed.has("structure_role"));
@@ -68,7 +61,7 @@ export class StructuresPanel {
   }
 
   private structures(s: StructuresState | undefined, canSetRole: boolean): void {
-    if (!this.changed("structures", [s?.status, s?.source, s?.message, s?.site, s?.structures, canSetRole])) return;
+    if (!this.shown.changed("structures", [s?.status, s?.source, s?.message, s?.site, s?.structures, canSetRole])) return;
     const status = byId("structures-status");
     status.className = s?.status === "failed" ? "bad" : "small";
     // Loaded, the table says what the message lists (its notes too, in the tooltip); failed, why.
@@ -119,7 +112,7 @@ export class StructuresPanel {
   }
 
   private proposals(s: StructuresState | undefined, canAccept: boolean): void {
-    if (!this.changed("proposals", [s?.proposal_status, s?.proposal_message, s?.proposed, canAccept])) return;
+    if (!this.shown.changed("proposals", [s?.proposal_status, s?.proposal_message, s?.proposed, canAccept])) return;
     const status = byId("proposal-status");
     const state = s?.proposal_status ?? "none";
     status.className = state === "failed" ? "bad" : "small";
@@ -151,7 +144,7 @@ export class StructuresPanel {
       s.placement_status, s.placement_message, s.placement_structure, s.placement_progress_done,
       s.placement_progress_total, s.placements, s.mounted_status, s.mounted_message,
     ];
-    if (!this.changed("placement", fields)) return;
+    if (!this.shown.changed("placement", fields)) return;
     const state = s?.placement_status ?? "none";
     const status = byId("placement-status");
     status.className = state === "failed" ? "bad" : "small";

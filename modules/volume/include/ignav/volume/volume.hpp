@@ -3,11 +3,13 @@
 // define them.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
 #include <new>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -40,6 +42,32 @@ struct Geometry {
   // (columns unit length and mutually perpendicular within 1e-4). `what` names the source.
   Status validate(const std::string& what) const;
 };
+
+// Trilinear interpolation between the voxel centres of a grid of `dims` at a continuous IJK
+// position, `at(i, j, k)` giving each voxel's value; none beyond the centres' hull (no
+// extrapolation). Volume::sampleIjk's rule, for grids of other value types (a dose in float).
+template <typename At>
+std::optional<double> trilinear(const std::array<int, 3>& d, const Eigen::Vector3d& p,
+                                const At& at) {
+  if (!p.allFinite()) return std::nullopt;
+  const double x = p.x(), y = p.y(), z = p.z();
+  if (x < 0.0 || y < 0.0 || z < 0.0 || x > d[0] - 1 || y > d[1] - 1 || z > d[2] - 1) {
+    return std::nullopt;
+  }
+  const int i0 = std::min(static_cast<int>(x), std::max(0, d[0] - 2));
+  const int j0 = std::min(static_cast<int>(y), std::max(0, d[1] - 2));
+  const int k0 = std::min(static_cast<int>(z), std::max(0, d[2] - 2));
+  const int i1 = std::min(i0 + 1, d[0] - 1), j1 = std::min(j0 + 1, d[1] - 1),
+            k1 = std::min(k0 + 1, d[2] - 1);
+  const double fx = x - i0, fy = y - j0, fz = z - k0;
+  const auto v = [&](int i, int j, int k) { return static_cast<double>(at(i, j, k)); };
+  const double c00 = v(i0, j0, k0) * (1 - fx) + v(i1, j0, k0) * fx;
+  const double c10 = v(i0, j1, k0) * (1 - fx) + v(i1, j1, k0) * fx;
+  const double c01 = v(i0, j0, k1) * (1 - fx) + v(i1, j0, k1) * fx;
+  const double c11 = v(i0, j1, k1) * (1 - fx) + v(i1, j1, k1) * fx;
+  const double c0 = c00 * (1 - fy) + c10 * fy, c1 = c01 * (1 - fy) + c11 * fy;
+  return c0 * (1 - fz) + c1 * fz;
+}
 
 // Voxel memory: large blocks are 2 MiB aligned and marked for transparent huge pages, so a
 // 150 MB volume costs ~75 page faults instead of ~37,000 when a reader first writes it.
