@@ -12,6 +12,8 @@ packages=(
   libopencv-dev libpcl-dev libdcmtk-dev dcmtk zlib1g-dev libpng-dev libdeflate-dev
   # ODE integration (Boost.Odeint, header-only) for the needle-deflection model
   libboost-dev
+  # the seed plan's linear programme (GLPK's simplex)
+  libglpk-dev
   # SHA-256 digests of motion plans (and DDS Security)
   libssl-dev
   # benchmarks: the reference DICOM converter and GNU time for peak memory

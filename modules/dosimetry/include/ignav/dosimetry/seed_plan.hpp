@@ -1,0 +1,122 @@
+// A seed plan (issue 42, part 3): among the positions a seed may go (reachable with every
+// clearance kept), the fewest seeds of one strength whose permanent-implant dose covers the
+// target (V100, D90) while each organ at risk stays within its limits (D10, D2cc, Dmax).
+//
+// How: GLPK's simplex solves the linear relaxation (a weight in 0-1 per candidate, the target's
+// under-dose and the organs' over-dose as penalised slacks) on a sample of the structures'
+// voxels; its weights, rounded, start a repair (add the candidate that newly covers the most of
+// the target without breaking an organ's limit, drop the hottest contributor to a broken one)
+// and a prune (drop any seed the constraints do without), judged on a finer sample; the result
+// is then judged on every voxel and repaired again if that sample was too kind. Every constraint
+// is a count of voxels above a dose (D90 ≥ x ⟺ at least ⌈0.9 n⌉ voxels get x), so checking a
+// candidate costs one pass over the sample.
+#pragma once
+
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ignav/core/expected.hpp"
+#include "ignav/dosimetry/dose_grid.hpp"
+#include "ignav/dosimetry/dvh.hpp"
+
+namespace ignav::dosimetry {
+
+// A structure as dose sees it: its voxels' centres (LPS), each `voxel_cm3`.
+struct DoseStructure {
+  std::string name;
+  std::vector<Eigen::Vector3d> voxels_lps_mm;
+  double voxel_cm3 = 0.0;
+};
+
+// What an organ at risk may receive, in percent of the prescription; NaN: not limited.
+struct OrganLimits {
+  double d10_percent = std::numeric_limits<double>::quiet_NaN();   // e.g. urethra 150
+  double d2cc_percent = std::numeric_limits<double>::quiet_NaN();  // e.g. rectum 100
+  double dmax_percent = std::numeric_limits<double>::quiet_NaN();
+  bool any() const {
+    return std::isfinite(d10_percent) || std::isfinite(d2cc_percent) || std::isfinite(dmax_percent);
+  }
+};
+
+struct OrganAtRisk {
+  DoseStructure structure;
+  OrganLimits limits;
+};
+
+// Seed strengths a plan accepts (air-kerma strength, U = µGy m² h⁻¹): clinical I-125 and
+// Pd-103 seeds lie well inside.
+constexpr double kMinSeedStrength_U = 0.05;
+constexpr double kMaxSeedStrength_U = 10.0;
+
+struct SeedPlanRequest {
+  std::shared_ptr<const DoseRateTable> table;  // the seed model, tabulated
+  double strength_U = 0.0;                     // every seed's
+  double prescription_Gy = 0.0;                // the dose the target must receive
+  DoseStructure target;
+  std::vector<OrganAtRisk> organs;
+  std::vector<Seed> candidates;  // where a seed may go, each with its axis
+  double min_v100 = 0.95;        // fraction of the target at ≥ 100 %
+  double min_d90_percent = 100.0;
+  std::size_t max_seeds = 100;  // the plan's targets per insertion
+};
+
+// Errors name the field: no table, strength outside kMin-kMaxSeedStrength_U (`bad_strength`),
+// prescription ≤ 0 or not finite (`bad_prescription`), an empty structure (`empty_structure`),
+// no candidates or a non-finite one (`no_candidates`, `bad_candidate`), goals out of range
+// (`bad_goal`), a limit ≤ 0 (`bad_limit`).
+Status validate(const SeedPlanRequest& request);
+
+struct OrganResult {
+  std::string name;
+  OrganMetrics metrics;
+  OrganLimits limits;
+};
+
+// A set of seeds judged on every voxel of the request's structures.
+struct PlanEvaluation {
+  TargetMetrics target;
+  double target_cm3 = 0.0;
+  std::vector<OrganResult> organs;
+  std::vector<std::string> unmet;  // each constraint missed, e.g. "urethra D10 162.3 % > 150 %"
+  bool met() const { return unmet.empty(); }
+  std::string describe() const;  // "V100 96.1 %, D90 104.2 %; urethra D10 131.0 %, …"
+};
+Expected<PlanEvaluation> evaluatePlan(const SeedPlanRequest& request,
+                                      const std::vector<Seed>& seeds);
+
+// The permanent-implant dose (Gy) of one seed of `strength_U` at a point.
+double seedDose_Gy(const DoseRateTable& table, const Seed& seed, double strength_U,
+                   const Eigen::Vector3d& point_lps_mm);
+
+struct SeedPlan {
+  std::vector<std::size_t> chosen;  // indices into the request's candidates, ascending
+  PlanEvaluation evaluation;
+  double relaxed_seeds = 0.0;  // the linear relaxation's Σ weights: a floor for the count
+  std::size_t lp_rows = 0, lp_columns = 0;
+};
+// `stage` names what runs: "dose per candidate", "linear programme", "repair", "every voxel".
+using PlanProgress =
+    std::function<void(std::size_t done, std::size_t total, std::string_view stage)>;
+// The plan, or `infeasible_plan` naming the constraints no choice among the candidates met
+// (and what the best choice reached), or `too_many_seeds`.
+Expected<SeedPlan> planSeeds(const SeedPlanRequest& request, const PlanProgress& progress = {});
+
+// The usual baseline: seeds spread evenly through the target (no two candidates nearer than
+// `spacing_mm`, taken in the candidates' order), at the widest spacing (from 20 mm down in
+// 0.5 mm steps) whose V100 and D90 meet the goals; organs are not considered. Fails
+// (`infeasible_plan`) when even every candidate does not cover the target.
+struct UniformLoading {
+  double spacing_mm = 0.0;
+  std::vector<std::size_t> chosen;
+  PlanEvaluation evaluation;
+};
+Expected<UniformLoading> uniformLoading(const SeedPlanRequest& request);
+
+}  // namespace ignav::dosimetry

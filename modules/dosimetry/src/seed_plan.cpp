@@ -1,0 +1,558 @@
+// A seed plan (seed_plan.hpp): GLPK's relaxation, then a repair and a prune judged on counts.
+#include "ignav/dosimetry/seed_plan.hpp"
+
+#include <glpk.h>
+
+#include <algorithm>
+#include <numeric>
+
+#include <fmt/format.h>
+
+namespace ignav::dosimetry {
+namespace {
+
+// Gy of a permanent implant per (cGy h⁻¹ U⁻¹) of initial dose rate at `strength_U`.
+double implantGyPerRate(const DoseRateTable& table, double strength_U) {
+  return strength_U * permanentImplantDose_cGy(1.0, table.model().half_life_h) / 100.0;
+}
+
+double doseAt(const DoseRateTable& table, const Seed& seed, double gy_per_rate,
+              const Eigen::Vector3d& p) {
+  const Eigen::Vector3d d = p - seed.centre_lps_mm;
+  const double along = d.dot(seed.axis_lps);
+  const double away = std::sqrt(std::max(0.0, d.squaredNorm() - along * along));
+  return gy_per_rate * table.perUnitStrength(along, away);
+}
+
+// Every dose of `seeds` at each of `points`.
+std::vector<double> dosesAt(const DoseRateTable& table, const std::vector<Seed>& seeds,
+                            double gy_per_rate, const std::vector<Eigen::Vector3d>& points) {
+  std::vector<double> out(points.size(), 0.0);
+  for (const auto& seed : seeds)
+    for (std::size_t i = 0; i < points.size(); ++i)
+      out[i] += doseAt(table, seed, gy_per_rate, points[i]);
+  return out;
+}
+
+std::string percent(double fraction) {
+  return fmt::format("{:.1f} %", 100.0 * fraction);
+}
+
+// A structure's voxels, at most `most` of them spread through it: the i-th taken is voxel
+// (i · step) mod n, with the step coprime to n so no two repeat and rows do not alias.
+std::vector<Eigen::Vector3d> spread(const std::vector<Eigen::Vector3d>& voxels, std::size_t most) {
+  const std::size_t n = voxels.size();
+  if (n <= most) return voxels;
+  std::size_t step = n / most;
+  while (std::gcd(step, n) != 1)
+    ++step;
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(most);
+  for (std::size_t i = 0; i < most; ++i)
+    out.push_back(voxels[(i * step) % n]);
+  return out;
+}
+
+// A constraint as a count of sample points: a floor (at least `count` points get ≥ dose_Gy)
+// for the target, a ceiling (at most `count` get > dose_Gy) for an organ.
+struct Bound {
+  std::size_t structure = 0;  // 0: the target, k: organ k - 1
+  double dose_Gy = 0.0;
+  bool floor = true;
+  std::size_t count = 0;
+};
+
+std::size_t ceilCount(double fraction, std::size_t n) {
+  const double c = std::ceil(fraction * static_cast<double>(n) - 1e-9);
+  return static_cast<std::size_t>(std::clamp(c, 1.0, static_cast<double>(n)));
+}
+
+// The structures sampled, each candidate's dose at every sample point, the running sums.
+class Scene {
+ public:
+  Scene(const SeedPlanRequest& r, std::size_t target_points, std::size_t organ_points,
+        const PlanProgress& progress)
+      : request_(r), gy_per_rate_(implantGyPerRate(*r.table, r.strength_U)) {
+    samples_.push_back(spread(r.target.voxels_lps_mm, target_points));
+    for (const auto& organ : r.organs)
+      samples_.push_back(spread(organ.structure.voxels_lps_mm, organ_points));
+    const std::size_t j_count = r.candidates.size();
+    influence_.resize(samples_.size());
+    for (std::size_t s = 0; s < samples_.size(); ++s)
+      influence_[s].resize(j_count * samples_[s].size());
+    for (std::size_t j = 0; j < j_count; ++j) {
+      if (progress && j % 32 == 0) progress(j, j_count, "dose per candidate");
+      for (std::size_t s = 0; s < samples_.size(); ++s) {
+        const auto& points = samples_[s];
+        float* row = &influence_[s][j * points.size()];
+        for (std::size_t i = 0; i < points.size(); ++i)
+          row[i] = static_cast<float>(doseAt(*r.table, r.candidates[j], gy_per_rate_, points[i]));
+      }
+    }
+    if (progress) progress(j_count, j_count, "dose per candidate");
+    dose_.resize(samples_.size());
+    for (std::size_t s = 0; s < samples_.size(); ++s)
+      dose_[s].assign(samples_[s].size(), 0.0);
+    chosen_.assign(j_count, false);
+  }
+
+  std::size_t structures() const { return samples_.size(); }
+  std::size_t points(std::size_t s) const { return samples_[s].size(); }
+  const float* influence(std::size_t s, std::size_t j) const {
+    return &influence_[s][j * samples_[s].size()];
+  }
+  const std::vector<double>& dose(std::size_t s) const { return dose_[s]; }
+  bool chosen(std::size_t j) const { return chosen_[j]; }
+  std::size_t chosenCount() const {
+    return static_cast<std::size_t>(std::count(chosen_.begin(), chosen_.end(), true));
+  }
+  std::vector<std::size_t> chosenList() const {
+    std::vector<std::size_t> out;
+    for (std::size_t j = 0; j < chosen_.size(); ++j)
+      if (chosen_[j]) out.push_back(j);
+    return out;
+  }
+  double gyPerRate() const { return gy_per_rate_; }
+
+  void set(std::size_t j, bool on) {
+    if (chosen_[j] == on) return;
+    chosen_[j] = on;
+    const double sign = on ? 1.0 : -1.0;
+    for (std::size_t s = 0; s < samples_.size(); ++s) {
+      const float* a = influence(s, j);
+      auto& d = dose_[s];
+      for (std::size_t i = 0; i < d.size(); ++i)
+        d[i] += sign * a[i];
+    }
+  }
+  void clear() {
+    for (std::size_t j = 0; j < chosen_.size(); ++j)
+      set(j, false);
+  }
+
+  // The points of `b` on the right side of its dose now (floor: at or above; ceiling: above).
+  std::size_t counted(const Bound& b) const {
+    const auto& d = dose_[b.structure];
+    return static_cast<std::size_t>(std::count_if(
+        d.begin(), d.end(), [&](double v) { return b.floor ? v >= b.dose_Gy : v > b.dose_Gy; }));
+  }
+  bool holds(const Bound& b) const {
+    return b.floor ? counted(b) >= b.count : counted(b) <= b.count;
+  }
+  // How many points candidate j would move across `b`'s dose (up: j adds dose).
+  std::size_t crossing(const Bound& b, std::size_t j) const {
+    const auto& d = dose_[b.structure];
+    const float* a = influence(b.structure, j);
+    std::size_t n = 0;
+    if (b.floor) {
+      for (std::size_t i = 0; i < d.size(); ++i)
+        n += d[i] < b.dose_Gy && d[i] + a[i] >= b.dose_Gy;
+    } else {
+      for (std::size_t i = 0; i < d.size(); ++i)
+        n += d[i] <= b.dose_Gy && d[i] + a[i] > b.dose_Gy;
+    }
+    return n;
+  }
+
+ private:
+  const SeedPlanRequest& request_;
+  double gy_per_rate_;
+  std::vector<std::vector<Eigen::Vector3d>> samples_;  // [0] target, then the organs
+  std::vector<std::vector<float>> influence_;          // [structure][candidate · points + point]
+  std::vector<std::vector<double>> dose_;
+  std::vector<bool> chosen_;
+};
+
+// The request's goals as bounds on the scene's samples, each target goal raised and each organ
+// limit lowered by `tighten` (a fraction; the sample may be kinder than every voxel).
+std::vector<Bound> boundsOf(const SeedPlanRequest& r, const Scene& scene, double tighten) {
+  std::vector<Bound> out;
+  const double rx = r.prescription_Gy;
+  const std::size_t nt = scene.points(0);
+  out.push_back({0, rx, true, ceilCount(std::min(1.0, r.min_v100 + tighten), nt)});
+  out.push_back({0, rx * r.min_d90_percent / 100.0 * (1.0 + tighten), true, ceilCount(0.9, nt)});
+  for (std::size_t k = 0; k < r.organs.size(); ++k) {
+    const auto& o = r.organs[k];
+    const std::size_t n = scene.points(k + 1);
+    const double scale = rx / 100.0 * (1.0 - tighten);
+    if (std::isfinite(o.limits.d10_percent))
+      out.push_back({k + 1, o.limits.d10_percent * scale, false, ceilCount(0.1, n) - 1});
+    if (std::isfinite(o.limits.d2cc_percent)) {
+      const double fraction =
+          2.0 / (o.structure.voxel_cm3 * static_cast<double>(o.structure.voxels_lps_mm.size()));
+      out.push_back({k + 1, o.limits.d2cc_percent * scale, false, ceilCount(fraction, n) - 1});
+    }
+    if (std::isfinite(o.limits.dmax_percent))
+      out.push_back({k + 1, o.limits.dmax_percent * scale, false, 0});
+  }
+  return out;
+}
+
+// The linear relaxation (GLPK, dual simplex): minimise Σ x_j + W·(mean target shortfall) +
+// W·(mean organ excess), x_j in 0-1, on a subsample of the scene's points, doses in units of
+// the prescription. Returns each candidate's weight (zeros when GLPK fails).
+struct Relaxation {
+  std::vector<double> weight;
+  std::size_t rows = 0, columns = 0;
+};
+Relaxation relax(const SeedPlanRequest& r, const Scene& scene, std::size_t target_rows,
+                 std::size_t organ_rows) {
+  constexpr double kPenalty = 1000.0;  // a 1 % mean shortfall costs 10 seeds
+  const std::size_t nj = r.candidates.size();
+  const double rx = r.prescription_Gy;
+  struct Row {
+    std::size_t structure, point;
+    double limit;  // in prescriptions; floor for the target, ceiling for organs
+  };
+  std::vector<Row> rows;
+  {
+    const std::size_t n = scene.points(0), step = std::max<std::size_t>(1, n / target_rows);
+    for (std::size_t i = 0; i < n; i += step)
+      rows.push_back({0, i, r.min_d90_percent / 100.0});
+  }
+  const std::size_t target_count = rows.size();
+  for (std::size_t k = 0; k < r.organs.size(); ++k) {
+    const auto& l = r.organs[k].limits;
+    double limit = std::numeric_limits<double>::infinity();
+    for (double v : {l.d10_percent, l.d2cc_percent, l.dmax_percent})
+      if (std::isfinite(v)) limit = std::min(limit, v / 100.0);
+    if (!std::isfinite(limit)) continue;
+    // Only points every candidate together could push over the limit need a row.
+    std::vector<std::size_t> bind;
+    for (std::size_t i = 0; i < scene.points(k + 1); ++i) {
+      double all = 0.0;
+      for (std::size_t j = 0; j < nj; ++j)
+        all += scene.influence(k + 1, j)[i];
+      if (all / rx > limit) bind.push_back(i);
+    }
+    const std::size_t step = std::max<std::size_t>(1, bind.size() / organ_rows);
+    for (std::size_t m = 0; m < bind.size(); m += step)
+      rows.push_back({k + 1, bind[m], limit});
+  }
+  const std::size_t organ_count = rows.size() - target_count;
+
+  glp_prob* lp = glp_create_prob();
+  glp_set_obj_dir(lp, GLP_MIN);
+  const int cols = static_cast<int>(nj + rows.size());  // x, then one slack per row
+  glp_add_cols(lp, cols);
+  for (std::size_t j = 0; j < nj; ++j) {
+    glp_set_col_bnds(lp, static_cast<int>(j) + 1, GLP_DB, 0.0, 1.0);
+    glp_set_obj_coef(lp, static_cast<int>(j) + 1, 1.0);
+  }
+  glp_add_rows(lp, static_cast<int>(rows.size()));
+  std::vector<int> ia{0}, ja{0};
+  std::vector<double> ar{0.0};
+  for (std::size_t m = 0; m < rows.size(); ++m) {
+    const Row& row = rows[m];
+    const int rm = static_cast<int>(m) + 1, slack = static_cast<int>(nj + m) + 1;
+    const bool target = row.structure == 0;
+    glp_set_row_bnds(lp, rm, target ? GLP_LO : GLP_UP, row.limit, row.limit);
+    glp_set_col_bnds(lp, slack, target ? GLP_DB : GLP_LO, 0.0, row.limit);
+    glp_set_obj_coef(lp, slack,
+                     kPenalty / static_cast<double>(target ? target_count : organ_count));
+    for (std::size_t j = 0; j < nj; ++j) {
+      const double a = scene.influence(row.structure, j)[row.point] / rx;
+      if (a < 1e-4) continue;
+      ia.push_back(rm);
+      ja.push_back(static_cast<int>(j) + 1);
+      ar.push_back(a);
+    }
+    ia.push_back(rm);
+    ja.push_back(slack);
+    ar.push_back(target ? 1.0 : -1.0);
+  }
+  glp_load_matrix(lp, static_cast<int>(ar.size()) - 1, ia.data(), ja.data(), ar.data());
+  glp_scale_prob(lp, GLP_SF_AUTO);
+  glp_smcp parm;
+  glp_init_smcp(&parm);
+  parm.msg_lev = GLP_MSG_OFF;
+  parm.meth = GLP_DUALP;  // all at zero is dual feasible: the objective's costs are ≥ 0
+  parm.tm_lim = 20000;
+  Relaxation out;
+  out.rows = rows.size();
+  out.columns = static_cast<std::size_t>(cols);
+  out.weight.assign(nj, 0.0);
+  if (glp_simplex(lp, &parm) == 0)
+    for (std::size_t j = 0; j < nj; ++j)
+      out.weight[j] = glp_get_col_prim(lp, static_cast<int>(j) + 1);
+  glp_delete_prob(lp);
+  return out;
+}
+
+// Adds and drops candidates until every bound holds (true) or nothing more helps (false).
+// Dropped candidates are not tried again.
+bool repair(Scene& scene, const std::vector<Bound>& bounds, std::vector<bool>& banned,
+            const PlanProgress& progress) {
+  const std::size_t nj = banned.size();
+  const std::size_t limit = 2 * nj + 10;  // each candidate added once and dropped once at most
+  for (std::size_t step = 0; step < limit; ++step) {
+    if (progress) progress(step, limit, "repair");
+    const Bound* broken_organ = nullptr;
+    bool target_short = false;
+    for (const auto& b : bounds) {
+      if (scene.holds(b)) continue;
+      if (b.floor)
+        target_short = true;
+      else if (!broken_organ)
+        broken_organ = &b;
+    }
+    if (!broken_organ && !target_short) return true;
+    if (broken_organ) {
+      // Drop the seed giving the most to the organ's points above its limit.
+      const auto& d = scene.dose(broken_organ->structure);
+      double most = -1.0;
+      std::size_t worst = nj;
+      for (std::size_t j = 0; j < nj; ++j) {
+        if (!scene.chosen(j)) continue;
+        const float* a = scene.influence(broken_organ->structure, j);
+        double sum = 0.0;
+        for (std::size_t i = 0; i < d.size(); ++i)
+          if (d[i] > broken_organ->dose_Gy) sum += a[i];
+        if (sum > most) most = sum, worst = j;
+      }
+      if (worst == nj) return false;
+      scene.set(worst, false);
+      banned[worst] = true;
+      continue;
+    }
+    // Add the candidate that newly covers the most of the target, keeping every organ's limit.
+    std::size_t best = nj, best_gain = 0;
+    for (std::size_t j = 0; j < nj; ++j) {
+      if (scene.chosen(j) || banned[j]) continue;
+      bool keeps = true;
+      std::size_t gain = 0;
+      for (const auto& b : bounds) {
+        if (b.floor) {
+          gain += scene.crossing(b, j);
+        } else if (scene.counted(b) + scene.crossing(b, j) > b.count) {
+          keeps = false;
+          break;
+        }
+      }
+      if (keeps && gain > best_gain) best_gain = gain, best = j;
+    }
+    if (best == nj) return false;
+    scene.set(best, true);
+  }
+  return false;
+}
+
+// Drops every seed the bounds do without, the least useful (lowest relaxed weight) first.
+void prune(Scene& scene, const std::vector<Bound>& bounds, const std::vector<double>& weight) {
+  auto order = scene.chosenList();
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return weight[a] < weight[b]; });
+  for (const std::size_t j : order) {
+    scene.set(j, false);
+    const bool ok = std::all_of(bounds.begin(), bounds.end(),
+                                [&](const Bound& b) { return !b.floor || scene.holds(b); });
+    if (!ok) scene.set(j, true);
+  }
+}
+
+std::vector<Seed> seedsOf(const SeedPlanRequest& r, const std::vector<std::size_t>& chosen) {
+  std::vector<Seed> out;
+  for (const std::size_t j : chosen)
+    out.push_back(r.candidates[j]);
+  return out;
+}
+
+Error infeasible(const SeedPlanRequest& r, const PlanEvaluation& best, std::size_t seeds) {
+  return makeError(
+      ErrorCode::kInvalidArgument,
+      fmt::format("no seed plan among the {} candidates meets {}; the best of {} seeds of {:g} U "
+                  "reached {}",
+                  r.candidates.size(), fmt::join(best.unmet, ", "), seeds, r.strength_U,
+                  best.describe()),
+      "infeasible_plan");
+}
+
+constexpr std::size_t kTargetSample = 6000, kOrganSample = 3000;
+
+}  // namespace
+
+double seedDose_Gy(const DoseRateTable& table, const Seed& seed, double strength_U,
+                   const Eigen::Vector3d& point_lps_mm) {
+  return doseAt(table, seed, implantGyPerRate(table, strength_U), point_lps_mm);
+}
+
+Status validate(const SeedPlanRequest& r) {
+  auto bad = [](std::string message, const char* reason) -> Status {
+    return makeError(ErrorCode::kInvalidArgument, std::move(message), reason);
+  };
+  if (!r.table) return bad("seed plan: no seed model", "unknown_seed_model");
+  if (!std::isfinite(r.strength_U) || r.strength_U < kMinSeedStrength_U ||
+      r.strength_U > kMaxSeedStrength_U)
+    return bad(fmt::format("seed strength {} U is outside {:g}-{:g} U", r.strength_U,
+                           kMinSeedStrength_U, kMaxSeedStrength_U),
+               "bad_strength");
+  if (!std::isfinite(r.prescription_Gy) || r.prescription_Gy <= 0.0)
+    return bad(fmt::format("prescription {} Gy: must be a positive dose", r.prescription_Gy),
+               "bad_prescription");
+  if (!(r.min_v100 > 0.0 && r.min_v100 <= 1.0) ||
+      !(r.min_d90_percent > 0.0 && r.min_d90_percent <= 300.0) || r.max_seeds == 0)
+    return bad(fmt::format("seed plan goals: V100 {} (0-1], D90 {} % (0-300], at most {} seeds",
+                           r.min_v100, r.min_d90_percent, r.max_seeds),
+               "bad_goal");
+  auto structure = [&](const DoseStructure& s, const char* what) -> Status {
+    if (s.voxels_lps_mm.empty() || !(s.voxel_cm3 > 0.0) || !std::isfinite(s.voxel_cm3))
+      return bad(fmt::format("{} '{}' has no voxels", what, s.name), "empty_structure");
+    for (const auto& p : s.voxels_lps_mm)
+      if (!p.allFinite())
+        return bad(fmt::format("{} '{}' has a voxel at a non-finite point", what, s.name),
+                   "empty_structure");
+    return Ok{};
+  };
+  if (auto ok = structure(r.target, "target"); !ok.ok()) return ok;
+  for (const auto& o : r.organs) {
+    if (auto ok = structure(o.structure, "organ"); !ok.ok()) return ok;
+    for (double v : {o.limits.d10_percent, o.limits.d2cc_percent, o.limits.dmax_percent})
+      if (!std::isnan(v) && !(v > 0.0 && std::isfinite(v)))
+        return bad(fmt::format("organ '{}': a dose limit of {} % is no limit", o.structure.name, v),
+                   "bad_limit");
+  }
+  if (r.candidates.empty())
+    return bad("seed plan: no candidate positions (none reachable with every clearance kept)",
+               "no_candidates");
+  for (std::size_t j = 0; j < r.candidates.size(); ++j) {
+    const auto& c = r.candidates[j];
+    if (!c.centre_lps_mm.allFinite() || !c.axis_lps.allFinite() ||
+        std::abs(c.axis_lps.norm() - 1.0) > 1e-6)
+      return bad(fmt::format("candidate {}: its centre or axis (a unit vector) is not finite", j),
+                 "bad_candidate");
+  }
+  return Ok{};
+}
+
+std::string PlanEvaluation::describe() const {
+  std::string out = fmt::format("V100 {}, D90 {:.1f} %", percent(target.v100), target.d90_percent);
+  for (const auto& o : organs) {
+    const auto& m = o.metrics;
+    out += fmt::format("; {} D10 {:.1f} %, D2cc {:.1f} Gy, Dmax {:.0f} %", o.name, m.d10_percent,
+                       m.d2cc_Gy, m.dmax_percent);
+  }
+  return out;
+}
+
+Expected<PlanEvaluation> evaluatePlan(const SeedPlanRequest& r, const std::vector<Seed>& seeds) {
+  if (auto ok = validate(r); !ok.ok()) return ok.error();
+  const double g = implantGyPerRate(*r.table, r.strength_U), rx = r.prescription_Gy;
+  PlanEvaluation e;
+  auto target = DoseVolumeHistogram::of(dosesAt(*r.table, seeds, g, r.target.voxels_lps_mm),
+                                        r.target.voxel_cm3);
+  if (!target.ok()) return target.error();
+  e.target = targetMetrics(*target, rx);
+  e.target_cm3 = target->volume_cm3();
+  if (e.target.v100 < r.min_v100)
+    e.unmet.push_back(
+        fmt::format("{} V100 {} < {}", r.target.name, percent(e.target.v100), percent(r.min_v100)));
+  if (e.target.d90_percent < r.min_d90_percent)
+    e.unmet.push_back(fmt::format("{} D90 {:.1f} % < {:g} %", r.target.name, e.target.d90_percent,
+                                  r.min_d90_percent));
+  for (const auto& o : r.organs) {
+    auto h = DoseVolumeHistogram::of(dosesAt(*r.table, seeds, g, o.structure.voxels_lps_mm),
+                                     o.structure.voxel_cm3);
+    if (!h.ok()) return h.error();
+    OrganResult result{o.structure.name, organMetrics(*h, rx), o.limits};
+    const auto& m = result.metrics;
+    const double d2cc_percent = 100.0 * m.d2cc_Gy / rx;
+    auto over = [&](const char* what, double value, double limit) {
+      if (value > limit)  // NaN limits never hold a value back
+        e.unmet.push_back(
+            fmt::format("{} {} {:.1f} % > {:g} %", o.structure.name, what, value, limit));
+    };
+    over("D10", m.d10_percent, o.limits.d10_percent);
+    over("D2cc", d2cc_percent, o.limits.d2cc_percent);
+    over("Dmax", m.dmax_percent, o.limits.dmax_percent);
+    e.organs.push_back(std::move(result));
+  }
+  return e;
+}
+
+Expected<SeedPlan> planSeeds(const SeedPlanRequest& r, const PlanProgress& progress) {
+  if (auto ok = validate(r); !ok.ok()) return ok.error();
+  Scene scene(r, kTargetSample, kOrganSample, progress);
+  if (progress) progress(0, 1, "linear programme");
+  const Relaxation relaxed = relax(r, scene, 1200, 400);
+  if (progress) progress(1, 1, "linear programme");
+
+  SeedPlan plan;
+  plan.relaxed_seeds = std::accumulate(relaxed.weight.begin(), relaxed.weight.end(), 0.0);
+  plan.lp_rows = relaxed.rows;
+  plan.lp_columns = relaxed.columns;
+
+  // Rounded: the candidates the relaxation weighs most, as many as its weights add up to.
+  std::vector<std::size_t> order(r.candidates.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return relaxed.weight[a] > relaxed.weight[b];
+  });
+  const auto rounded = static_cast<std::size_t>(std::ceil(plan.relaxed_seeds - 1e-6));
+  for (std::size_t m = 0; m < std::min(rounded, order.size()); ++m)
+    if (relaxed.weight[order[m]] > 1e-6) scene.set(order[m], true);
+
+  // The sample may be kinder than every voxel: when the whole judges otherwise, tighten the
+  // sample's goals by what was missed and repair again.
+  std::vector<bool> banned(r.candidates.size(), false);
+  double tighten = 0.0;
+  for (int round = 0; round < 4; ++round) {
+    const auto bounds = boundsOf(r, scene, tighten);
+    const bool held = repair(scene, bounds, banned, progress);
+    if (held) prune(scene, bounds, relaxed.weight);
+    if (progress) progress(0, 1, "every voxel");
+    auto judged = evaluatePlan(r, seedsOf(r, scene.chosenList()));
+    if (progress) progress(1, 1, "every voxel");
+    if (!judged.ok()) return judged.error();
+    if (!held || judged->met()) {
+      if (!judged->met()) return infeasible(r, *judged, scene.chosenCount());
+      plan.chosen = scene.chosenList();
+      plan.evaluation = std::move(*judged);
+      break;
+    }
+    tighten += 0.005;
+  }
+  if (plan.chosen.empty()) {
+    auto judged = evaluatePlan(r, seedsOf(r, scene.chosenList()));
+    return infeasible(r, *judged, scene.chosenCount());
+  }
+  if (plan.chosen.size() > r.max_seeds)
+    return makeError(ErrorCode::kInvalidArgument,
+                     fmt::format("the plan needs {} seeds of {:g} U, more than the {} a plan "
+                                 "takes; stronger seeds need fewer",
+                                 plan.chosen.size(), r.strength_U, r.max_seeds),
+                     "too_many_seeds");
+  return plan;
+}
+
+Expected<UniformLoading> uniformLoading(const SeedPlanRequest& r) {
+  if (auto ok = validate(r); !ok.ok()) return ok.error();
+  Scene scene(r, kTargetSample, kOrganSample, {});
+  std::vector<Bound> goals;
+  for (const auto& b : boundsOf(r, scene, 0.0))
+    if (b.floor) goals.push_back(b);
+  for (double spacing = 20.0; spacing > 0.0; spacing -= 0.5) {
+    scene.clear();
+    std::vector<std::size_t> picked;
+    for (std::size_t j = 0; j < r.candidates.size(); ++j) {
+      const auto& c = r.candidates[j].centre_lps_mm;
+      const bool apart = std::all_of(picked.begin(), picked.end(), [&](std::size_t p) {
+        return (r.candidates[p].centre_lps_mm - c).norm() >= spacing - 1e-9;
+      });
+      if (!apart) continue;
+      picked.push_back(j);
+      scene.set(j, true);
+    }
+    if (!std::all_of(goals.begin(), goals.end(), [&](const Bound& b) { return scene.holds(b); }))
+      continue;
+    auto judged = evaluatePlan(r, seedsOf(r, picked));
+    if (!judged.ok()) return judged.error();
+    const bool covers =
+        judged->target.v100 >= r.min_v100 && judged->target.d90_percent >= r.min_d90_percent;
+    if (covers) return UniformLoading{spacing, picked, std::move(*judged)};
+  }
+  auto all = evaluatePlan(r, r.candidates);
+  if (!all.ok()) return all.error();
+  return infeasible(r, *all, r.candidates.size());
+}
+
+}  // namespace ignav::dosimetry
