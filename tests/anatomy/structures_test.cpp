@@ -277,5 +277,47 @@ TEST_F(Structures, ABadSiteFileNamesTheEntry) {
   EXPECT_NE(readSite(path("s.yaml")).error().message.find("outside 0-10 mm"), std::string::npos);
 }
 
+// Seed plans (issue 42): the prostate site's dose limits and its dosimetry block, and bad ones
+// named by their field.
+TEST_F(Structures, ASiteGivesDoseLimitsAndSeedPlanDefaults) {
+  const auto prostate = readSite(IGNAV_SOURCE_DIR "/configs/sites/prostate.yaml");
+  ASSERT_TRUE(prostate.ok()) << prostate.error().message;
+  EXPECT_EQ(prostate->roleFor("urethra")->dose_limits.d10_percent, 150.0);
+  EXPECT_EQ(prostate->roleFor("rectal_wall")->dose_limits.d2cc_percent, 100.0);
+  EXPECT_FALSE(prostate->roleFor("prostate")->dose_limits.any());
+  ASSERT_TRUE(prostate->dosimetry.has_value());
+  EXPECT_EQ(prostate->dosimetry->seed_models,
+            (std::vector<std::string>{"oncura_6711", "theraseed_200"}));
+  EXPECT_EQ(prostate->dosimetry->seed_model, "oncura_6711");
+  EXPECT_EQ(prostate->dosimetry->prescription_Gy, 145.0);
+
+  auto refused = [&](const std::string& text) {
+    std::ofstream(path("s.yaml")) << text;
+    const auto site = readSite(path("s.yaml"));
+    return site.ok() ? std::string("accepted") : site.error().message;
+  };
+  const std::string models = "dosimetry: {seed_models: " IGNAV_SOURCE_DIR "/configs/seeds";
+  const std::string urethra = "structures:\n  - {name: urethra, role: avoid, margin_mm: 3";
+  EXPECT_NE(refused(urethra + ", dose_limits: {d10_percent: -3}}\n")
+                .find("structures[0] (urethra): dose_limits.d10_percent = -3 is outside 0-1000 %"),
+            std::string::npos);
+  EXPECT_NE(refused(urethra + ", dose_limits: {d15_percent: 3}}\n")
+                .find("dose_limits.d15_percent is none of"),
+            std::string::npos);
+  EXPECT_NE(refused("structures: []\ndosimetry: {seed_models: nowhere}\n")
+                .find("dosimetry.seed_models: '"),
+            std::string::npos);
+  EXPECT_NE(refused("structures: []\n" + models + ", seed_model: iridium}\n")
+                .find("dosimetry.seed_model 'iridium' is none of oncura_6711, theraseed_200"),
+            std::string::npos);
+  EXPECT_NE(refused("structures: []\n" + models + ", seed_model: oncura_6711, strength_U: 40}\n")
+                .find("dosimetry.strength_U = 40 is outside"),
+            std::string::npos);
+  EXPECT_NE(
+      refused("structures: []\n" + models + ", seed_model: oncura_6711, prescription_Gy: 0}\n")
+          .find("dosimetry.prescription_Gy = 0 is outside"),
+      std::string::npos);
+}
+
 }  // namespace
 }  // namespace ignav::anatomy

@@ -4,8 +4,9 @@
 // target, on the job thread), each followed by `accept_proposals` of them all (evaluated again as
 // they join the plan, on the event thread) and `clear_targets`, while a second client sends
 // `ping` every 5 ms. Prints the proposal's duration, accept_proposals' round trip and the pings'
-// median, p95, p99 and worst in milliseconds, idle and meanwhile.
-//   bench_proposals DOMAIN DDS_CONFIG_XML [ROUNDS] [SPACING_MM]
+// median, p95, p99 and worst in milliseconds, idle and meanwhile. With COMMAND plan_seeds (issue
+// 42) the proposal is a seed plan, ARGS its words after the structure (e.g. strength=0.6).
+//   bench_proposals DOMAIN DDS_CONFIG_XML [ROUNDS] [ARGS] [COMMAND]
 #include <cstdio>
 #include <string>
 
@@ -22,13 +23,15 @@ using namespace std::chrono_literals;
 
 int main(int argc, char** argv) {
   if (argc < 3) {
-    std::fprintf(stderr, "usage: bench_proposals DOMAIN DDS_CONFIG_XML [ROUNDS] [SPACING_MM]\n");
+    std::fprintf(stderr,
+                 "usage: bench_proposals DOMAIN DDS_CONFIG_XML [ROUNDS] [ARGS] [COMMAND]\n");
     return 2;
   }
   const auto domain = static_cast<std::uint32_t>(std::stoul(argv[1]));
   const std::string xml = ignav::protocol::readConfigFile(argv[2]);
   const int rounds = argc > 3 ? std::stoi(argv[3]) : 5;
   const std::string request = std::string("prostate ") + (argc > 4 ? argv[4] : "8");
+  const std::string command = argc > 5 ? argv[5] : "propose_targets";
 
   ignav::protocol::Client c(domain, xml, "operator", nullptr,
                             ignav::protocol::chooseRobot(domain, xml, nullptr, "", 10s));
@@ -49,9 +52,9 @@ int main(int argc, char** argv) {
       if (c.send("accept_proposals").accepted) accept_ms.push_back(sinceMs(t));
       c.send("clear_targets");
     }
-    return c.send("propose_targets", {request, {}, {}});
+    return c.send(command, {request, {}, {}});
   });
-  if (!ignav::bench::printJobsWhilePinging(run, "propose_targets", "target proposal",
+  if (!ignav::bench::printJobsWhilePinging(run, command, "target proposal",
                                            "targets are proposed and accepted")) {
     return 5;
   }

@@ -33,7 +33,8 @@ constexpr Alias kAliases[] = {
     {"targets pause", "pause_at"},               // stop part-way: MM (or none) ID
     {"targets override", "override_clearance"},  // ID REASON...
     {"targets propose", "propose_targets"},      // STRUCTURE SPACING_MM; waits for the outcome
-    {"targets accept", "accept_proposals"},      // [ID...]: none, all of them
+    {"targets seeds", "plan_seeds"},  // STRUCTURE [model=..] [rx=..] [strength=..] [spacing=..]
+    {"targets accept", "accept_proposals"},  // [ID...]: none, all of them
     {"structures load", "load_structures"},
     {"structures role", "structure_role"},  // NAME ROLE [MARGIN_MM]
     {"structures place", "place_robot"},    // STRUCTURE [from SIDE]; waits for the outcome

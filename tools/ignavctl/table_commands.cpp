@@ -166,13 +166,14 @@ void addAliasCommands(CLI::App& app, Action& chosen) {
   auto* targets = app.add_subcommand("targets", targets_usage);
   auto propose_wait_s = std::make_shared<double>(300.0);
   targets->add_option("--wait-s", *propose_wait_s,
-                      "propose: how long to wait for the proposal (default 300)");
+                      "propose, seeds: how long to wait for the proposal (default 300)");
   onServerReadNow(
       targets, chosen,
       [words = wordsOf(targets, targets_usage), targets_usage, propose_wait_s]() -> Work {
         if (*words == std::vector<std::string>{"ls"}) return listTargets;
         return [call = aliasCall("targets", *words, targets_usage), propose_wait_s](Server& s) {
-          if (call.row.kind == commands::InputKind::kProposeTargets)
+          if (call.row.kind == commands::InputKind::kProposeTargets ||
+              call.row.kind == commands::InputKind::kPlanSeeds)
             return structuresJob(s, call, *propose_wait_s);
           return sendCall(s, call);
         };

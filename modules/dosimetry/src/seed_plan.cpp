@@ -4,6 +4,8 @@
 #include <glpk.h>
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <numeric>
 
 #include <fmt/format.h>
@@ -262,6 +264,8 @@ Relaxation relax(const SeedPlanRequest& r, const Scene& scene, std::size_t targe
     ar.push_back(target ? 1.0 : -1.0);
   }
   glp_load_matrix(lp, static_cast<int>(ar.size()) - 1, ia.data(), ja.data(), ar.data());
+  // GLPK's terminal output (per thread) stays off: its scaling reports went to stdout.
+  const int terminal = glp_term_out(GLP_OFF);
   glp_scale_prob(lp, GLP_SF_AUTO);
   glp_smcp parm;
   glp_init_smcp(&parm);
@@ -276,6 +280,7 @@ Relaxation relax(const SeedPlanRequest& r, const Scene& scene, std::size_t targe
     for (std::size_t j = 0; j < nj; ++j)
       out.weight[j] = glp_get_col_prim(lp, static_cast<int>(j) + 1);
   glp_delete_prob(lp);
+  glp_term_out(terminal);
   return out;
 }
 

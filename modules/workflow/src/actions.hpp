@@ -128,6 +128,7 @@ Refusal noteStructureLoadFailure(Session& s, const Input& in, ActionOutput& out)
 Refusal setStructureRole(Session& s, const Input& in, ActionOutput& out);
 Refusal overrideClearance(Session& s, const Input& in, ActionOutput& out);
 Refusal startTargetProposal(Session& s, const Input& in, ActionOutput& out);
+Refusal startSeedPlan(Session& s, const Input& in, ActionOutput& out);
 Refusal adoptProposals(Session& s, const Input& in, ActionOutput& out);
 Refusal noteProposalFailure(Session& s, const Input& in, ActionOutput& out);
 Refusal acceptProposals(Session& s, const Input& in, ActionOutput& out);

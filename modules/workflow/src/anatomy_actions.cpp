@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include "actions.hpp"
+#include "ignav/dosimetry/seed_plan.hpp"
 #include "ignav/workflow/background_jobs.hpp"
 #include "session_rules.hpp"
 
@@ -152,9 +153,11 @@ Refusal overrideClearance(Session& s, const Input& in, ActionOutput& out) {
   return std::nullopt;
 }
 
-Refusal startTargetProposal(Session& s, const Input& in, ActionOutput& out) {
-  auto& st = s.structures;
-  if (!st.loaded.set) {
+namespace {
+
+// What any proposal needs: structures, a registration, none under way.
+Refusal canPropose(const Session& s) {
+  if (!s.structures.loaded.set) {
     return Rejection{ReplyCode::kNoStructures, "no structures are loaded (load_structures)"};
   }
   if (!s.registration) {
@@ -165,6 +168,33 @@ Refusal startTargetProposal(Session& s, const Input& in, ActionOutput& out) {
     return Rejection{ReplyCode::kBusy,
                      fmt::format("targets are being proposed (#{})", s.proposals.proposing)};
   }
+  return std::nullopt;
+}
+
+Refusal unknownStructure(const Session& s, const std::string& name) {
+  return Rejection{ReplyCode::kUnknownStructure, fmt::format("no structure '{}' (loaded: {})", name,
+                                                             names(*s.structures.loaded.set))};
+}
+
+// Starts the proposal's job on `structure` (a seed plan's when `seed_plan` is set).
+void beginProposal(Session& s, const anatomy::Structure& structure, double spacing_mm,
+                   std::optional<SeedPlanAsk> seed_plan, std::string message, ActionOutput& out) {
+  auto& p = s.proposals;
+  p.proposing = s.revision + 1;  // this step's
+  p.status = "proposing";
+  p.structure = structure.name;
+  p.spacing_mm = spacing_mm;
+  p.seed_plan = std::move(seed_plan);
+  p.message = std::move(message);
+  p.targets.clear();
+  out.effects.start_jobs.push_back(JobKind::kTargetProposal);
+  out.effects.structures_changed = true;
+}
+
+}  // namespace
+
+Refusal startTargetProposal(Session& s, const Input& in, ActionOutput& out) {
+  if (auto refused = canPropose(s)) return refused;
   // STRUCTURE SPACING_MM, the name possibly of several words: the spacing is the last.
   const auto last = in.path.find_last_of(" \t");
   const auto bad = [&](const std::string& why) {
@@ -185,24 +215,91 @@ Refusal startTargetProposal(Session& s, const Input& in, ActionOutput& out) {
   std::string name = in.path.substr(0, last);
   name.erase(name.find_last_not_of(" \t") + 1);
   name.erase(0, name.find_first_not_of(" \t"));
-  const auto* structure = st.loaded.set->find(name);
-  if (!structure) {
-    return Rejection{ReplyCode::kUnknownStructure,
-                     fmt::format("no structure '{}' (loaded: {})", name, names(*st.loaded.set))};
-  }
-  auto& p = s.proposals;
-  p.proposing = s.revision + 1;  // this step's
-  p.status = "proposing";
-  p.structure = structure->name;
-  p.spacing_mm = spacing;
-  p.message = fmt::format("proposing targets that fill '{}' at {:g} mm", structure->name, spacing);
-  p.targets.clear();
-  out.effects.start_jobs.push_back(JobKind::kTargetProposal);
-  out.effects.structures_changed = true;
+  const auto* structure = s.structures.loaded.set->find(name);
+  if (!structure) return unknownStructure(s, name);
+  beginProposal(
+      s, *structure, spacing, std::nullopt,
+      fmt::format("proposing targets that fill '{}' at {:g} mm", structure->name, spacing), out);
   out.note = fmt::format(
       "target proposal #{} started ('{}', {:g} mm): StructuresState shows the targets proposed, "
       "or why none are",
-      p.proposing, structure->name, spacing);
+      s.proposals.proposing, structure->name, spacing);
+  return std::nullopt;
+}
+
+Refusal startSeedPlan(Session& s, const Input& in, ActionOutput& out) {
+  if (auto refused = canPropose(s)) return refused;
+  if (!s.site || !s.site->dosimetry) {
+    return Rejection{ReplyCode::kUnknownSeedModel,
+                     "no seed models: the site file (server.yaml site:) has no dosimetry: block"};
+  }
+  const auto& site = *s.site->dosimetry;
+  // STRUCTURE [model=NAME] [rx=GY] [strength=U] [spacing=MM]; the site's defaults otherwise.
+  SeedPlanAsk ask{site.seed_model, "", site.prescription_Gy, site.strength_U};
+  double spacing = site.spacing_mm;
+  std::string name;
+  const auto bad = [&](const std::string& why) {
+    return Rejection{ReplyCode::kBadSeedPlan,
+                     fmt::format("'{}': {} (STRUCTURE [model=NAME] [rx=GY] [strength=U] "
+                                 "[spacing=MM])",
+                                 in.path, why)};
+  };
+  std::istringstream words(in.path);
+  for (std::string word; words >> word;) {
+    const auto eq = word.find('=');
+    if (eq == std::string::npos) {
+      name += (name.empty() ? "" : " ") + word;
+      continue;
+    }
+    const std::string key = word.substr(0, eq), value = word.substr(eq + 1);
+    if (key == "model") {
+      ask.seed_model = value;
+      continue;
+    }
+    char* end = nullptr;
+    const double number = std::strtod(value.c_str(), &end);
+    if (value.empty() || *end != '\0' || !std::isfinite(number))
+      return bad(fmt::format("{} '{}' is not a number", key, value));
+    if (key == "rx")
+      ask.prescription_Gy = number;
+    else if (key == "strength")
+      ask.strength_U = number;
+    else if (key == "spacing")
+      spacing = number;
+    else
+      return bad("'" + key + "' is none of model, rx, strength, spacing");
+  }
+  if (name.empty()) return bad("a structure to cover is needed");
+  if (!(ask.prescription_Gy > 0.0 && ask.prescription_Gy <= 1000.0))
+    return bad(fmt::format("a prescription of {:g} Gy is outside 0-1000 Gy", ask.prescription_Gy));
+  if (!(ask.strength_U >= dosimetry::kMinSeedStrength_U &&
+        ask.strength_U <= dosimetry::kMaxSeedStrength_U))
+    return bad(fmt::format("a seed strength of {:g} U is outside {:g}-{:g} U", ask.strength_U,
+                           dosimetry::kMinSeedStrength_U, dosimetry::kMaxSeedStrength_U));
+  if (!(spacing >= anatomy::kMinSeedSpacing_mm && spacing <= anatomy::kMaxSeedSpacing_mm))
+    return bad(fmt::format("a spacing of {:g} mm is outside {:g}-{:g} mm", spacing,
+                           anatomy::kMinSeedSpacing_mm, anatomy::kMaxSeedSpacing_mm));
+  if (std::find(site.seed_models.begin(), site.seed_models.end(), ask.seed_model) ==
+      site.seed_models.end()) {
+    return Rejection{ReplyCode::kUnknownSeedModel,
+                     fmt::format("no seed model '{}' (the site's: {})", ask.seed_model,
+                                 fmt::join(site.seed_models, ", "))};
+  }
+  ask.seed_model_path = site.seed_models_dir + "/" + ask.seed_model + ".yaml";
+  const auto* structure = s.structures.loaded.set->find(name);
+  if (!structure) return unknownStructure(s, name);
+  const auto index =
+      static_cast<std::size_t>(structure - s.structures.loaded.set->structures.data());
+  if (s.structures.roles.at(index).role != anatomy::Role::kTarget)
+    return bad(fmt::format("'{}' is not a target (structure_role gives it one)", structure->name));
+  const std::string what =
+      fmt::format("planning seeds of {} at {:g} U for {:g} Gy to '{}' (candidates {:g} mm apart)",
+                  ask.seed_model, ask.strength_U, ask.prescription_Gy, structure->name, spacing);
+  beginProposal(s, *structure, spacing, ask, what, out);
+  out.note = fmt::format(
+      "seed plan #{} started: {}; StructuresState shows the seeds proposed, "
+      "or why none are",
+      s.proposals.proposing, what);
   return std::nullopt;
 }
 

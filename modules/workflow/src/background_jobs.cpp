@@ -74,7 +74,11 @@ std::optional<BackgroundJob> targetProposal(const Session& s) {
   return BackgroundJob{JobKind::kTargetProposal, p.proposing,
                        fmt::format("{} {:g} mm", p.structure, p.spacing_mm),
                        [job = p.proposing, structure = p.structure, spacing = p.spacing_mm,
+                        seed_plan = p.seed_plan,
                         snapshot = std::make_shared<const Session>(s)](const JobContext& context) {
+                         if (seed_plan)
+                           return planSeedTargets(job, structure, spacing, *seed_plan, snapshot,
+                                                  context);
                          return proposeTargets(job, structure, spacing, snapshot, context);
                        }};
 }

@@ -1,5 +1,7 @@
 #include "journal_records.hpp"
 
+#include <array>
+#include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <type_traits>
@@ -13,6 +15,13 @@
 
 namespace ignav::workflow {
 namespace {
+
+// A structure's dose limits by their journal keys.
+std::array<std::pair<const char*, double*>, 3> doseLimitFields(dosimetry::OrganLimits& l) {
+  return {{{"d10_percent", &l.d10_percent},
+           {"d2cc_percent", &l.d2cc_percent},
+           {"dmax_percent", &l.dmax_percent}}};
+}
 
 using nlohmann::json;
 
@@ -157,10 +166,16 @@ json journalRecord(const Input& in, const Session& after) {
   if (in.site) {
     json roles = json::array();
     for (const auto& r : in.site->roles) {
-      roles.push_back({{"name", r.name},
-                       {"aliases", r.aliases},
-                       {"role", anatomy::toString(r.role)},
-                       {"margin_mm", r.margin_mm}});
+      json entry = {{"name", r.name},
+                    {"aliases", r.aliases},
+                    {"role", anatomy::toString(r.role)},
+                    {"margin_mm", r.margin_mm}};
+      json limits = json::object();  // the finite ones (issue 42)
+      dosimetry::OrganLimits dose_limits = r.dose_limits;
+      for (const auto& [key, value] : doseLimitFields(dose_limits))
+        if (std::isfinite(*value)) limits[key] = *value;
+      if (!limits.empty()) entry["dose_limits"] = std::move(limits);
+      roles.push_back(std::move(entry));
     }
     const auto& limits = in.site->placement;
     record["site"] = {{"name", in.site->name},
@@ -172,6 +187,12 @@ json journalRecord(const Input& in, const Session& after) {
                         {"max_shift_mm", limits.max_shift_mm},
                         {"min_skin_distance_mm", limits.min_skin_distance_mm},
                         {"skin_hu", limits.skin_hu}}}};
+    if (const auto& d = in.site->dosimetry) {
+      record["site"]["dosimetry"] = {
+          {"seed_models_dir", d->seed_models_dir}, {"seed_models", d->seed_models},
+          {"seed_model", d->seed_model},           {"prescription_Gy", d->prescription_Gy},
+          {"strength_U", d->strength_U},           {"spacing_mm", d->spacing_mm}};
+    }
   }
   if (in.tissue) {
     record["tissue"] = {{"name", in.tissue->name},
@@ -432,6 +453,10 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
         if (!named) throw std::invalid_argument("site.roles.role: unknown");
         role.role = *named;
         role.margin_mm = entry.value("margin_mm", 0.0);
+        if (entry.contains("dose_limits"))  // since issue 42
+          for (const auto& [key, value] : doseLimitFields(role.dose_limits))
+            if (entry.at("dose_limits").contains(key))
+              *value = entry.at("dose_limits").at(key).get<double>();
         site.roles.push_back(std::move(role));
       }
       if (j.contains("placement")) {  // since issue 41's placement; before: the defaults
@@ -445,6 +470,17 @@ Expected<JournalEntry> parseJournalRecord(const std::string& line) {
         limits.skin_hu = l.at("skin_hu").get<double>();
         if (auto valid = limits.validate(); !valid.ok())
           throw std::invalid_argument("site." + valid.error().message);
+      }
+      if (j.contains("dosimetry")) {  // since issue 42
+        const json& d = j.at("dosimetry");
+        anatomy::SiteDosimetry dosimetry;
+        dosimetry.seed_models_dir = d.at("seed_models_dir").get<std::string>();
+        dosimetry.seed_models = d.at("seed_models").get<std::vector<std::string>>();
+        dosimetry.seed_model = d.at("seed_model").get<std::string>();
+        dosimetry.prescription_Gy = d.at("prescription_Gy").get<double>();
+        dosimetry.strength_U = d.at("strength_U").get<double>();
+        dosimetry.spacing_mm = d.at("spacing_mm").get<double>();
+        site.dosimetry = std::move(dosimetry);
       }
       e.input.site = std::move(site);
     }

@@ -10,14 +10,11 @@
 
 #include "ignav/workflow/background_jobs.hpp"
 #include "motion.hpp"
+#include "proposal_lattice.hpp"
 #include "session_rules.hpp"
 
 namespace ignav::workflow {
-namespace {
 
-// The points of a lattice of `spacing_mm` inside `mask` (LPS): along the robot's axes (its
-// insertion along z, so points come in layers the stylet reaches alike), through the mask's
-// centroid, over its box in that frame. None when more than kMaxProposalCandidates.
 std::optional<std::vector<Eigen::Vector3d>> latticeIn(const anatomy::Mask& mask,
                                                       const registration::Registration& reg,
                                                       double spacing_mm) {
@@ -59,13 +56,6 @@ std::optional<std::vector<Eigen::Vector3d>> latticeIn(const anatomy::Mask& mask,
   return points;
 }
 
-// The candidates a target there would be planned for, in their order, and the others counted
-// by why not.
-struct Judged {
-  std::vector<Target> kept;
-  std::string left_out;  // "12 out of the needle's reach, 4 too close to 'urethra'"
-};
-
 Judged judge(const Session& s, const std::vector<Eigen::Vector3d>& candidates,
              const std::function<void(std::size_t, std::size_t)>& progress) {
   Judged out;
@@ -105,6 +95,21 @@ Judged judge(const Session& s, const std::vector<Eigen::Vector3d>& candidates,
   leave(outside_ct, "outside the CT");
   return out;
 }
+
+VisitOrder visitOrder(const Session& s, const std::vector<Target>& targets) {
+  std::vector<planning::PlannedTarget> planned;
+  for (const auto& t : targets)
+    planned.push_back({t.id, t.commandedJoints()});
+  const auto ordering =
+      planning::orderTargets(planned, detail::currentJoints(*s.robot, s.position), s.policy.limits);
+  VisitOrder out;
+  for (const std::size_t n : ordering.order)
+    out.points.push_back(targets[n].lps_mm);
+  out.rotation_rad = ordering.total_rotation_rad;
+  return out;
+}
+
+namespace {
 
 // The finest spacing, in half millimetres, whose lattice keeps no more targets than `room`:
 // searched from the cube-root estimate (a lattice's points go as the cube of its spacing), each
@@ -188,21 +193,14 @@ Input proposeTargets(std::uint64_t job, const std::string& structure, double spa
   const auto& kept = judged.kept;
   const std::string left_out = judged.left_out;
 
-  // In the order the plan visits them from where the robot is (lock_plan orders them again
-  // with the targets already planned).
-  std::vector<planning::PlannedTarget> planned;
-  for (const auto& t : kept)
-    planned.push_back({t.id, t.commandedJoints()});
-  const auto ordering =
-      planning::orderTargets(planned, detail::currentJoints(*s.robot, s.position), s.policy.limits);
-  for (const std::size_t n : ordering.order)
-    in.points.push_back(kept[n].lps_mm);
+  const VisitOrder ordering = visitOrder(s, kept);
+  in.points = ordering.points;
   in.summary = fmt::format(
       "{} targets proposed: {} {} are reachable with every clearance kept{}; in the order listed "
       "the cannula turns {:.1f}° in all",
       kept.size(), kept.size() == candidates->size() ? "all" : std::to_string(kept.size()), lattice,
       left_out.empty() ? "" : " (left out: " + left_out + ")",
-      ordering.total_rotation_rad * 180.0 / M_PI);
+      ordering.rotation_rad * 180.0 / M_PI);
   in.kind = InputKind::kTargetsProposed;
   return in;
 }

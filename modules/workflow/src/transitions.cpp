@@ -211,6 +211,8 @@ std::vector<Transition> buildTable() {
                "plan a target too close, for a reason"});
   t.push_back({P::kPlanning, I::kProposeTargets, always, P::kPlanning, startTargetProposal,
                "fill a structure with targets"});
+  t.push_back({P::kPlanning, I::kPlanSeeds, always, P::kPlanning, startSeedPlan,
+               "plan seeds that dose a structure"});
   t.push_back({P::kPlanning, I::kAcceptProposals, always, P::kPlanning, acceptProposals,
                "proposed targets into the plan"});
   // Where to mount the robot: on the planning CT before it is registered, or after.

@@ -4,6 +4,8 @@
 //     - {name: urethra, role: avoid, margin_mm: 3}
 //     - {name: prostate, role: target, aliases: [CTV, gland]}
 //   placement: {approach: inferior, max_tilt_deg: 20, max_shift_mm: 20}
+//   dosimetry: {seed_models: ../seeds, seed_model: oncura_6711, prescription_Gy: 145, ...}
+// and a structure's dose limits for seed plans (issue 42): {..., dose_limits: {d10_percent: 150}}
 #pragma once
 
 #include <optional>
@@ -15,6 +17,7 @@
 
 #include "ignav/anatomy/structures.hpp"
 #include "ignav/core/expected.hpp"
+#include "ignav/dosimetry/organ_limits.hpp"
 
 namespace ignav::anatomy {
 
@@ -48,18 +51,33 @@ struct SiteRole {
   std::vector<std::string> aliases;
   Role role = Role::kShown;
   double margin_mm = 0.0;
+  dosimetry::OrganLimits dose_limits;  // what a seed plan may give it (NaN: not limited)
+};
+
+// A site's seed plans (its `dosimetry:` block; plan_seeds): where the seed models are (a folder
+// of <name>.yaml, relative to the site file) and which exist there, and the plan's defaults.
+constexpr double kMinSeedSpacing_mm = 2.0, kMaxSeedSpacing_mm = 15.0;
+struct SiteDosimetry {
+  std::string seed_models_dir;           // absolute once read
+  std::vector<std::string> seed_models;  // the names found there, sorted
+  std::string seed_model;                // the default
+  double prescription_Gy = 145.0;
+  double strength_U = 0.5;  // every seed's air-kerma strength
+  double spacing_mm = 5.0;  // the candidates' lattice
 };
 
 struct Site {
   std::string name;  // the file's `site:`
   std::vector<SiteRole> roles;
   PlacementLimits placement;  // the defaults when the file has no `placement:`
+  std::optional<SiteDosimetry> dosimetry;
   // The entry for a structure's name or one of its aliases, ignoring case.
   const SiteRole* roleFor(const std::string& structure_name) const;
 };
 
 // Errors name the file and the entry (margins finite, 0-10 mm; avoid needs a margin; placement's
-// limits in range, its approach a side).
+// limits in range, its approach a side; dose limits positive; the seed models' folder readable,
+// the default model one of them, the prescription positive, the strength and spacing in range).
 Expected<Site> readSite(const std::string& path);
 // Every structure the site names gets its role and margin; the rest are shown only.
 void applySite(const Site& site, StructureSet& set);

@@ -57,6 +57,7 @@ enum class InputKind {
   kProposeTargets,
   kAcceptProposals,
   kPlaceRobot,
+  kPlanSeeds,
   kConfigLoaded,
   kVolumeLoaded,
   kVolumeLoadFailed,
@@ -377,6 +378,15 @@ inline constexpr InputSpec kInputRows[] = {
      "within the site's limits, from which one insertion covers the most of the structure with "
      "every clearance kept, with alternatives (StructuresState.placements); once the robot is "
      "mounted and registered, how far it stands from the proposal and what it covers there"},
+    {I::kPlanSeeds, "plan_seeds", 37, R::kPlanner, kCommand,
+     kNone.text("STRUCTURE [model=NAME] [rx=GY] [strength=U] [spacing=MM]: a target structure "
+                "to dose, and what differs from the site's dosimetry: defaults (seed model, "
+                "prescription, every seed's air-kerma strength, the candidates' lattice)"),
+     "plan the fewest seeds that give the structure its prescription (V100 ≥ 95 %, D90 ≥ "
+     "100 %) while every avoided structure stays within the site's dose limits, in the "
+     "background, among the positions the needle reaches with every clearance kept; the seeds "
+     "arrive as proposed targets (StructuresState.proposed, the dose in its message) that "
+     "accept_proposals makes the plan's"},
     {I::kConfigLoaded, "config_loaded", kNoWireKind, R::kApprover, kServer, kNone,
      "the server started with a valid robot config"},
     {I::kVolumeLoaded, "volume_loaded", kNoWireKind, R::kApprover, kServer, kNone,

@@ -12,9 +12,7 @@
 // candidate costs one pass over the sample.
 #pragma once
 
-#include <cmath>
 #include <functional>
-#include <limits>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -25,6 +23,7 @@
 #include "ignav/core/expected.hpp"
 #include "ignav/dosimetry/dose_grid.hpp"
 #include "ignav/dosimetry/dvh.hpp"
+#include "ignav/dosimetry/organ_limits.hpp"
 
 namespace ignav::dosimetry {
 
@@ -33,16 +32,6 @@ struct DoseStructure {
   std::string name;
   std::vector<Eigen::Vector3d> voxels_lps_mm;
   double voxel_cm3 = 0.0;
-};
-
-// What an organ at risk may receive, in percent of the prescription; NaN: not limited.
-struct OrganLimits {
-  double d10_percent = std::numeric_limits<double>::quiet_NaN();   // e.g. urethra 150
-  double d2cc_percent = std::numeric_limits<double>::quiet_NaN();  // e.g. rectum 100
-  double dmax_percent = std::numeric_limits<double>::quiet_NaN();
-  bool any() const {
-    return std::isfinite(d10_percent) || std::isfinite(d2cc_percent) || std::isfinite(dmax_percent);
-  }
 };
 
 struct OrganAtRisk {

@@ -121,6 +121,18 @@ constexpr std::size_t kMaxProposalCandidates = 20000;
 Input proposeTargets(std::uint64_t job, const std::string& structure, double spacing_mm,
                      const std::shared_ptr<const Session>& snapshot, const JobContext& context);
 
+// plan_seeds' job (seed_planning.cpp): the candidates propose_targets would keep on a lattice of
+// `spacing_mm` in `structure` (each a seed's place, its axis the needle's at the tip), then the
+// fewest seeds of the asked model and strength among them whose dose covers the structure
+// (V100 ≥ 95 %, D90 ≥ 100 %) with every avoided structure within the site's dose limits
+// (dosimetry::planSeeds), beside uniform loading's count; as targets_proposed naming `job`
+// (`points` in the order the plan would visit them; `summary` the metrics), or
+// target_proposal_failed with why (no candidates, no plan meets the limits, more seeds than the
+// plan can take, an unreadable seed model).
+Input planSeedTargets(std::uint64_t job, const std::string& structure, double spacing_mm,
+                      const SeedPlanAsk& ask, const std::shared_ptr<const Session>& snapshot,
+                      const JobContext& context);
+
 // What robot placement (robot_placement.cpp) works on, taken from the session when it was asked:
 // the robot, the CT (for the skin), the structures with their roles and fields, the tissue (its
 // predicted drift widens every margin, as in the session's clearance).

@@ -84,6 +84,9 @@ enum class ReplyCode {
   kNoProposals,
   kUnknownProposal,
   kBadApproach,
+  // Dose (issue 42).
+  kBadSeedPlan,
+  kUnknownSeedModel,
   // The server.
   kJournalFailed,
   kInternal,

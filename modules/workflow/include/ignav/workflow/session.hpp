@@ -365,13 +365,22 @@ struct ProposedTarget {
   Eigen::Vector3d lps_mm = Eigen::Vector3d::Zero();
 };
 
+// plan_seeds (issue 42): a proposal whose targets are a seed plan's seeds.
+struct SeedPlanAsk {
+  std::string seed_model;       // its name
+  std::string seed_model_path;  // <the site's seed_models>/<name>.yaml
+  double prescription_Gy = 0.0;
+  double strength_U = 0.0;
+};
+
 struct TargetProposals {
-  std::string status = "none";          // none | proposing | proposed | failed
-  std::string structure;                // the one filled
-  double spacing_mm = 0.0;              // the lattice's
-  std::string message;                  // what the proposal found, or why none
-  std::uint64_t proposing = 0;          // the propose_targets awaited (its revision); 0: none
-  std::vector<ProposedTarget> targets;  // not yet accepted
+  std::string status = "none";           // none | proposing | proposed | failed
+  std::optional<SeedPlanAsk> seed_plan;  // set: the targets are a seed plan's seeds
+  std::string structure;                 // the one filled
+  double spacing_mm = 0.0;               // the lattice's
+  std::string message;                   // what the proposal found, or why none
+  std::uint64_t proposing = 0;           // the propose_targets awaited (its revision); 0: none
+  std::vector<ProposedTarget> targets;   // not yet accepted
 };
 
 // place_robot's outcome in the session (MountedPlacement above).

@@ -1,0 +1,163 @@
+// plan_seeds' job (background_jobs.hpp): the candidates propose_targets would keep, then the
+// fewest seeds among them whose dose covers the structure and spares the avoided ones.
+#include <fmt/format.h>
+
+#include <cmath>
+#include <map>
+
+#include "ignav/dosimetry/seed_plan.hpp"
+#include "ignav/workflow/background_jobs.hpp"
+#include "ignav/workflow/reducer.hpp"
+#include "proposal_lattice.hpp"
+
+namespace ignav::workflow {
+namespace {
+
+dosimetry::DoseStructure doseStructure(const anatomy::Structure& s) {
+  dosimetry::DoseStructure out;
+  out.name = s.name;
+  const auto& m = s.mask;
+  const auto& d = m.geometry.dims;
+  for (int k = 0; k < d[2]; ++k)
+    for (int j = 0; j < d[1]; ++j)
+      for (int i = 0; i < d[0]; ++i)
+        if (m.inside[m.index(i, j, k)])
+          out.voxels_lps_mm.push_back(m.geometry.toLps(Eigen::Vector3d(i, j, k)));
+  out.voxel_cm3 = m.volume_cm3() / static_cast<double>(std::max<std::size_t>(1, m.count()));
+  return out;
+}
+
+// The seed a needle leaves at a kept target: at its tip, along its last step.
+dosimetry::Seed seedAt(const Session& s, const Target& t) {
+  const auto path = needlePathLps(s, t.commandedJoints());
+  dosimetry::Seed seed;
+  seed.centre_lps_mm = t.lps_mm;
+  if (path.size() >= 2) {
+    const Eigen::Vector3d step = path.back() - path[path.size() - 2];
+    if (step.norm() > 1e-9) seed.axis_lps = step.normalized();
+  }
+  return seed;
+}
+
+// Progress in thousandths: judging the lattice, then the plan's stages in turn.
+struct Progress {
+  const JobContext& context;
+  void operator()(std::size_t from, std::size_t to, std::size_t done, std::size_t total) const {
+    if (!context.progress) return;
+    const double f =
+        total ? static_cast<double>(std::min(done, total)) / static_cast<double>(total) : 0.0;
+    context.progress(from + static_cast<std::size_t>(f * static_cast<double>(to - from)), 1000);
+  }
+};
+
+std::string organLine(const dosimetry::OrganResult& o) {
+  const auto& m = o.metrics;
+  return fmt::format("{} D10 {:.0f} %, D2cc {:.1f} Gy, V100 {:.2f} cm³", o.name, m.d10_percent,
+                     m.d2cc_Gy, m.v100_cm3);
+}
+
+}  // namespace
+
+Input planSeedTargets(std::uint64_t job, const std::string& structure, double spacing_mm,
+                      const SeedPlanAsk& ask, const std::shared_ptr<const Session>& snapshot,
+                      const JobContext& context) {
+  Input in;
+  in.job = job;
+  in.path = fmt::format("{} {:g}", structure, spacing_mm);
+  in.kind = InputKind::kTargetProposalFailed;
+  const Session& s = *snapshot;
+  const auto* set = s.structures.loaded.set.get();
+  const anatomy::Structure* target = set ? set->find(structure) : nullptr;
+  if (!target || !s.registration) {  // the command checked both; the snapshot is the same
+    in.error = fmt::format("'{}' is not loaded, or the CT is not registered", structure);
+    return in;
+  }
+  const auto model = dosimetry::readSeedModel(ask.seed_model_path);
+  if (!model) {
+    in.error = fmt::format("seed model '{}': {}", ask.seed_model, model.error().message);
+    return in;
+  }
+  const Progress progress{context};
+
+  const auto lattice = latticeIn(target->mask, *s.registration, spacing_mm);
+  if (!lattice) {
+    in.error = fmt::format("a {:g} mm lattice puts more than {} points in '{}': a coarser spacing",
+                           spacing_mm, kMaxProposalCandidates, target->name);
+    return in;
+  }
+  const Judged judged = judge(
+      s, *lattice, [&](std::size_t done, std::size_t total) { progress(0, 400, done, total); });
+  if (judged.kept.empty()) {
+    in.error = fmt::format(
+        "none of the {} lattice points {:g} mm apart in '{}' is reachable with "
+        "every clearance kept{}",
+        lattice->size(), spacing_mm, target->name,
+        judged.left_out.empty() ? "" : ": " + judged.left_out);
+    return in;
+  }
+
+  auto table = dosimetry::DoseRateTable::make(*model);
+  if (!table) {
+    in.error = table.error().message;
+    return in;
+  }
+  dosimetry::SeedPlanRequest request;
+  request.table = std::make_shared<const dosimetry::DoseRateTable>(std::move(*table));
+  request.strength_U = ask.strength_U;
+  request.prescription_Gy = ask.prescription_Gy;
+  request.target = doseStructure(*target);
+  for (std::size_t n = 0; n < set->structures.size(); ++n) {
+    const auto& st = set->structures[n];
+    if (s.structures.roles.at(n).role != anatomy::Role::kAvoid) continue;
+    const anatomy::SiteRole* role = s.site ? s.site->roleFor(st.name) : nullptr;
+    request.organs.push_back(
+        {doseStructure(st), role ? role->dose_limits : dosimetry::OrganLimits{}});
+  }
+  for (const auto& t : judged.kept)
+    request.candidates.push_back(seedAt(s, t));
+  const std::size_t room = s.policy.limits.max_targets > s.targets.size()
+                               ? s.policy.limits.max_targets - s.targets.size()
+                               : 0;
+  request.max_seeds = std::max<std::size_t>(room, 1);
+
+  const std::map<std::string_view, std::pair<std::size_t, std::size_t>> stages = {
+      {"dose per candidate", {400, 550}},
+      {"linear programme", {550, 650}},
+      {"repair", {650, 900}},
+      {"every voxel", {900, 950}}};
+  const auto plan = dosimetry::planSeeds(
+      request, [&](std::size_t done, std::size_t total, std::string_view stage) {
+        const auto found = stages.find(stage);
+        if (found != stages.end()) progress(found->second.first, found->second.second, done, total);
+      });
+  const std::string candidates = fmt::format(
+      "{} of the {} lattice points {:g} mm apart in '{}' are reachable with every clearance kept",
+      judged.kept.size(), lattice->size(), spacing_mm, target->name);
+  if (!plan) {
+    in.error = fmt::format("{}; {}", plan.error().message, candidates);
+    return in;
+  }
+  const auto uniform = dosimetry::uniformLoading(request);
+  progress(0, 1000, 1, 1);
+
+  std::vector<Target> chosen;
+  for (const std::size_t j : plan->chosen)
+    chosen.push_back(judged.kept[j]);
+  in.points = visitOrder(s, chosen).points;
+  const auto& e = plan->evaluation;
+  std::string organs;
+  for (const auto& o : e.organs)
+    organs += "; " + organLine(o);
+  in.summary = fmt::format(
+      "seed plan: {} seeds of {} at {:g} U for {:g} Gy to '{}' ({:.1f} cm³): V100 {:.1f} %, D90 "
+      "{:.1f} %, V150 {:.1f} %{}; {}; uniform loading {}",
+      chosen.size(), model->name, ask.strength_U, ask.prescription_Gy, target->name, e.target_cm3,
+      100.0 * e.target.v100, e.target.d90_percent, 100.0 * e.target.v150, organs, candidates,
+      uniform ? fmt::format("({:g} mm apart) needs {} seeds: {}", uniform->spacing_mm,
+                            uniform->chosen.size(), uniform->evaluation.describe())
+              : "does not cover it: " + uniform.error().message);
+  in.kind = InputKind::kTargetsProposed;
+  return in;
+}
+
+}  // namespace ignav::workflow

@@ -1,0 +1,206 @@
+// Seed plans in the reducer (issue 42, part 3), without DDS: plan_seeds on the built-in phantom's
+// anatomy with the prostate site's dose limits, its job run here as the server's job thread would.
+// The seeds' dose is computed here from the TG-43U1 formalism (doseRatePerUnitStrength, not the
+// plan's table), its metrics counted from the sorted doses; the seeds are checked to become
+// planned targets; bad requests leave the session as it was.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+
+#include "ignav/anatomy/site.hpp"
+#include "ignav/dosimetry/tg43.hpp"
+#include "ignav/workflow/background_jobs.hpp"
+#include "ignav/workflow/reducer.hpp"
+#include "workflow/bench.hpp"
+
+namespace ignav::workflow {
+namespace {
+
+using rig::Bench;
+
+Input withText(Bench& b, InputKind kind, const std::string& text) {
+  Input in = b.command(kind);
+  in.path = text;
+  return in;
+}
+
+Reply sendAndRunJob(Bench& b, InputKind command, const std::string& text, JobKind kind) {
+  const Reply started = b.send(withText(b, command, text));
+  if (!started.accepted) return started;
+  for (const auto& job : pendingJobs(b.s))
+    if (job.kind == kind) b.feed(job.run({}));
+  return started;
+}
+
+// A bench whose session has the prostate site (what config_loaded carries from server.yaml
+// site:) and the phantom's anatomy.
+void withProstateSite(Bench& b) {
+  auto site = anatomy::readSite(IGNAV_SOURCE_DIR "/configs/sites/prostate.yaml");
+  ASSERT_TRUE(site.ok()) << site.error().message;
+  b.s.site = std::move(site).value();
+  ASSERT_TRUE(sendAndRunJob(b, InputKind::kLoadStructures, kPhantomSource, JobKind::kStructureLoad)
+                  .accepted);
+  ASSERT_EQ(b.s.structures.status, "loaded") << b.s.structures.message;
+}
+
+// Every voxel centre of a structure (LPS).
+std::vector<Eigen::Vector3d> voxelsOf(const anatomy::Structure& s) {
+  std::vector<Eigen::Vector3d> out;
+  const auto& m = s.mask;
+  for (int k = 0; k < m.geometry.dims[2]; ++k)
+    for (int j = 0; j < m.geometry.dims[1]; ++j)
+      for (int i = 0; i < m.geometry.dims[0]; ++i)
+        if (m.inside[m.index(i, j, k)]) out.push_back(m.geometry.toLps(Eigen::Vector3d(i, j, k)));
+  return out;
+}
+
+struct SeedAt {
+  Eigen::Vector3d centre, axis;
+};
+
+// Doses (Gy, descending) of a permanent implant of these seeds at the points, from the formalism.
+std::vector<double> implantDoses(const dosimetry::SeedModel& m, const std::vector<SeedAt>& seeds,
+                                 double strength_U, const std::vector<Eigen::Vector3d>& points) {
+  std::vector<double> out;
+  for (const auto& p : points) {
+    double rate = 0.0;
+    for (const auto& s : seeds) {
+      const Eigen::Vector3d d = p - s.centre;
+      const double r = std::max(d.norm(), 1.5);  // inside the first g_L distance: as there
+      const double theta =
+          std::acos(std::clamp(d.dot(s.axis) / std::max(d.norm(), 1e-9), -1.0, 1.0));
+      rate += strength_U * dosimetry::doseRatePerUnitStrength(m, r / 10.0, theta);
+    }
+    out.push_back(rate * m.half_life_h / std::log(2.0) / 100.0);
+  }
+  std::sort(out.begin(), out.end(), std::greater<>());
+  return out;
+}
+double hottest(const std::vector<double>& descending, double fraction) {
+  const double n = static_cast<double>(descending.size());
+  return descending[static_cast<std::size_t>(std::clamp(std::ceil(fraction * n), 1.0, n)) - 1];
+}
+
+TEST(SeedPlans, ThePhantomsProstateGetsItsPrescriptionAndTheUrethraAndRectumTheirLimits) {
+  Bench b;
+  withProstateSite(b);
+  const Reply started =
+      sendAndRunJob(b, InputKind::kPlanSeeds, "prostate strength=0.6", JobKind::kTargetProposal);
+  ASSERT_TRUE(started.accepted) << started.message;
+  ASSERT_EQ(b.s.proposals.status, "proposed") << b.s.proposals.message;
+  std::printf("%s\n", b.s.proposals.message.c_str());
+  const auto proposed = b.s.proposals.targets;
+  ASSERT_GE(proposed.size(), 10u);
+
+  // Accepted, every seed is a planned target (reachable, every clearance kept).
+  ASSERT_TRUE(b.send(b.command(InputKind::kAcceptProposals)).accepted);
+  ASSERT_EQ(b.s.targets.size(), proposed.size());
+  std::vector<SeedAt> seeds;
+  for (const auto& t : b.s.targets) {
+    ASSERT_EQ(t.status(), "planned") << t.message;
+    const auto path = needlePathLps(b.s, t.commandedJoints());
+    seeds.push_back({t.lps_mm, (path.back() - path[path.size() - 2]).normalized()});
+  }
+  const auto model = dosimetry::readSeedModel(IGNAV_SOURCE_DIR "/configs/seeds/oncura_6711.yaml");
+  ASSERT_TRUE(model.ok());
+  const auto& set = *b.s.structures.loaded.set;
+  const auto prostate = implantDoses(*model, seeds, 0.6, voxelsOf(*set.find("prostate")));
+  const double rx = 145.0;
+  const double v100 = static_cast<double>(std::count_if(prostate.begin(), prostate.end(),
+                                                        [&](double d) { return d >= rx; })) /
+                      static_cast<double>(prostate.size());
+  EXPECT_GE(v100, 0.95 - 0.003);
+  EXPECT_GE(hottest(prostate, 0.9), 0.997 * rx);
+  const auto urethra = implantDoses(*model, seeds, 0.6, voxelsOf(*set.find("urethra")));
+  EXPECT_LE(hottest(urethra, 0.1), 1.503 * rx);
+  const auto& rectum_mask = set.find("rectum")->mask;
+  const auto rectum = implantDoses(*model, seeds, 0.6, voxelsOf(*set.find("rectum")));
+  const double voxel_cm3 = rectum_mask.volume_cm3() / static_cast<double>(rectum_mask.count());
+  EXPECT_LE(hottest(rectum, 2.0 / (voxel_cm3 * static_cast<double>(rectum.size()))), 1.003 * rx);
+  std::printf("checked here: V100 %.1f %%, D90 %.1f %%, urethra D10 %.1f %%, rectum D2cc %.1f Gy\n",
+              100.0 * v100, 100.0 * hottest(prostate, 0.9) / rx, 100.0 * hottest(urethra, 0.1) / rx,
+              hottest(rectum, 2.0 / (voxel_cm3 * static_cast<double>(rectum.size()))));
+  EXPECT_TRUE(b.send(b.command(InputKind::kLockPlan)).accepted);
+}
+
+TEST(SeedPlans, BadRequestsAreRefusedNamingWhatAndChangeNothing) {
+  Bench b;
+  ASSERT_TRUE(sendAndRunJob(b, InputKind::kLoadStructures, kPhantomSource, JobKind::kStructureLoad)
+                  .accepted);
+  // No site, no seed models.
+  EXPECT_EQ(b.send(withText(b, InputKind::kPlanSeeds, "prostate")).error_code,
+            "unknown_seed_model");
+  withProstateSite(b);
+  const std::uint64_t revision = b.s.revision;
+  auto refused = [&](const std::string& text) {
+    const Reply r = b.send(withText(b, InputKind::kPlanSeeds, text));
+    EXPECT_FALSE(r.accepted) << text;
+    return r.error_code + ": " + r.message;
+  };
+  const std::string model = refused("prostate model=iridium_192");
+  EXPECT_EQ(model.rfind("unknown_seed_model", 0), 0u) << model;
+  EXPECT_NE(model.find("oncura_6711, theraseed_200"), std::string::npos) << model;
+  EXPECT_EQ(refused("prostate rx=0").rfind("bad_seed_plan", 0), 0u);
+  EXPECT_EQ(refused("prostate rx=-145").rfind("bad_seed_plan", 0), 0u);
+  EXPECT_EQ(refused("prostate rx=nan").rfind("bad_seed_plan", 0), 0u);
+  const std::string strength = refused("prostate strength=40");
+  EXPECT_EQ(strength.rfind("bad_seed_plan", 0), 0u);
+  EXPECT_NE(strength.find("seed strength of 40 U"), std::string::npos) << strength;
+  EXPECT_EQ(refused("prostate spacing=0.5").rfind("bad_seed_plan", 0), 0u);
+  EXPECT_EQ(refused("prostate dose=3").rfind("bad_seed_plan", 0), 0u);
+  EXPECT_EQ(refused("").rfind("bad_arguments", 0), 0u);         // the table's check: words needed
+  EXPECT_EQ(refused("urethra").rfind("bad_seed_plan", 0), 0u);  // not a target
+  EXPECT_EQ(refused("bladder").rfind("unknown_structure", 0), 0u);
+  EXPECT_EQ(b.s.revision, revision);
+  EXPECT_EQ(b.s.proposals.status, "none");
+}
+
+TEST(SeedPlans, LimitsNoPlanMeetsEndTheProposalNamingThem) {
+  Bench b;
+  withProstateSite(b);
+  for (auto& role : b.s.site->roles)
+    if (role.name == "urethra") role.dose_limits.d10_percent = 40.0;
+  ASSERT_TRUE(
+      sendAndRunJob(b, InputKind::kPlanSeeds, "prostate strength=0.6", JobKind::kTargetProposal)
+          .accepted);
+  EXPECT_EQ(b.s.proposals.status, "failed");
+  EXPECT_NE(b.s.proposals.message.find("urethra D10"), std::string::npos) << b.s.proposals.message;
+  EXPECT_TRUE(b.s.proposals.targets.empty());
+  EXPECT_TRUE(b.s.targets.empty());
+}
+
+// The site's dose limits and seed plan defaults are journaled with config_loaded: a replayed
+// session plans as the live one did.
+TEST(SeedPlans, TheSitesDosimetryComesBackFromTheJournal) {
+  auto site = anatomy::readSite(IGNAV_SOURCE_DIR "/configs/sites/prostate.yaml");
+  ASSERT_TRUE(site.ok()) << site.error().message;
+  Input config;
+  config.kind = InputKind::kConfigLoaded;
+  config.policy = rig::policy();
+  config.site = *site;
+  const Step step = reduce(newSession("t", test::paperRobot(), "robot.yaml"), config);
+  ASSERT_EQ(step.effects.journal.size(), 1u);
+  const CtLoader none = [](const std::string&) -> Expected<LoadedCt> {
+    return makeError(ErrorCode::kIo, "no CT here");
+  };
+  const auto replayed = replayJournal(newSession("t", test::paperRobot(), "robot.yaml"),
+                                      step.effects.journal, none, "journal");
+  ASSERT_TRUE(replayed.ok()) << replayed.error().message;
+  ASSERT_TRUE(replayed->site && replayed->site->dosimetry);
+  const auto& d = *replayed->site->dosimetry;
+  EXPECT_EQ(d.seed_models, site->dosimetry->seed_models);
+  EXPECT_EQ(d.seed_models_dir, site->dosimetry->seed_models_dir);
+  EXPECT_EQ(d.seed_model, "oncura_6711");
+  EXPECT_EQ(d.prescription_Gy, 145.0);
+  EXPECT_EQ(d.strength_U, 0.5);
+  EXPECT_EQ(d.spacing_mm, 5.0);
+  EXPECT_EQ(replayed->site->roleFor("urethra")->dose_limits.d10_percent, 150.0);
+  EXPECT_TRUE(std::isnan(replayed->site->roleFor("urethra")->dose_limits.d2cc_percent));
+  EXPECT_EQ(replayed->site->roleFor("rectum")->dose_limits.d2cc_percent, 100.0);
+  EXPECT_FALSE(replayed->site->roleFor("pubic_arch")->dose_limits.any());
+}
+
+}  // namespace
+}  // namespace ignav::workflow
