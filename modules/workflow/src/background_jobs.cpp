@@ -71,16 +71,14 @@ std::optional<BackgroundJob> targetProposal(const Session& s) {
   const auto& p = s.proposals;
   if (p.proposing == 0) return std::nullopt;
   // The session as it was asked: every candidate is judged by the same rules a target is.
-  return BackgroundJob{JobKind::kTargetProposal, p.proposing,
-                       fmt::format("{} {:g} mm", p.structure, p.spacing_mm),
-                       [job = p.proposing, structure = p.structure, spacing = p.spacing_mm,
-                        seed_plan = p.seed_plan,
-                        snapshot = std::make_shared<const Session>(s)](const JobContext& context) {
-                         if (seed_plan)
-                           return planSeedTargets(job, structure, spacing, *seed_plan, snapshot,
-                                                  context);
-                         return proposeTargets(job, structure, spacing, snapshot, context);
-                       }};
+  return BackgroundJob{
+      JobKind::kTargetProposal, p.proposing, fmt::format("{} {:g} mm", p.structure, p.spacing_mm),
+      [job = p.proposing, structure = p.structure, spacing = p.spacing_mm, seed_plan = p.seed_plan,
+       snapshot = std::make_shared<const Session>(s)](const JobContext& context) {
+        if (seed_plan)
+          return planSeedTargets(job, structure, spacing, *seed_plan, snapshot, context);
+        return proposeTargets(job, structure, spacing, snapshot, context);
+      }};
 }
 
 std::optional<BackgroundJob> robotPlacement(const Session& s) {
