@@ -87,7 +87,7 @@ TEST(SeedPlans, ThePhantomsProstateGetsItsPrescriptionAndTheUrethraAndRectumThei
   Bench b;
   withProstateSite(b);
   const Reply started =
-      sendAndRunJob(b, InputKind::kPlanSeeds, "prostate strength=0.6", JobKind::kTargetProposal);
+      sendAndRunJob(b, InputKind::kPlanSeeds, "prostate", JobKind::kTargetProposal);  // 0.6 U
   ASSERT_TRUE(started.accepted) << started.message;
   ASSERT_EQ(b.s.proposals.status, "proposed") << b.s.proposals.message;
   std::printf("%s\n", b.s.proposals.message.c_str());
@@ -194,7 +194,7 @@ TEST(SeedPlans, TheSitesDosimetryComesBackFromTheJournal) {
   EXPECT_EQ(d.seed_models_dir, site->dosimetry->seed_models_dir);
   EXPECT_EQ(d.seed_model, "oncura_6711");
   EXPECT_EQ(d.prescription_Gy, 145.0);
-  EXPECT_EQ(d.strength_U, 0.5);
+  EXPECT_EQ(d.strength_U, 0.6);
   EXPECT_EQ(d.spacing_mm, 5.0);
   EXPECT_EQ(replayed->site->roleFor("urethra")->dose_limits.d10_percent, 150.0);
   EXPECT_TRUE(std::isnan(replayed->site->roleFor("urethra")->dose_limits.d2cc_percent));

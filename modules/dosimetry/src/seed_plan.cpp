@@ -40,18 +40,15 @@ std::string percent(double fraction) {
   return fmt::format("{:.1f} %", 100.0 * fraction);
 }
 
-// A structure's voxels, at most `most` of them spread through it: the i-th taken is voxel
-// (i · step) mod n, with the step coprime to n so no two repeat and rows do not alias.
+// A structure's voxels, at most `most` of them spread evenly through its list (voxel
+// ⌊i · n / most⌋ for the i-th).
 std::vector<Eigen::Vector3d> spread(const std::vector<Eigen::Vector3d>& voxels, std::size_t most) {
   const std::size_t n = voxels.size();
   if (n <= most) return voxels;
-  std::size_t step = n / most;
-  while (std::gcd(step, n) != 1)
-    ++step;
   std::vector<Eigen::Vector3d> out;
   out.reserve(most);
   for (std::size_t i = 0; i < most; ++i)
-    out.push_back(voxels[(i * step) % n]);
+    out.push_back(voxels[i * n / most]);
   return out;
 }
 
@@ -141,6 +138,15 @@ class Scene {
   bool holds(const Bound& b) const {
     return b.floor ? counted(b) >= b.count : counted(b) <= b.count;
   }
+  // How much of a floor's shortfall candidate j fills, in points' worth (Σ min(a, short)/dose).
+  double filling(const Bound& b, std::size_t j) const {
+    const auto& d = dose_[b.structure];
+    const float* a = influence(b.structure, j);
+    double sum = 0.0;
+    for (std::size_t i = 0; i < d.size(); ++i)
+      if (d[i] < b.dose_Gy) sum += std::min(static_cast<double>(a[i]), b.dose_Gy - d[i]);
+    return sum / b.dose_Gy;
+  }
   // How many points candidate j would move across `b`'s dose (up: j adds dose).
   std::size_t crossing(const Bound& b, std::size_t j) const {
     const auto& d = dose_[b.structure];
@@ -165,18 +171,24 @@ class Scene {
   std::vector<bool> chosen_;
 };
 
-// The request's goals as bounds on the scene's samples, each target goal raised and each organ
-// limit lowered by `tighten` (a fraction; the sample may be kinder than every voxel).
-std::vector<Bound> boundsOf(const SeedPlanRequest& r, const Scene& scene, double tighten) {
+// How much stricter than asked the sample's goals are (fractions): the sample may be kinder
+// than every voxel, so each goal the whole missed is tightened by what it missed.
+struct Tightening {
+  double target = 0.002;  // V100 raised by it, the D90 dose by its fraction
+  double organ = 0.0;     // each organ's limits lowered by its fraction
+};
+
+// The request's goals as bounds on the scene's samples.
+std::vector<Bound> boundsOf(const SeedPlanRequest& r, const Scene& scene, const Tightening& t) {
   std::vector<Bound> out;
   const double rx = r.prescription_Gy;
   const std::size_t nt = scene.points(0);
-  out.push_back({0, rx, true, ceilCount(std::min(1.0, r.min_v100 + tighten), nt)});
-  out.push_back({0, rx * r.min_d90_percent / 100.0 * (1.0 + tighten), true, ceilCount(0.9, nt)});
+  out.push_back({0, rx, true, ceilCount(std::min(1.0, r.min_v100 + t.target), nt)});
+  out.push_back({0, rx * r.min_d90_percent / 100.0 * (1.0 + t.target), true, ceilCount(0.9, nt)});
   for (std::size_t k = 0; k < r.organs.size(); ++k) {
     const auto& o = r.organs[k];
     const std::size_t n = scene.points(k + 1);
-    const double scale = rx / 100.0 * (1.0 - tighten);
+    const double scale = rx / 100.0 * (1.0 - t.organ);
     if (std::isfinite(o.limits.d10_percent))
       out.push_back({k + 1, o.limits.d10_percent * scale, false, ceilCount(0.1, n) - 1});
     if (std::isfinite(o.limits.d2cc_percent)) {
@@ -284,12 +296,34 @@ Relaxation relax(const SeedPlanRequest& r, const Scene& scene, std::size_t targe
   return out;
 }
 
+// The chosen seed giving the most dose to `b`'s points above `from_Gy`; none: the candidates'
+// count.
+std::size_t hottestContributor(const Scene& scene, const Bound& b, double from_Gy,
+                               std::size_t candidates) {
+  const auto& d = scene.dose(b.structure);
+  double most = 0.0;
+  std::size_t worst = candidates;
+  for (std::size_t j = 0; j < candidates; ++j) {
+    if (!scene.chosen(j)) continue;
+    const float* a = scene.influence(b.structure, j);
+    double sum = 0.0;
+    for (std::size_t i = 0; i < d.size(); ++i)
+      if (d[i] > from_Gy) sum += a[i];
+    if (sum > most) most = sum, worst = j;
+  }
+  return worst;
+}
+
 // Adds and drops candidates until every bound holds (true) or nothing more helps (false).
 // Dropped candidates are not tried again.
 bool repair(Scene& scene, const std::vector<Bound>& bounds, std::vector<bool>& banned,
             const PlanProgress& progress) {
   const std::size_t nj = banned.size();
   const std::size_t limit = 2 * nj + 10;  // each candidate added once and dropped once at most
+  auto drop = [&](std::size_t j) {
+    scene.set(j, false);
+    banned[j] = true;
+  };
   for (std::size_t step = 0; step < limit; ++step) {
     if (progress) progress(step, limit, "repair");
     const Bound* broken_organ = nullptr;
@@ -303,41 +337,45 @@ bool repair(Scene& scene, const std::vector<Bound>& bounds, std::vector<bool>& b
     }
     if (!broken_organ && !target_short) return true;
     if (broken_organ) {
-      // Drop the seed giving the most to the organ's points above its limit.
-      const auto& d = scene.dose(broken_organ->structure);
-      double most = -1.0;
-      std::size_t worst = nj;
-      for (std::size_t j = 0; j < nj; ++j) {
-        if (!scene.chosen(j)) continue;
-        const float* a = scene.influence(broken_organ->structure, j);
-        double sum = 0.0;
-        for (std::size_t i = 0; i < d.size(); ++i)
-          if (d[i] > broken_organ->dose_Gy) sum += a[i];
-        if (sum > most) most = sum, worst = j;
-      }
+      const std::size_t worst = hottestContributor(scene, *broken_organ, broken_organ->dose_Gy, nj);
       if (worst == nj) return false;
-      scene.set(worst, false);
-      banned[worst] = true;
+      drop(worst);
       continue;
     }
-    // Add the candidate that newly covers the most of the target, keeping every organ's limit.
-    std::size_t best = nj, best_gain = 0;
+    // Add the candidate that newly covers the most of the target (ties: that fills the most of
+    // its shortfall), keeping every organ's limit.
+    std::size_t best = nj;
+    double best_score = 0.0;
     for (std::size_t j = 0; j < nj; ++j) {
       if (scene.chosen(j) || banned[j]) continue;
       bool keeps = true;
-      std::size_t gain = 0;
+      double score = 0.0;
       for (const auto& b : bounds) {
         if (b.floor) {
-          gain += scene.crossing(b, j);
+          score += static_cast<double>(scene.crossing(b, j)) + 0.05 * scene.filling(b, j);
         } else if (scene.counted(b) + scene.crossing(b, j) > b.count) {
           keeps = false;
           break;
         }
       }
-      if (keeps && gain > best_gain) best_gain = gain, best = j;
+      if (keeps && score > best_score) best_score = score, best = j;
     }
-    if (best == nj) return false;
-    scene.set(best, true);
+    if (best != nj) {
+      scene.set(best, true);
+      continue;
+    }
+    // Every addition would break an organ's limit: make room by dropping the seed that gives
+    // the most to the tightest organ's points near its limit.
+    const Bound* tightest = nullptr;
+    for (const auto& b : bounds)
+      if (!b.floor &&
+          (!tightest || b.count - std::min(b.count, scene.counted(b)) <
+                            tightest->count - std::min(tightest->count, scene.counted(*tightest))))
+        tightest = &b;
+    if (!tightest) return false;
+    const std::size_t worst = hottestContributor(scene, *tightest, 0.8 * tightest->dose_Gy, nj);
+    if (worst == nj) return false;
+    drop(worst);
   }
   return false;
 }
@@ -372,7 +410,7 @@ Error infeasible(const SeedPlanRequest& r, const PlanEvaluation& best, std::size
       "infeasible_plan");
 }
 
-constexpr std::size_t kTargetSample = 6000, kOrganSample = 3000;
+constexpr std::size_t kTargetSample = 12000, kOrganSample = 4000;
 
 }  // namespace
 
@@ -496,11 +534,11 @@ Expected<SeedPlan> planSeeds(const SeedPlanRequest& r, const PlanProgress& progr
   for (std::size_t m = 0; m < std::min(rounded, order.size()); ++m)
     if (relaxed.weight[order[m]] > 1e-6) scene.set(order[m], true);
 
-  // The sample may be kinder than every voxel: when the whole judges otherwise, tighten the
-  // sample's goals by what was missed and repair again.
+  // Repaired and pruned on the sample, judged on every voxel; what the whole missed is
+  // tightened on the sample and repaired again.
   std::vector<bool> banned(r.candidates.size(), false);
-  double tighten = 0.0;
-  for (int round = 0; round < 4; ++round) {
+  Tightening tighten;
+  for (int round = 0; round < 6; ++round) {
     const auto bounds = boundsOf(r, scene, tighten);
     const bool held = repair(scene, bounds, banned, progress);
     if (held) prune(scene, bounds, relaxed.weight);
@@ -508,13 +546,19 @@ Expected<SeedPlan> planSeeds(const SeedPlanRequest& r, const PlanProgress& progr
     auto judged = evaluatePlan(r, seedsOf(r, scene.chosenList()));
     if (progress) progress(1, 1, "every voxel");
     if (!judged.ok()) return judged.error();
-    if (!held || judged->met()) {
-      if (!judged->met()) return infeasible(r, *judged, scene.chosenCount());
+    if (judged->met()) {
       plan.chosen = scene.chosenList();
       plan.evaluation = std::move(*judged);
       break;
     }
-    tighten += 0.005;
+    if (!held) return infeasible(r, *judged, scene.chosenCount());
+    const auto& m = judged->target;
+    const double short_by =
+        std::max(r.min_v100 - m.v100, (r.min_d90_percent - m.d90_percent) / r.min_d90_percent);
+    if (short_by > 0.0) tighten.target += std::max(0.002, short_by);
+    const std::size_t target_misses =
+        (m.v100 < r.min_v100 ? 1u : 0u) + (m.d90_percent < r.min_d90_percent ? 1u : 0u);
+    if (judged->unmet.size() > target_misses) tighten.organ += 0.005;  // an organ's limit too
   }
   if (plan.chosen.empty()) {
     auto judged = evaluatePlan(r, seedsOf(r, scene.chosenList()));
@@ -533,7 +577,7 @@ Expected<UniformLoading> uniformLoading(const SeedPlanRequest& r) {
   if (auto ok = validate(r); !ok.ok()) return ok.error();
   Scene scene(r, kTargetSample, kOrganSample, {});
   std::vector<Bound> goals;
-  for (const auto& b : boundsOf(r, scene, 0.0))
+  for (const auto& b : boundsOf(r, scene, Tightening{0.0, 0.0}))
     if (b.floor) goals.push_back(b);
   for (double spacing = 20.0; spacing > 0.0; spacing -= 0.5) {
     scene.clear();
