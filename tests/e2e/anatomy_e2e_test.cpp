@@ -211,6 +211,56 @@ TEST(AnatomyE2E, TargetsProposedToFillTheProstateAreAcceptedAndLockAsOneInsertio
   EXPECT_EQ(status, 0) << text;
 }
 
+// A seed plan (issue 42) through ignavctl over DDS: bad requests refused by name with the session
+// unchanged, then the site's default plan for the prostate, proposed as targets whose count and
+// dose the state's message gives; accepted, they are planned targets that lock as one insertion,
+// and the session replays.
+TEST(AnatomyE2E, ASeedPlanForTheProstateIsProposedAcceptedAndLocked) {
+  constexpr std::uint32_t kSeedDomain = 199;
+  ServerProcess server(kSeedDomain);
+  auto op = server.client("operator");
+  op->waitFor([](const json& s) { return s.contains("robot"); }, 10s);
+  auto run = [](const std::string& args) { return ignavctlOn(kSeedDomain, args); };
+  registeredPhantom(*op);
+  ASSERT_EQ(run("structures load phantom").exit_code, 0);
+  const auto revision = op->state()["workflow"]["revision"].get<std::uint64_t>();
+  for (const auto& [words, code] : std::vector<std::pair<std::string, std::string>>{
+           {"prostate model=iridium_192", "unknown_seed_model"},
+           {"prostate rx=0", "bad_seed_plan"},
+           {"prostate strength=12", "bad_seed_plan"},
+           {"bladder", "unknown_structure"}}) {
+    const auto refused = run("targets seeds " + words);
+    EXPECT_NE(refused.exit_code, 0) << words;
+    EXPECT_NE(refused.output.find(code), std::string::npos) << refused.output;
+  }
+  EXPECT_EQ(op->state()["workflow"]["revision"].get<std::uint64_t>(), revision);
+  const auto planned = run("targets seeds prostate");
+  ASSERT_EQ(planned.exit_code, 0) << planned.output;
+  EXPECT_NE(planned.output.find("seed plan: "), std::string::npos) << planned.output;
+  op->waitFor(
+      [](const json& s) { return stateText(s, "structures", "proposal_status") == "proposed"; },
+      10s);
+  const std::string message = stateText(op->state(), "structures", "proposal_message");
+  const std::size_t count = op->state()["structures"]["proposed"].size();
+  EXPECT_NE(
+      message.find(fmt::format("seed plan: {} seeds of oncura_6711 at 0.6 U for 145 Gy", count)),
+      std::string::npos)
+      << message;
+  ASSERT_GT(count, 20u);
+  ASSERT_LE(count, 100u);
+  ASSERT_EQ(run("targets accept").exit_code, 0);
+  op->waitFor([&](const json& s) { return s.contains("targets") && s["targets"].size() == count; },
+              10s);
+  for (const auto& [id, t] : op->state()["targets"].items())
+    EXPECT_EQ(t["status"], "planned") << id << ": " << t.dump();
+  lockAndWaitForApproval(*op);
+  op.reset();
+  const auto dir = server.sessionDir();
+  server.stop();
+  const auto [status, text] = replayVerified(dir);
+  EXPECT_EQ(status, 0) << text;
+}
+
 TEST(AnatomyE2E, TheRobotIsPlacedOnThePlanningCtAndTheMountedRobotMeasuredAgainstIt) {
   constexpr std::uint32_t kPlacementDomain = 192;
   ServerProcess server(kPlacementDomain);
