@@ -98,8 +98,12 @@ class Server {
   std::pair<std::size_t, std::size_t> placementProgress() const {
     return jobs_.progress(workflow::JobKind::kRobotPlacement);
   }
+  std::pair<std::size_t, std::size_t> proposalProgress() const {
+    return jobs_.progress(workflow::JobKind::kTargetProposal);
+  }
   Readings readings() const {
-    return {last_reading_, toString(lifecycle_), ctLoadProgress(), placementProgress()};
+    return {last_reading_, toString(lifecycle_), ctLoadProgress(), placementProgress(),
+            proposalProgress()};
   }
   void publishMotion() { state_.publishMotion(session_, last_reading_, toString(lifecycle_)); }
   void publishHealth();
@@ -168,6 +172,7 @@ class Server {
   Reports::Snapshot snapshot_;  // a copy of session_ once asked for (snapshot()), until it changes
   std::pair<std::size_t, std::size_t> last_progress_{0, 0};
   std::pair<std::size_t, std::size_t> last_placement_progress_{0, 0};
+  std::pair<std::size_t, std::size_t> last_proposal_progress_{0, 0};
   // The OpenIGTLink bridge (last: its thread stops before the waitset it wakes goes away).
   std::unique_ptr<IgtlBridge> igtl_;
 };

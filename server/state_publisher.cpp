@@ -59,7 +59,7 @@ void StatePublisher::publishEffects(const Session& s, const workflow::Effects& e
     publishTarget(s, id);
   if (e.approval_changed) publishApproval(s);
   if (e.confirmation_changed || e.robot_changed) publishVerification(s);
-  if (e.structures_changed) publishStructures(s, r.placement_progress);
+  if (e.structures_changed) publishStructures(s, r);
   if (e.motion_changed || !e.controller.empty()) publishMotion(s, r.controller, r.lifecycle);
   if (e.workflow_changed) publishWorkflow(s);
   if (e.job_outcome) publishJobOutcome(*e.job_outcome);
@@ -70,7 +70,7 @@ void StatePublisher::publishJobOutcome(const workflow::JobOutcome& o) {
 }
 
 void StatePublisher::publishStructures(const Session& s,
-                                       std::pair<std::size_t, std::size_t> placement_progress) {
+                                       const Readings& r) {
   const auto& st = s.structures;
   protocol::StructuresState m;
   m.status = st.status;
@@ -101,13 +101,17 @@ void StatePublisher::publishStructures(const Session& s,
   m.proposal_message = s.proposals.message;
   for (const auto& p : s.proposals.targets)
     m.proposed.push_back({p.id, {p.lps_mm.x(), p.lps_mm.y(), p.lps_mm.z()}});
+  if (s.proposals.proposing) {
+    m.proposal_progress_done = r.proposal_progress.first;
+    m.proposal_progress_total = r.proposal_progress.second;
+  }
   const auto& placed = s.robot_placement;
   m.placement_status = placed.status;
   m.placement_message = placed.message;
   m.placement_structure = placed.structure;
   if (placed.placing) {
-    m.placement_progress_done = placement_progress.first;
-    m.placement_progress_total = placement_progress.second;
+    m.placement_progress_done = r.placement_progress.first;
+    m.placement_progress_total = r.placement_progress.second;
   }
   auto array = [](const Eigen::Vector3d& v) { return std::array<double, 3>{v.x(), v.y(), v.z()}; };
   for (const auto& p : placed.poses) {
@@ -130,7 +134,7 @@ void StatePublisher::publishStructures(const Session& s,
 
 void StatePublisher::publishEverything(const Session& s, const Readings& r) {
   publishVerification(s);
-  publishStructures(s, r.placement_progress);
+  publishStructures(s, r);
   publishRobot(s);
   publishVolume(s, r.load_progress);
   publishRegistration(s);

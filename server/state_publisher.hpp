@@ -26,6 +26,7 @@ struct Readings {
   const char* lifecycle = "unconfigured";  // the controller component's (controller_component.hpp)
   std::pair<std::size_t, std::size_t> load_progress{0, 0};       // files read, in all (loading)
   std::pair<std::size_t, std::size_t> placement_progress{0, 0};  // a robot placement's search
+  std::pair<std::size_t, std::size_t> proposal_progress{0, 0};   // a target proposal's, a seed plan's
 };
 
 // What Health says beside the session.
@@ -61,8 +62,8 @@ class StatePublisher {
                      const char* lifecycle);
   void publishHealth(const workflow::Session& s, const HealthFacts& facts);
   void publishVerification(const workflow::Session& s);
-  void publishStructures(const workflow::Session& s,
-                         std::pair<std::size_t, std::size_t> placement_progress);
+  // The jobs' progress from `r` (placement, proposal); the rest of `r` is not read.
+  void publishStructures(const workflow::Session& s, const Readings& r);
   void publishJobOutcome(const workflow::JobOutcome& outcome);
 
  private:

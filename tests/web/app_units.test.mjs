@@ -446,10 +446,13 @@ test("a target refused for a structure shows as too close until overridden; reac
   assert.equal(s.targetDisplay({ ...base, status: "reached" }, "at_target", undefined, undefined).status, "reached");
 });
 
-test("the panel's commands: structure_role, propose_targets and place_robot texts", () => {
+test("the panel's commands: structure_role, propose_targets, plan_seeds and place_robot texts", () => {
   assert.equal(st.roleCommand("pubic arch", "avoid", 4), "pubic arch avoid 4");
   assert.equal(st.roleCommand("prostate", "target", 4), "prostate target"); // only avoid takes a margin
   assert.equal(st.proposeCommand("prostate", 7.5), "prostate 7.5");
+  assert.equal(st.seedPlanCommand("prostate", NaN, NaN), "prostate"); // the site's dosimetry
+  assert.equal(st.seedPlanCommand("prostate", 145, 0.6), "prostate rx=145 strength=0.6");
+  assert.equal(st.seedPlanCommand("prostate", 0, NaN), "prostate rx=0"); // the server refuses it
   assert.equal(st.placeCommand("prostate", "superior"), "prostate from superior");
   assert.equal(st.placeCommand("prostate", ""), "prostate"); // the site's approach
   const structures = [{ name: "urethra", role: "avoid" }, { name: "prostate", role: "target" }, { name: "skin", role: "shown" }];

@@ -11,6 +11,7 @@
 //     on the axial slice; a margin changed from its row
 //   place the robot (prostate, from superior): progress, the poses as the markups file has them,
 //     the proposed skin entry drawn where the slice puts it; registered, the mounted robot measured
+//   plan seeds at 0.7 U: progress, then as many proposals as the plan's message says (issue 42)
 //   propose targets at 8 mm: every proposal as the markups file has it and inside the prostate's
 //     voxels, drawn on its slice; one accepted, then all
 //   a target clicked where the demo's needle crosses the urethra: its clearance cell names the
@@ -162,6 +163,21 @@ async function waitForFile(file) {
   for (let tries = 0; !fs.existsSync(file) && tries < 100; ++tries) await sleep(100);
   check(fs.existsSync(file), `${file} was not written within 10 s`);
   return file;
+}
+
+// The markups file once it holds `count` points (the reports thread rewrites it per proposal).
+async function waitForMarkups(file, count) {
+  let points = [];
+  for (let tries = 0; tries < 100; ++tries) {
+    try {
+      points = markups(file);
+      if (points.length === count) return points;
+    } catch {
+      // not there yet, or being written
+    }
+    await sleep(100);
+  }
+  check(false, `${file} holds ${points.length} points, not ${count}, after 10 s`);
 }
 
 const parseLps = (text) => text.split(",").map(Number);
@@ -316,8 +332,26 @@ async function run(pages) {
   const mounted = await waitText(page, "mounted", /^the mounted robot: .*covers/, kJobTimeoutMs);
   console.log(`   ${mounted}`);
 
-  step(`propose targets filling the prostate at ${kProposalSpacingMm} mm: as proposed_targets.mrk.json, inside its voxels`);
+  step("plan seeds for the prostate at 0.7 U (the site's prescription): progress, then the seeds as proposals");
   await byTestId(page, "proposal-structure").selectOption("prostate");
+  await byTestId(page, "seed-strength").fill("0.7");
+  await expectAccepted(page, "plan_seeds", () => byTestId(page, "action-plan_seeds").click());
+  // The plan takes seconds: its progress reaches the page while it runs.
+  await page.waitForFunction(() => (window.ignav.state().structures?.proposal_progress_total ?? 0) > 0, null, {
+    timeout: kJobTimeoutMs,
+  });
+  const seeded = await waitText(page, "proposal-status", /^proposed: seed plan: \d+ seeds of oncura_6711 at 0\.7 U for 145 Gy/, kJobTimeoutMs);
+  const seeds = Number(seeded.match(/seed plan: (\d+) seeds/)[1]);
+  const seedRows = await page.locator('[data-testid^="proposal-row-"]').count();
+  check(seeds > 20 && (await appState(page)).structures.proposed.length === seeds && seedRows === seeds,
+    `${seeds} seeds said, ${seedRows} rows`);
+  console.log(`   ${seeded.slice(0, 160)}…`);
+  // Exported for Slicer as any proposal is; removed so the next proposal's file is its own.
+  const seedFile = path.join((await appState(page)).health.session_dir, "proposed_targets.mrk.json");
+  await waitForMarkups(seedFile, seeds);
+  fs.rmSync(seedFile);
+
+  step(`propose targets filling the prostate at ${kProposalSpacingMm} mm: as proposed_targets.mrk.json, inside its voxels`);
   await byTestId(page, "proposal-spacing").fill(String(kProposalSpacingMm));
   await expectAccepted(page, "propose_targets", () => byTestId(page, "action-propose_targets").click());
   await waitText(page, "proposal-status", /^proposed: /, kJobTimeoutMs);

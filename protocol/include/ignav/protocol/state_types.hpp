@@ -231,6 +231,8 @@ struct StructuresState {
   std::string proposal_status;  // none | proposing | proposed | failed
   std::string proposal_message;
   std::vector<ProposedTargetInfo> proposed;
+  std::uint64_t proposal_progress_done = 0;  // proposing: units done, of total
+  std::uint64_t proposal_progress_total = 0;
   std::string placement_status;  // none | placing | placed | failed
   std::string placement_message;
   std::string placement_structure;
@@ -249,7 +251,8 @@ struct Fields<StructuresState> {
   static constexpr auto list = std::make_tuple(
       IGNAV_FIELD(status), IGNAV_FIELD(source), IGNAV_FIELD(message), IGNAV_FIELD(site),
       IGNAV_FIELD(structures), IGNAV_FIELD(proposal_status), IGNAV_FIELD(proposal_message),
-      IGNAV_FIELD(proposed), IGNAV_FIELD(placement_status), IGNAV_FIELD(placement_message),
+      IGNAV_FIELD(proposed), IGNAV_FIELD(proposal_progress_done),
+      IGNAV_FIELD(proposal_progress_total), IGNAV_FIELD(placement_status), IGNAV_FIELD(placement_message),
       IGNAV_FIELD(placement_structure), IGNAV_FIELD(placement_progress_done),
       IGNAV_FIELD(placement_progress_total), IGNAV_FIELD(placements), IGNAV_FIELD(mounted_status),
       IGNAV_FIELD(mounted_message), IGNAV_FIELD(mounted_coverage), IGNAV_FIELD(mounted_entry_mm),

@@ -134,6 +134,8 @@ export interface StructuresState {
   proposal_status: string; // none | proposing | proposed | failed
   proposal_message: string;
   proposed: ProposedTargetInfo[];
+  proposal_progress_done: number; // proposing: units done (a seed plan: thousandths), of total
+  proposal_progress_total: number;
   placement_status: string; // none | placing | placed | failed
   placement_message: string;
   placement_structure: string;

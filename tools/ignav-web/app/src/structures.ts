@@ -66,6 +66,15 @@ export function roleCommand(name: string, role: string, margin_mm: number): stri
 // propose_targets' text: STRUCTURE SPACING_MM.
 export const proposeCommand = (name: string, spacing_mm: number) => `${name} ${spacing_mm}`;
 
+// plan_seeds' text: STRUCTURE [rx=GY] [strength=U]; a value not given (NaN, ≤ 0 stays: the server
+// names what is wrong) is the site's.
+export function seedPlanCommand(name: string, rx_Gy: number, strength_U: number): string {
+  let text = name;
+  if (Number.isFinite(rx_Gy)) text += ` rx=${rx_Gy}`;
+  if (Number.isFinite(strength_U)) text += ` strength=${strength_U}`;
+  return text;
+}
+
 // place_robot's text: STRUCTURE [from SIDE] ("": the site's approach).
 export const placeCommand = (name: string, side: string) => (side ? `${name} from ${side}` : name);
 

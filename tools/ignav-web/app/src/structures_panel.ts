@@ -1,8 +1,9 @@
 // The Structures panel and the two sections it feeds (issue 41): the patient's structures with
-// their colours and roles (editable: structure_role), targets proposed to fill one (accepted one by
-// one or all at once) and where to mount the robot (the proposal, its alternatives, then the
-// mounted robot against it). Rebuilt only when what it shows changes; the command buttons follow
-// what the workflow allows and the gateway's identity may send, as every other button does.
+// their colours and roles (editable: structure_role), targets proposed to fill one or a seed plan
+// for it (issue 42), accepted one by one or all at once, and where to mount the robot (the
+// proposal, its alternatives, then the mounted robot against it). Rebuilt only when what it shows
+// changes; the command buttons follow what the workflow allows and the gateway's identity may
+// send, as every other button does.
 import { ShownSlots, actionButton, byId, el } from "./dom";
 import { formatLps } from "./geometry";
 import type { StructureInfo, StructuresState, Vec3 } from "./state";
@@ -15,6 +16,7 @@ import {
   progressText,
   proposeCommand,
   roleCommand,
+  seedPlanCommand,
   structureChoices,
 } from "./structures";
 
@@ -37,6 +39,14 @@ export class StructuresPanel {
       const spacing_mm = Number(byId<HTMLInputElement>("proposal-spacing").value);
       this.actions.command("propose_targets", { path: proposeCommand(name, spacing_mm) });
     });
+    byId("plan-seeds").addEventListener("click", () => {
+      const name = byId<HTMLSelectElement>("proposal-structure").value;
+      const number = (id: string) => {
+        const text = byId<HTMLInputElement>(id).value.trim();
+        return text === "" ? NaN : Number(text);
+      };
+      this.actions.command("plan_seeds", { path: seedPlanCommand(name, number("seed-rx"), number("seed-strength")) });
+    });
     byId("place").addEventListener("click", () => {
       const name = byId<HTMLSelectElement>("placement-structure").value;
       this.actions.command("place_robot", { path: placeCommand(name, side.value) });
@@ -50,6 +60,7 @@ export class StructuresPanel {
     // A load that failed (or is under way) leaves the structures before in use: listed, usable.
     const names = structureChoices(s?.structures ?? []);
     byId<HTMLButtonElement>("propose").disabled = !allowed.has("propose_targets") || names.length === 0;
+    byId<HTMLButtonElement>("plan-seeds").disabled = !allowed.has("plan_seeds") || names.length === 0;
     byId<HTMLButtonElement>("place").disabled = !allowed.has("place_robot") || names.length === 0;
     byId<HTMLButtonElement>("accept-all").disabled = !allowed.has("accept_proposals") || !s?.proposed.length;
     if (this.shown.changed("choices", names)) {
@@ -112,14 +123,23 @@ export class StructuresPanel {
   }
 
   private proposals(s: StructuresState | undefined, canAccept: boolean): void {
-    if (!this.shown.changed("proposals", [s?.proposal_status, s?.proposal_message, s?.proposed, canAccept])) return;
+    const fields = [
+      s?.proposal_status, s?.proposal_message, s?.proposed, s?.proposal_progress_done,
+      s?.proposal_progress_total, canAccept,
+    ];
+    if (!this.shown.changed("proposals", fields)) return;
     const status = byId("proposal-status");
     const state = s?.proposal_status ?? "none";
     status.className = state === "failed" ? "bad" : "small";
+    const progress = progressText(s?.proposal_progress_done ?? 0, s?.proposal_progress_total ?? 0);
     status.textContent =
-      state === "none" || state === "" ? "none proposed: Structures, Propose"
-        : state === "proposing" ? "proposing…"
+      state === "none" || state === "" ? "none proposed: Structures, Propose or Plan seeds"
+        : state === "proposing" ? `${s?.proposal_message ?? "proposing"}…${progress ? ` ${progress}` : ""}`
           : `${state}: ${s?.proposal_message ?? ""}`;
+    const bar = byId<HTMLProgressElement>("proposal-progress");
+    bar.hidden = state !== "proposing";
+    bar.max = Math.max(1, s?.proposal_progress_total ?? 1);
+    bar.value = s?.proposal_progress_done ?? 0;
     const rows = (s?.proposed ?? []).map((p, index) => {
       const tr = el(
         "tr",
