@@ -26,7 +26,8 @@ struct Readings {
   const char* lifecycle = "unconfigured";  // the controller component's (controller_component.hpp)
   std::pair<std::size_t, std::size_t> load_progress{0, 0};       // files read, in all (loading)
   std::pair<std::size_t, std::size_t> placement_progress{0, 0};  // a robot placement's search
-  std::pair<std::size_t, std::size_t> proposal_progress{0, 0};   // a target proposal's, a seed plan's
+  std::pair<std::size_t, std::size_t> proposal_progress{0,
+                                                        0};  // a target proposal's, a seed plan's
 };
 
 // What Health says beside the session.
