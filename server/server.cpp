@@ -281,7 +281,8 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
       last_progress_ = ctLoadProgress();
       state_.publishVolume(session_, last_progress_);
     }
-    if ((session_.robot_placement.placing != 0 && placementProgress() != last_placement_progress_) ||
+    if ((session_.robot_placement.placing != 0 &&
+         placementProgress() != last_placement_progress_) ||
         (session_.proposals.proposing != 0 && proposalProgress() != last_proposal_progress_)) {
       last_placement_progress_ = placementProgress();
       last_proposal_progress_ = proposalProgress();

@@ -69,8 +69,7 @@ void StatePublisher::publishJobOutcome(const workflow::JobOutcome& o) {
   job_outcome_.write({o.job, o.kind, o.input, o.status, o.message, o.revision});
 }
 
-void StatePublisher::publishStructures(const Session& s,
-                                       const Readings& r) {
+void StatePublisher::publishStructures(const Session& s, const Readings& r) {
   const auto& st = s.structures;
   protocol::StructuresState m;
   m.status = st.status;

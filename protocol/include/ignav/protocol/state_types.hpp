@@ -252,11 +252,11 @@ struct Fields<StructuresState> {
       IGNAV_FIELD(status), IGNAV_FIELD(source), IGNAV_FIELD(message), IGNAV_FIELD(site),
       IGNAV_FIELD(structures), IGNAV_FIELD(proposal_status), IGNAV_FIELD(proposal_message),
       IGNAV_FIELD(proposed), IGNAV_FIELD(proposal_progress_done),
-      IGNAV_FIELD(proposal_progress_total), IGNAV_FIELD(placement_status), IGNAV_FIELD(placement_message),
-      IGNAV_FIELD(placement_structure), IGNAV_FIELD(placement_progress_done),
-      IGNAV_FIELD(placement_progress_total), IGNAV_FIELD(placements), IGNAV_FIELD(mounted_status),
-      IGNAV_FIELD(mounted_message), IGNAV_FIELD(mounted_coverage), IGNAV_FIELD(mounted_entry_mm),
-      IGNAV_FIELD(mounted_axis_deg));
+      IGNAV_FIELD(proposal_progress_total), IGNAV_FIELD(placement_status),
+      IGNAV_FIELD(placement_message), IGNAV_FIELD(placement_structure),
+      IGNAV_FIELD(placement_progress_done), IGNAV_FIELD(placement_progress_total),
+      IGNAV_FIELD(placements), IGNAV_FIELD(mounted_status), IGNAV_FIELD(mounted_message),
+      IGNAV_FIELD(mounted_coverage), IGNAV_FIELD(mounted_entry_mm), IGNAV_FIELD(mounted_axis_deg));
 };
 IGNAV_TOPIC_OF(StructuresState, topic::kStructures, Qos::kState);
 
