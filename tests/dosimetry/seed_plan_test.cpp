@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <random>
 
 #include "ignav/dosimetry/seed_plan.hpp"
 
@@ -169,6 +170,94 @@ TEST(SeedPlan, BadRequestsAreRefusedNamingTheField) {
   EXPECT_EQ(refused([](auto& r) { r.organs[0].limits.d10_percent = -1.0; }).rfind("bad_limit", 0),
             0u);
   EXPECT_EQ(refused([](auto& r) { r.max_seeds = 3; }).rfind("too_many_seeds", 0), 0u);
+}
+
+// Intra-operative re-planning: the plan's seeds as delivered (placed with 2 mm errors, three of
+// them lost) fall short; the seeds the re-plan adds to them bring every goal back, judged here
+// from the formalism.
+TEST(SeedPlan, SeedsAddedToThoseImplantedRecoverTheCoverage) {
+  SeedPlanRequest r = gland();
+  const auto plan = planSeeds(r);
+  ASSERT_TRUE(plan.ok()) << plan.error().message;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> error(0.0, 2.0 / std::sqrt(3.0));  // 2 mm RMS in 3D
+  std::vector<Seed> delivered;
+  for (std::size_t n = 0; n < plan->chosen.size(); ++n) {
+    if (n % 11 == 5) continue;  // lost
+    Seed s = r.candidates[plan->chosen[n]];
+    s.centre_lps_mm += Eigen::Vector3d(error(rng), error(rng), error(rng));
+    delivered.push_back(s);
+  }
+  ASSERT_EQ(delivered.size(), plan->chosen.size() - 3);
+  const auto as_delivered = evaluatePlan(r, delivered);
+  ASSERT_TRUE(as_delivered.ok());
+  EXPECT_FALSE(as_delivered->met()) << as_delivered->describe();
+  const auto cold = coldSpots(r, delivered);
+  ASSERT_TRUE(cold.ok());
+  ASSERT_FALSE(cold->empty());
+
+  // Implanted as they are, the plan already met: nothing to add.
+  SeedPlanRequest same = r;
+  for (const std::size_t j : plan->chosen)
+    same.implanted.push_back(r.candidates[j]);
+  const auto nothing = planSeeds(same);
+  ASSERT_TRUE(nothing.ok()) << nothing.error().message;
+  EXPECT_TRUE(nothing->chosen.empty());
+
+  r.implanted = delivered;
+  const auto added = planSeeds(r);
+  ASSERT_TRUE(added.ok()) << added.error().message;
+  EXPECT_GE(added->chosen.size(), 1u);
+  EXPECT_LE(added->chosen.size(), 10u);
+  std::vector<Seed> all = delivered;
+  for (const std::size_t j : added->chosen)
+    all.push_back(r.candidates[j]);
+  const auto target = sortedDoses(r.table->model(), all, r.target.voxels_lps_mm);
+  const double covered = static_cast<double>(std::count_if(target.begin(), target.end(),
+                                                           [](double d) { return d >= kRx_Gy; })) /
+                         static_cast<double>(target.size());
+  EXPECT_GE(covered, 0.95 - 0.003);
+  EXPECT_GE(hottest(target, 0.9), 0.997 * kRx_Gy);
+  const auto urethra = sortedDoses(r.table->model(), all, r.organs[0].structure.voxels_lps_mm);
+  EXPECT_LE(hottest(urethra, 0.1), 1.503 * kRx_Gy);
+  std::printf(
+      "planned %zu: %s\ndelivered %zu: %s\n%zu cold spots, the largest %.2f cm³\n"
+      "added %zu: %s\n",
+      plan->chosen.size(), plan->evaluation.describe().c_str(), delivered.size(),
+      as_delivered->describe().c_str(), cold->size(), cold->front().volume_cm3,
+      added->chosen.size(), added->evaluation.describe().c_str());
+}
+
+// Cold spots in closed form: two 20 mm cubes 40 mm apart, one seed at the first's centre with a
+// prescription its dose reaches 8 mm out (less than the cube's half side): the second cube is cold
+// whole (8 cm³, centred on its centre), the first's corners form one region (centred on the seed
+// by symmetry, its volume the count of the first cube's voxels below the prescription).
+TEST(SeedPlan, ColdSpotsAreTheRegionsBelowThePrescription) {
+  SeedPlanRequest r = gland();
+  r.organs.clear();
+  r.target.voxels_lps_mm.clear();
+  for (const double x0 : {0.0, 40.0})
+    for (int k = 0; k < 20; ++k)
+      for (int j = 0; j < 20; ++j)
+        for (int i = 0; i < 20; ++i)
+          r.target.voxels_lps_mm.emplace_back(x0 - 9.5 + i, -9.5 + j, -9.5 + k);
+  const Seed seed{Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ()};
+  const SeedModel& m = r.table->model();
+  r.prescription_Gy = formalismDose(m, {seed}, Eigen::Vector3d(8.0, 0.0, 0.0));
+  const auto spots = coldSpots(r, {seed});
+  ASSERT_TRUE(spots.ok()) << spots.error().message;
+  ASSERT_EQ(spots->size(), 2u);
+  const auto& far = (*spots)[0];
+  EXPECT_NEAR(far.volume_cm3, 8.0, 1e-9);
+  EXPECT_LT((far.centroid_lps_mm - Eigen::Vector3d(40.0, 0.0, 0.0)).norm(), 1e-9);
+  const auto& corners = (*spots)[1];
+  std::size_t cold = 0;
+  for (std::size_t i = 0; i < 8000; ++i)
+    cold += formalismDose(m, {seed}, r.target.voxels_lps_mm[i]) < r.prescription_Gy;
+  EXPECT_NEAR(corners.volume_cm3, 0.001 * static_cast<double>(cold),
+              1e-5 * static_cast<double>(cold));
+  EXPECT_LT(corners.centroid_lps_mm.norm(), 0.1);
+  EXPECT_GT(corners.volume_cm3, 3.0);  // the cube is 8 cm³, the 8 mm ball 2.1 cm³
 }
 
 }  // namespace

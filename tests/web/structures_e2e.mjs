@@ -354,7 +354,8 @@ async function run(pages) {
   step(`propose targets filling the prostate at ${kProposalSpacingMm} mm: as proposed_targets.mrk.json, inside its voxels`);
   await byTestId(page, "proposal-spacing").fill(String(kProposalSpacingMm));
   await expectAccepted(page, "propose_targets", () => byTestId(page, "action-propose_targets").click());
-  await waitText(page, "proposal-status", /^proposed: /, kJobTimeoutMs);
+  // Its own outcome, not the seed plan's before it.
+  await waitText(page, "proposal-status", /^proposed: \d+ targets proposed:/, kJobTimeoutMs);
   const proposed = (await appState(page)).structures.proposed;
   const proposalFile = path.join(session, "proposed_targets.mrk.json");
   const file = markups(await waitForFile(proposalFile));

@@ -4,9 +4,12 @@
 #include <glpk.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <numeric>
+#include <tuple>
 
 #include <fmt/format.h>
 
@@ -89,9 +92,11 @@ class Scene {
       }
     }
     if (progress) progress(j_count, j_count, "dose per candidate");
+    // The implanted seeds' dose is there before any candidate's.
     dose_.resize(samples_.size());
     for (std::size_t s = 0; s < samples_.size(); ++s)
-      dose_[s].assign(samples_[s].size(), 0.0);
+      dose_[s] = dosesAt(*r.table, r.implanted, gy_per_rate_, samples_[s]);
+    implanted_dose_ = dose_;
     chosen_.assign(j_count, false);
   }
 
@@ -102,6 +107,7 @@ class Scene {
   }
   const std::vector<double>& dose(std::size_t s) const { return dose_[s]; }
   bool chosen(std::size_t j) const { return chosen_[j]; }
+  double implantedDose(std::size_t s, std::size_t i) const { return implanted_dose_[s][i]; }
   std::size_t chosenCount() const {
     return static_cast<std::size_t>(std::count(chosen_.begin(), chosen_.end(), true));
   }
@@ -168,6 +174,7 @@ class Scene {
   std::vector<std::vector<Eigen::Vector3d>> samples_;  // [0] target, then the organs
   std::vector<std::vector<float>> influence_;          // [structure][candidate · points + point]
   std::vector<std::vector<double>> dose_;
+  std::vector<std::vector<double>> implanted_dose_;  // the implanted seeds' share of dose_
   std::vector<bool> chosen_;
 };
 
@@ -237,6 +244,7 @@ Relaxation relax(const SeedPlanRequest& r, const Scene& scene, std::size_t targe
       double all = 0.0;
       for (std::size_t j = 0; j < nj; ++j)
         all += scene.influence(k + 1, j)[i];
+      all += scene.implantedDose(k + 1, i);
       if (all / rx > limit) bind.push_back(i);
     }
     const std::size_t step = std::max<std::size_t>(1, bind.size() / organ_rows);
@@ -260,7 +268,9 @@ Relaxation relax(const SeedPlanRequest& r, const Scene& scene, std::size_t targe
     const Row& row = rows[m];
     const int rm = static_cast<int>(m) + 1, slack = static_cast<int>(nj + m) + 1;
     const bool target = row.structure == 0;
-    glp_set_row_bnds(lp, rm, target ? GLP_LO : GLP_UP, row.limit, row.limit);
+    // What the implanted seeds give is there already.
+    const double room = row.limit - scene.implantedDose(row.structure, row.point) / rx;
+    glp_set_row_bnds(lp, rm, target ? GLP_LO : GLP_UP, room, room);
     glp_set_col_bnds(lp, slack, target ? GLP_DB : GLP_LO, 0.0, row.limit);
     glp_set_obj_coef(lp, slack,
                      kPenalty / static_cast<double>(target ? target_count : organ_count));
@@ -457,13 +467,19 @@ Status validate(const SeedPlanRequest& r) {
   if (r.candidates.empty())
     return bad("seed plan: no candidate positions (none reachable with every clearance kept)",
                "no_candidates");
-  for (std::size_t j = 0; j < r.candidates.size(); ++j) {
-    const auto& c = r.candidates[j];
-    if (!c.centre_lps_mm.allFinite() || !c.axis_lps.allFinite() ||
-        std::abs(c.axis_lps.norm() - 1.0) > 1e-6)
+  auto unfit = [](const Seed& c) {
+    return !c.centre_lps_mm.allFinite() || !c.axis_lps.allFinite() ||
+           std::abs(c.axis_lps.norm() - 1.0) > 1e-6;
+  };
+  for (std::size_t j = 0; j < r.candidates.size(); ++j)
+    if (unfit(r.candidates[j]))
       return bad(fmt::format("candidate {}: its centre or axis (a unit vector) is not finite", j),
                  "bad_candidate");
-  }
+  for (std::size_t j = 0; j < r.implanted.size(); ++j)
+    if (unfit(r.implanted[j]))
+      return bad(
+          fmt::format("implanted seed {}: its centre or axis (a unit vector) is not finite", j),
+          "bad_candidate");
   return Ok{};
 }
 
@@ -480,8 +496,10 @@ std::string PlanEvaluation::describe() const {
 Expected<PlanEvaluation> evaluatePlan(const SeedPlanRequest& r, const std::vector<Seed>& seeds) {
   if (auto ok = validate(r); !ok.ok()) return ok.error();
   const double g = implantGyPerRate(*r.table, r.strength_U), rx = r.prescription_Gy;
+  std::vector<Seed> all = seeds;
+  all.insert(all.end(), r.implanted.begin(), r.implanted.end());
   PlanEvaluation e;
-  auto target = DoseVolumeHistogram::of(dosesAt(*r.table, seeds, g, r.target.voxels_lps_mm),
+  auto target = DoseVolumeHistogram::of(dosesAt(*r.table, all, g, r.target.voxels_lps_mm),
                                         r.target.voxel_cm3);
   if (!target.ok()) return target.error();
   e.target = targetMetrics(*target, rx);
@@ -493,7 +511,7 @@ Expected<PlanEvaluation> evaluatePlan(const SeedPlanRequest& r, const std::vecto
     e.unmet.push_back(fmt::format("{} D90 {:.1f} % < {:g} %", r.target.name, e.target.d90_percent,
                                   r.min_d90_percent));
   for (const auto& o : r.organs) {
-    auto h = DoseVolumeHistogram::of(dosesAt(*r.table, seeds, g, o.structure.voxels_lps_mm),
+    auto h = DoseVolumeHistogram::of(dosesAt(*r.table, all, g, o.structure.voxels_lps_mm),
                                      o.structure.voxel_cm3);
     if (!h.ok()) return h.error();
     OrganResult result{o.structure.name, organMetrics(*h, rx), o.limits};
@@ -512,14 +530,35 @@ Expected<PlanEvaluation> evaluatePlan(const SeedPlanRequest& r, const std::vecto
   return e;
 }
 
-Expected<SeedPlan> planSeeds(const SeedPlanRequest& r, const PlanProgress& progress) {
-  if (auto ok = validate(r); !ok.ok()) return ok.error();
+Expected<SeedPlan> planSeeds(const SeedPlanRequest& asked, const PlanProgress& progress) {
+  if (auto ok = validate(asked); !ok.ok()) return ok.error();
+  SeedPlan plan;
+  SeedPlanRequest r = asked;
+  if (!r.implanted.empty()) {
+    // What the implanted seeds already give cannot be taken back.
+    const auto now = evaluatePlan(r, {});
+    if (!now.ok()) return now.error();
+    for (std::size_t k = 0; k < r.organs.size(); ++k) {
+      auto& limits = r.organs[k].limits;
+      const auto& m = now->organs[k].metrics;
+      const double d2cc_percent = 100.0 * m.d2cc_Gy / r.prescription_Gy;
+      for (auto [limit, value, what] :
+           {std::make_tuple(&limits.d10_percent, m.d10_percent, "D10"),
+            std::make_tuple(&limits.d2cc_percent, d2cc_percent, "D2cc"),
+            std::make_tuple(&limits.dmax_percent, m.dmax_percent, "Dmax")}) {
+        if (!(value > *limit)) continue;  // NaN limits hold nothing back
+        *limit = value + kReplanRise_percent;
+        plan.raised_limits.push_back(
+            fmt::format("{} {} {:.1f} % delivered already, held to {:.1f} %",
+                        r.organs[k].structure.name, what, value, *limit));
+      }
+    }
+  }
   Scene scene(r, kTargetSample, kOrganSample, progress);
   if (progress) progress(0, 1, "linear programme");
   const Relaxation relaxed = relax(r, scene, 1200, 400);
   if (progress) progress(1, 1, "linear programme");
 
-  SeedPlan plan;
   plan.relaxed_seeds = std::accumulate(relaxed.weight.begin(), relaxed.weight.end(), 0.0);
   plan.lp_rows = relaxed.rows;
   plan.lp_columns = relaxed.columns;
@@ -538,7 +577,8 @@ Expected<SeedPlan> planSeeds(const SeedPlanRequest& r, const PlanProgress& progr
   // tightened on the sample and repaired again.
   std::vector<bool> banned(r.candidates.size(), false);
   Tightening tighten;
-  for (int round = 0; round < 6; ++round) {
+  bool found = false;
+  for (int round = 0; round < 6 && !found; ++round) {
     const auto bounds = boundsOf(r, scene, tighten);
     const bool held = repair(scene, bounds, banned, progress);
     if (held) prune(scene, bounds, relaxed.weight);
@@ -549,6 +589,7 @@ Expected<SeedPlan> planSeeds(const SeedPlanRequest& r, const PlanProgress& progr
     if (judged->met()) {
       plan.chosen = scene.chosenList();
       plan.evaluation = std::move(*judged);
+      found = true;
       break;
     }
     if (!held) return infeasible(r, *judged, scene.chosenCount());
@@ -560,7 +601,7 @@ Expected<SeedPlan> planSeeds(const SeedPlanRequest& r, const PlanProgress& progr
         (m.v100 < r.min_v100 ? 1u : 0u) + (m.d90_percent < r.min_d90_percent ? 1u : 0u);
     if (judged->unmet.size() > target_misses) tighten.organ += 0.005;  // an organ's limit too
   }
-  if (plan.chosen.empty()) {
+  if (!found) {
     auto judged = evaluatePlan(r, seedsOf(r, scene.chosenList()));
     return infeasible(r, *judged, scene.chosenCount());
   }
@@ -602,6 +643,64 @@ Expected<UniformLoading> uniformLoading(const SeedPlanRequest& r) {
   auto all = evaluatePlan(r, r.candidates);
   if (!all.ok()) return all.error();
   return infeasible(r, *all, r.candidates.size());
+}
+
+Expected<std::vector<ColdSpot>> coldSpots(const SeedPlanRequest& r, const std::vector<Seed>& seeds,
+                                          double min_cm3) {
+  if (auto ok = validate(r); !ok.ok()) return ok.error();
+  std::vector<Seed> all = seeds;
+  all.insert(all.end(), r.implanted.begin(), r.implanted.end());
+  const auto& voxels = r.target.voxels_lps_mm;
+  const auto dose = dosesAt(*r.table, all, implantGyPerRate(*r.table, r.strength_U), voxels);
+  // Cold voxels hashed by cells of 1.5 voxel sides: neighbours lie in the 27 cells around.
+  const double side_mm = 10.0 * std::cbrt(r.target.voxel_cm3), cell_mm = 1.5 * side_mm;
+  using Key = std::array<long, 3>;
+  auto keyOf = [&](const Eigen::Vector3d& p) {
+    return Key{std::lround(std::floor(p.x() / cell_mm)), std::lround(std::floor(p.y() / cell_mm)),
+               std::lround(std::floor(p.z() / cell_mm))};
+  };
+  std::map<Key, std::vector<std::size_t>> cells;
+  for (std::size_t i = 0; i < voxels.size(); ++i)
+    if (dose[i] < r.prescription_Gy) cells[keyOf(voxels[i])].push_back(i);
+  std::vector<bool> seen(voxels.size(), false);
+  std::vector<ColdSpot> out;
+  for (const auto& [key, members] : cells) {
+    for (const std::size_t start : members) {
+      if (seen[start]) continue;
+      // One region: a flood through cold neighbours.
+      seen[start] = true;
+      std::vector<std::size_t> stack{start}, region;
+      while (!stack.empty()) {
+        const std::size_t i = stack.back();
+        stack.pop_back();
+        region.push_back(i);
+        const Key k = keyOf(voxels[i]);
+        for (long dx = -1; dx <= 1; ++dx)
+          for (long dy = -1; dy <= 1; ++dy)
+            for (long dz = -1; dz <= 1; ++dz) {
+              const auto near = cells.find({k[0] + dx, k[1] + dy, k[2] + dz});
+              if (near == cells.end()) continue;
+              for (const std::size_t n : near->second)
+                if (!seen[n] && (voxels[n] - voxels[i]).norm() <= cell_mm) {
+                  seen[n] = true;
+                  stack.push_back(n);
+                }
+            }
+      }
+      ColdSpot spot;
+      spot.min_dose_Gy = std::numeric_limits<double>::infinity();
+      for (const std::size_t i : region) {
+        spot.centroid_lps_mm += voxels[i];
+        spot.min_dose_Gy = std::min(spot.min_dose_Gy, dose[i]);
+      }
+      spot.centroid_lps_mm /= static_cast<double>(region.size());
+      spot.volume_cm3 = r.target.voxel_cm3 * static_cast<double>(region.size());
+      if (spot.volume_cm3 >= min_cm3) out.push_back(spot);
+    }
+  }
+  std::sort(out.begin(), out.end(),
+            [](const ColdSpot& a, const ColdSpot& b) { return a.volume_cm3 > b.volume_cm3; });
+  return out;
 }
 
 }  // namespace ignav::dosimetry

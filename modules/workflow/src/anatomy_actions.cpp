@@ -234,14 +234,15 @@ Refusal startSeedPlan(Session& s, const Input& in, ActionOutput& out) {
                      "no seed models: the site file (server.yaml site:) has no dosimetry: block"};
   }
   const auto& site = *s.site->dosimetry;
-  // STRUCTURE [model=NAME] [rx=GY] [strength=U] [spacing=MM]; the site's defaults otherwise.
-  SeedPlanAsk ask{site.seed_model, "", site.prescription_Gy, site.strength_U};
+  // STRUCTURE [model=NAME] [rx=GY] [strength=U] [spacing=MM] [implanted=none]; the site's
+  // defaults otherwise.
+  SeedPlanAsk ask{site.seed_model, "", site.prescription_Gy, site.strength_U, true};
   double spacing = site.spacing_mm;
   std::string name;
   const auto bad = [&](const std::string& why) {
     return Rejection{ReplyCode::kBadSeedPlan,
                      fmt::format("'{}': {} (STRUCTURE [model=NAME] [rx=GY] [strength=U] "
-                                 "[spacing=MM])",
+                                 "[spacing=MM] [implanted=none])",
                                  in.path, why)};
   };
   std::istringstream words(in.path);
@@ -256,6 +257,12 @@ Refusal startSeedPlan(Session& s, const Input& in, ActionOutput& out) {
       ask.seed_model = value;
       continue;
     }
+    if (key == "implanted") {
+      if (value != "none" && value != "confirmation")
+        return bad("implanted='" + value + "' is neither confirmation nor none");
+      ask.implanted = value == "confirmation";
+      continue;
+    }
     char* end = nullptr;
     const double number = std::strtod(value.c_str(), &end);
     if (value.empty() || *end != '\0' || !std::isfinite(number))
@@ -267,7 +274,7 @@ Refusal startSeedPlan(Session& s, const Input& in, ActionOutput& out) {
     else if (key == "spacing")
       spacing = number;
     else
-      return bad("'" + key + "' is none of model, rx, strength, spacing");
+      return bad("'" + key + "' is none of model, rx, strength, spacing, implanted");
   }
   if (name.empty()) return bad("a structure to cover is needed");
   if (!(ask.prescription_Gy > 0.0 && ask.prescription_Gy <= 1000.0))

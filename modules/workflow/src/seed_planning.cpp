@@ -39,6 +39,52 @@ dosimetry::Seed seedAt(const Session& s, const Target& t) {
   return seed;
 }
 
+// The seeds the confirmation CT found (tips and rejected ones left out), in the planning CT's
+// frame, each along the robot's insertion axis there (a found seed's own orientation is not
+// measured).
+std::vector<dosimetry::Seed> implantedSeeds(const Session& s) {
+  std::vector<dosimetry::Seed> out;
+  const auto& c = s.confirmation;
+  if (!c.registration || !s.registration) return out;
+  const auto& planning = *s.registration;
+  const Eigen::Vector3d axis =
+      (planning.toImage(Eigen::Vector3d::UnitZ()) - planning.toImage(Eigen::Vector3d::Zero()))
+          .normalized();
+  for (const auto& seed : c.seeds) {
+    if (seed.kind != "seed" || seed.rejected) continue;
+    out.push_back({planning.toImage(c.registration->registration.toRobot(seed.lps_mm)), axis});
+  }
+  return out;
+}
+
+std::string lps(const Eigen::Vector3d& p) {
+  return fmt::format("({:.1f}, {:.1f}, {:.1f})", p.x(), p.y(), p.z());
+}
+
+// Planned against delivered, and where the delivered dose is cold: the start of a re-plan's
+// message.
+std::string deliveredText(const Session& s, dosimetry::SeedPlanRequest request) {
+  const auto delivered = std::move(request.implanted);
+  request.implanted.clear();
+  std::vector<dosimetry::Seed> planned;
+  for (const auto& t : s.targets)
+    planned.push_back(seedAt(s, t));
+  const auto as_planned = dosimetry::evaluatePlan(request, planned);
+  const auto as_delivered = dosimetry::evaluatePlan(request, delivered);
+  const auto cold = dosimetry::coldSpots(request, delivered);
+  if (!as_planned || !as_delivered || !cold) return "";
+  std::string spots;
+  for (std::size_t n = 0; n < std::min<std::size_t>(3, cold->size()); ++n)
+    spots +=
+        fmt::format("{}{:.2f} cm³ at {} (down to {:.0f} Gy)", n ? ", " : "", (*cold)[n].volume_cm3,
+                    lps((*cold)[n].centroid_lps_mm), (*cold)[n].min_dose_Gy);
+  return fmt::format(
+      "delivered by the {} seeds on the confirmation CT: {} (planned, the {} targets: {}); {} "
+      "cold spot{}{}{}; ",
+      delivered.size(), as_delivered->describe(), planned.size(), as_planned->describe(),
+      cold->size(), cold->size() == 1 ? "" : "s", cold->empty() ? "" : ": ", spots);
+}
+
 // Progress in thousandths: judging the lattice, then the plan's stages in turn.
 struct Progress {
   const JobContext& context;
@@ -119,6 +165,8 @@ Input planSeedTargets(std::uint64_t job, const std::string& structure, double sp
                                ? s.policy.limits.max_targets - s.targets.size()
                                : 0;
   request.max_seeds = std::max<std::size_t>(room, 1);
+  if (ask.implanted) request.implanted = implantedSeeds(s);
+  const std::string delivered = request.implanted.empty() ? "" : deliveredText(s, request);
 
   const std::map<std::string_view, std::pair<std::size_t, std::size_t>> stages = {
       {"dose per candidate", {400, 550}},
@@ -137,7 +185,6 @@ Input planSeedTargets(std::uint64_t job, const std::string& structure, double sp
     in.error = fmt::format("{}; {}", plan.error().message, candidates);
     return in;
   }
-  const auto uniform = dosimetry::uniformLoading(request);
   progress(0, 1000, 1, 1);
 
   std::vector<Target> chosen;
@@ -149,13 +196,21 @@ Input planSeedTargets(std::uint64_t job, const std::string& structure, double sp
   for (const auto& o : e.organs)
     organs += "; " + organLine(o);
   in.summary = fmt::format(
-      "seed plan: {} seeds of {} at {:g} U for {:g} Gy to '{}' ({:.1f} cm³): V100 {:.1f} %, D90 "
-      "{:.1f} %, V150 {:.1f} %{}; {}; uniform loading {}",
-      chosen.size(), model->name, ask.strength_U, ask.prescription_Gy, target->name, e.target_cm3,
-      100.0 * e.target.v100, e.target.d90_percent, 100.0 * e.target.v150, organs, candidates,
-      uniform ? fmt::format("({:g} mm apart) needs {} seeds: {}", uniform->spacing_mm,
-                            uniform->chosen.size(), uniform->evaluation.describe())
-              : "does not cover it: " + uniform.error().message);
+      "{}seed plan: {} seeds {}of {} at {:g} U for {:g} Gy to '{}' ({:.1f} cm³): V100 {:.1f} %, "
+      "D90 {:.1f} %, V150 {:.1f} %{}; {}",
+      delivered, chosen.size(), request.implanted.empty() ? "" : "to add ", model->name,
+      ask.strength_U, ask.prescription_Gy, target->name, e.target_cm3, 100.0 * e.target.v100,
+      e.target.d90_percent, 100.0 * e.target.v150, organs, candidates);
+  if (!plan->raised_limits.empty())
+    in.summary +=
+        fmt::format("; limits the implanted seeds broke: {}", fmt::join(plan->raised_limits, "; "));
+  if (request.implanted.empty()) {  // the usual baseline, for a first plan
+    const auto uniform = dosimetry::uniformLoading(request);
+    in.summary += "; uniform loading " +
+                  (uniform ? fmt::format("({:g} mm apart) needs {} seeds: {}", uniform->spacing_mm,
+                                         uniform->chosen.size(), uniform->evaluation.describe())
+                           : "does not cover it: " + uniform.error().message);
+  }
   in.kind = InputKind::kTargetsProposed;
   return in;
 }

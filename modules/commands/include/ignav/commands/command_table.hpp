@@ -379,12 +379,15 @@ inline constexpr InputSpec kInputRows[] = {
      "every clearance kept, with alternatives (StructuresState.placements); once the robot is "
      "mounted and registered, how far it stands from the proposal and what it covers there"},
     {I::kPlanSeeds, "plan_seeds", 37, R::kPlanner, kCommand,
-     kNone.text("STRUCTURE [model=NAME] [rx=GY] [strength=U] [spacing=MM]: a target structure "
-                "to dose, and what differs from the site's dosimetry: defaults (seed model, "
-                "prescription, every seed's air-kerma strength, the candidates' lattice)"),
+     kNone.text("STRUCTURE [model=NAME] [rx=GY] [strength=U] [spacing=MM] [implanted=none]: a "
+                "target structure to dose, and what differs from the site's dosimetry: defaults "
+                "(seed model, prescription, every seed's air-kerma strength, the candidates' "
+                "lattice); the confirmation CT's seeds count unless implanted=none"),
      "plan the fewest seeds that give the structure its prescription (V100 ≥ 95 %, D90 ≥ "
      "100 %) while every avoided structure stays within the site's dose limits, in the "
-     "background, among the positions the needle reaches with every clearance kept; the seeds "
+     "background, among the positions the needle reaches with every clearance kept; after a "
+     "confirmation CT, the seeds it found are counted as implanted (their dose, planned against "
+     "delivered, the cold spots) and the plan adds to them; the seeds "
      "arrive as proposed targets (StructuresState.proposed, the dose in its message) that "
      "accept_proposals makes the plan's"},
     {I::kConfigLoaded, "config_loaded", kNoWireKind, R::kApprover, kServer, kNone,

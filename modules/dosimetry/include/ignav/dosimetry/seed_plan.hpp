@@ -51,7 +51,10 @@ struct SeedPlanRequest {
   DoseStructure target;
   std::vector<OrganAtRisk> organs;
   std::vector<Seed> candidates;  // where a seed may go, each with its axis
-  double min_v100 = 0.95;        // fraction of the target at ≥ 100 %
+  // Seeds already in the patient (re-planning during the implant, from the confirmation CT):
+  // their dose is there before any candidate's; the plan chooses the seeds to add.
+  std::vector<Seed> implanted;
+  double min_v100 = 0.95;  // fraction of the target at ≥ 100 %
   double min_d90_percent = 100.0;
   std::size_t max_seeds = 100;  // the plan's targets per insertion
 };
@@ -68,7 +71,7 @@ struct OrganResult {
   OrganLimits limits;
 };
 
-// A set of seeds judged on every voxel of the request's structures.
+// A set of seeds, with the request's implanted ones, judged on every voxel of its structures.
 struct PlanEvaluation {
   TargetMetrics target;
   double target_cm3 = 0.0;
@@ -89,12 +92,22 @@ struct SeedPlan {
   PlanEvaluation evaluation;
   double relaxed_seeds = 0.0;  // the linear relaxation's Σ weights: a floor for the count
   std::size_t lp_rows = 0, lp_columns = 0;
+  // Re-planning: each organ's limit the implanted seeds already exceed, and what it became
+  // ("urethra D10 160.2 % delivered already, held to 165.2 %").
+  std::vector<std::string> raised_limits;
 };
+
+// Re-planning: an organ the implanted seeds already take over a limit may rise this many points
+// of the prescription above what it has (its dose cannot be taken back; the target's cannot be
+// recovered without adding some).
+constexpr double kReplanRise_percent = 5.0;
 // `stage` names what runs: "dose per candidate", "linear programme", "repair", "every voxel".
 using PlanProgress =
     std::function<void(std::size_t done, std::size_t total, std::string_view stage)>;
 // The plan, or `infeasible_plan` naming the constraints no choice among the candidates met
-// (and what the best choice reached), or `too_many_seeds`.
+// (and what the best choice reached), or `too_many_seeds`. With implanted seeds that already
+// meet every goal, a plan of no seeds; with implanted seeds over an organ's limit, that limit is
+// raised to what they give plus kReplanRise_percent (SeedPlan::raised_limits).
 Expected<SeedPlan> planSeeds(const SeedPlanRequest& request, const PlanProgress& progress = {});
 
 // The usual baseline: seeds spread evenly through the target (no two candidates nearer than
@@ -107,5 +120,15 @@ struct UniformLoading {
   PlanEvaluation evaluation;
 };
 Expected<UniformLoading> uniformLoading(const SeedPlanRequest& request);
+
+// Where the target is cold: its voxels below the prescription, joined into regions (voxels no
+// farther apart than 1.5 voxel sides), the largest first, those of at least `min_cm3`.
+struct ColdSpot {
+  Eigen::Vector3d centroid_lps_mm = Eigen::Vector3d::Zero();
+  double volume_cm3 = 0.0;
+  double min_dose_Gy = 0.0;  // its coldest voxel's
+};
+Expected<std::vector<ColdSpot>> coldSpots(const SeedPlanRequest& request,
+                                          const std::vector<Seed>& seeds, double min_cm3 = 0.05);
 
 }  // namespace ignav::dosimetry

@@ -371,6 +371,9 @@ struct SeedPlanAsk {
   std::string seed_model_path;  // <the site's seed_models>/<name>.yaml
   double prescription_Gy = 0.0;
   double strength_U = 0.0;
+  // The confirmation CT's seeds are in the patient: their dose counts, the plan adds to them
+  // (re-planning during the implant); `implanted=none` leaves them out.
+  bool implanted = true;
 };
 
 struct TargetProposals {
