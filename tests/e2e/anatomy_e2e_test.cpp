@@ -158,6 +158,22 @@ TEST(AnatomyE2E, ATargetWhoseNeedleCrossesTheUrethraIsRefusedUntilOverriddenWith
   EXPECT_EQ(status, 0) << text;
 }
 
+// The rest of a proposal's accept: `count` targets, every one planned; the plan locks, and the
+// session, stopped, replays.
+void acceptedLockedAndReplayed(ServerProcess& server, std::unique_ptr<protocol::Client> op,
+                               std::size_t count) {
+  op->waitFor([&](const json& s) { return s.contains("targets") && s["targets"].size() == count; },
+              10s);
+  for (const auto& [id, t] : op->state()["targets"].items())
+    EXPECT_EQ(t["status"], "planned") << id << ": " << t.dump();
+  lockAndWaitForApproval(*op);
+  op.reset();
+  const auto dir = server.sessionDir();
+  server.stop();
+  const auto [status, text] = replayVerified(dir);
+  EXPECT_EQ(status, 0) << text;
+}
+
 // Targets that fill the phantom's prostate, proposed and accepted through ignavctl over DDS:
 // the proposal lists them and is exported for Slicer; accepted (two by id, then the rest) they
 // are planned targets that lock as one insertion; the session replays.
@@ -199,16 +215,7 @@ TEST(AnatomyE2E, TargetsProposedToFillTheProstateAreAcceptedAndLockAsOneInsertio
   const auto again = run("targets accept 1");
   EXPECT_NE(again.output.find("unknown_proposal"), std::string::npos) << again.output;
   ASSERT_EQ(run("targets accept").exit_code, 0);
-  op->waitFor([&](const json& s) { return s.contains("targets") && s["targets"].size() == count; },
-              10s);
-  for (const auto& [id, t] : op->state()["targets"].items())
-    EXPECT_EQ(t["status"], "planned") << id << ": " << t.dump();
-  lockAndWaitForApproval(*op);
-  op.reset();
-  const auto dir = server.sessionDir();
-  server.stop();
-  const auto [status, text] = replayVerified(dir);
-  EXPECT_EQ(status, 0) << text;
+  acceptedLockedAndReplayed(server, std::move(op), count);
 }
 
 // A seed plan (issue 42) through ignavctl over DDS: bad requests refused by name with the session
@@ -249,16 +256,7 @@ TEST(AnatomyE2E, ASeedPlanForTheProstateIsProposedAcceptedAndLocked) {
   ASSERT_GT(count, 20u);
   ASSERT_LE(count, 100u);
   ASSERT_EQ(run("targets accept").exit_code, 0);
-  op->waitFor([&](const json& s) { return s.contains("targets") && s["targets"].size() == count; },
-              10s);
-  for (const auto& [id, t] : op->state()["targets"].items())
-    EXPECT_EQ(t["status"], "planned") << id << ": " << t.dump();
-  lockAndWaitForApproval(*op);
-  op.reset();
-  const auto dir = server.sessionDir();
-  server.stop();
-  const auto [status, text] = replayVerified(dir);
-  EXPECT_EQ(status, 0) << text;
+  acceptedLockedAndReplayed(server, std::move(op), count);
 }
 
 TEST(AnatomyE2E, TheRobotIsPlacedOnThePlanningCtAndTheMountedRobotMeasuredAgainstIt) {

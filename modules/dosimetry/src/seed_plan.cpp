@@ -74,7 +74,7 @@ class Scene {
  public:
   Scene(const SeedPlanRequest& r, std::size_t target_points, std::size_t organ_points,
         const PlanProgress& progress)
-      : request_(r), gy_per_rate_(implantGyPerRate(*r.table, r.strength_U)) {
+      : gy_per_rate_(implantGyPerRate(*r.table, r.strength_U)) {
     samples_.push_back(spread(r.target.voxels_lps_mm, target_points));
     for (const auto& organ : r.organs)
       samples_.push_back(spread(organ.structure.voxels_lps_mm, organ_points));
@@ -169,7 +169,6 @@ class Scene {
   }
 
  private:
-  const SeedPlanRequest& request_;
   double gy_per_rate_;
   std::vector<std::vector<Eigen::Vector3d>> samples_;  // [0] target, then the organs
   std::vector<std::vector<float>> influence_;          // [structure][candidate · points + point]

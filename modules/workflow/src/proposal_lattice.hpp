@@ -13,6 +13,16 @@
 
 namespace ignav::workflow {
 
+// What every proposal's job starts from: its failure (target_proposal_failed naming `job`), and
+// the structure it fills on the snapshot; none, with the failure's error, when it or the
+// registration is missing (the command checked both: the snapshot is the same).
+struct ProposalStart {
+  Input failed;
+  const anatomy::Structure* structure = nullptr;
+};
+ProposalStart startProposal(std::uint64_t job, const std::string& structure, double spacing_mm,
+                            const Session& s);
+
 // The points of a lattice of `spacing_mm` inside `mask` (LPS): along the robot's axes (its
 // insertion along z, so points come in layers the stylet reaches alike), through the mask's
 // centroid, over its box in that frame. None when more than kMaxProposalCandidates.

@@ -107,17 +107,10 @@ std::string organLine(const dosimetry::OrganResult& o) {
 Input planSeedTargets(std::uint64_t job, const std::string& structure, double spacing_mm,
                       const SeedPlanAsk& ask, const std::shared_ptr<const Session>& snapshot,
                       const JobContext& context) {
-  Input in;
-  in.job = job;
-  in.path = fmt::format("{} {:g}", structure, spacing_mm);
-  in.kind = InputKind::kTargetProposalFailed;
   const Session& s = *snapshot;
+  auto [in, target] = startProposal(job, structure, spacing_mm, s);
+  if (!target) return in;
   const auto* set = s.structures.loaded.set.get();
-  const anatomy::Structure* target = set ? set->find(structure) : nullptr;
-  if (!target || !s.registration) {  // the command checked both; the snapshot is the same
-    in.error = fmt::format("'{}' is not loaded, or the CT is not registered", structure);
-    return in;
-  }
   const auto model = dosimetry::readSeedModel(ask.seed_model_path);
   if (!model) {
     in.error = fmt::format("seed model '{}': {}", ask.seed_model, model.error().message);

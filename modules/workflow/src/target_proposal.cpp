@@ -15,6 +15,19 @@
 
 namespace ignav::workflow {
 
+ProposalStart startProposal(std::uint64_t job, const std::string& structure, double spacing_mm,
+                            const Session& s) {
+  ProposalStart start;
+  start.failed.job = job;
+  start.failed.path = fmt::format("{} {:g}", structure, spacing_mm);
+  start.failed.kind = InputKind::kTargetProposalFailed;
+  const auto* set = s.structures.loaded.set.get();
+  start.structure = set && s.registration ? set->find(structure) : nullptr;
+  if (!start.structure)
+    start.failed.error = fmt::format("'{}' is not loaded, or the CT is not registered", structure);
+  return start;
+}
+
 std::optional<std::vector<Eigen::Vector3d>> latticeIn(const anatomy::Mask& mask,
                                                       const registration::Registration& reg,
                                                       double spacing_mm) {
@@ -144,17 +157,9 @@ std::string fittingSpacing(const Session& s, const anatomy::Mask& mask, double s
 
 Input proposeTargets(std::uint64_t job, const std::string& structure, double spacing_mm,
                      const std::shared_ptr<const Session>& snapshot, const JobContext& context) {
-  Input in;
-  in.job = job;
-  in.path = fmt::format("{} {:g}", structure, spacing_mm);
-  in.kind = InputKind::kTargetProposalFailed;
   const Session& s = *snapshot;
-  const auto* set = s.structures.loaded.set.get();
-  const anatomy::Structure* filled = set ? set->find(structure) : nullptr;
-  if (!filled || !s.registration) {  // the command checked both; the snapshot is the same
-    in.error = fmt::format("'{}' is not loaded, or the CT is not registered", structure);
-    return in;
-  }
+  auto [in, filled] = startProposal(job, structure, spacing_mm, s);
+  if (!filled) return in;
   const auto& reg = *s.registration;
   const anatomy::Mask& mask = filled->mask;
 
