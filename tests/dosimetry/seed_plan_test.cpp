@@ -172,20 +172,20 @@ TEST(SeedPlan, BadRequestsAreRefusedNamingTheField) {
   EXPECT_EQ(refused([](auto& r) { r.max_seeds = 3; }).rfind("too_many_seeds", 0), 0u);
 }
 
-// Intra-operative re-planning: the plan's seeds as delivered (placed with 2 mm errors, three of
-// them lost) fall short; the seeds the re-plan adds to them bring every goal back, judged here
-// from the formalism.
+// Intra-operative re-planning: the plan's seeds as delivered (displaced along the needle's track,
+// LDR's largest placement error, 2 mm RMS; three of them lost) fall short; the seeds the re-plan
+// adds to them bring every goal back, judged here from the formalism.
 TEST(SeedPlan, SeedsAddedToThoseImplantedRecoverTheCoverage) {
   SeedPlanRequest r = gland();
   const auto plan = planSeeds(r);
   ASSERT_TRUE(plan.ok()) << plan.error().message;
   std::mt19937 rng(7);
-  std::normal_distribution<double> error(0.0, 2.0 / std::sqrt(3.0));  // 2 mm RMS in 3D
+  std::normal_distribution<double> error(0.0, 2.0);
   std::vector<Seed> delivered;
   for (std::size_t n = 0; n < plan->chosen.size(); ++n) {
     if (n % 11 == 5) continue;  // lost
     Seed s = r.candidates[plan->chosen[n]];
-    s.centre_lps_mm += Eigen::Vector3d(error(rng), error(rng), error(rng));
+    s.centre_lps_mm += error(rng) * s.axis_lps;
     delivered.push_back(s);
   }
   ASSERT_EQ(delivered.size(), plan->chosen.size() - 3);
