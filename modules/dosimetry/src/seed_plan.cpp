@@ -100,7 +100,6 @@ class Scene {
     chosen_.assign(j_count, false);
   }
 
-  std::size_t structures() const { return samples_.size(); }
   std::size_t points(std::size_t s) const { return samples_[s].size(); }
   const float* influence(std::size_t s, std::size_t j) const {
     return &influence_[s][j * samples_[s].size()];
@@ -117,7 +116,6 @@ class Scene {
       if (chosen_[j]) out.push_back(j);
     return out;
   }
-  double gyPerRate() const { return gy_per_rate_; }
 
   void set(std::size_t j, bool on) {
     if (chosen_[j] == on) return;
@@ -211,12 +209,8 @@ std::vector<Bound> boundsOf(const SeedPlanRequest& r, const Scene& scene, const 
 // The linear relaxation (GLPK, dual simplex): minimise Σ x_j + W·(mean target shortfall) +
 // W·(mean organ excess), x_j in 0-1, on a subsample of the scene's points, doses in units of
 // the prescription. Returns each candidate's weight (zeros when GLPK fails).
-struct Relaxation {
-  std::vector<double> weight;
-  std::size_t rows = 0, columns = 0;
-};
-Relaxation relax(const SeedPlanRequest& r, const Scene& scene, std::size_t target_rows,
-                 std::size_t organ_rows) {
+std::vector<double> relax(const SeedPlanRequest& r, const Scene& scene, std::size_t target_rows,
+                          std::size_t organ_rows) {
   constexpr double kPenalty = 1000.0;  // a 1 % mean shortfall costs 10 seeds
   const std::size_t nj = r.candidates.size();
   const double rx = r.prescription_Gy;
@@ -293,16 +287,13 @@ Relaxation relax(const SeedPlanRequest& r, const Scene& scene, std::size_t targe
   parm.msg_lev = GLP_MSG_OFF;
   parm.meth = GLP_DUALP;  // all at zero is dual feasible: the objective's costs are ≥ 0
   parm.tm_lim = 20000;
-  Relaxation out;
-  out.rows = rows.size();
-  out.columns = static_cast<std::size_t>(cols);
-  out.weight.assign(nj, 0.0);
+  std::vector<double> weight(nj, 0.0);
   if (glp_simplex(lp, &parm) == 0)
     for (std::size_t j = 0; j < nj; ++j)
-      out.weight[j] = glp_get_col_prim(lp, static_cast<int>(j) + 1);
+      weight[j] = glp_get_col_prim(lp, static_cast<int>(j) + 1);
   glp_delete_prob(lp);
   glp_term_out(terminal);
-  return out;
+  return weight;
 }
 
 // The chosen seed giving the most dose to `b`'s points above `from_Gy`; none: the candidates'
@@ -422,11 +413,6 @@ Error infeasible(const SeedPlanRequest& r, const PlanEvaluation& best, std::size
 constexpr std::size_t kTargetSample = 12000, kOrganSample = 4000;
 
 }  // namespace
-
-double seedDose_Gy(const DoseRateTable& table, const Seed& seed, double strength_U,
-                   const Eigen::Vector3d& point_lps_mm) {
-  return doseAt(table, seed, implantGyPerRate(table, strength_U), point_lps_mm);
-}
 
 Status validate(const SeedPlanRequest& r) {
   auto bad = [](std::string message, const char* reason) -> Status {
@@ -555,32 +541,28 @@ Expected<SeedPlan> planSeeds(const SeedPlanRequest& asked, const PlanProgress& p
   }
   Scene scene(r, kTargetSample, kOrganSample, progress);
   if (progress) progress(0, 1, "linear programme");
-  const Relaxation relaxed = relax(r, scene, 1200, 400);
+  const std::vector<double> weight = relax(r, scene, 1200, 400);
   if (progress) progress(1, 1, "linear programme");
-
-  plan.relaxed_seeds = std::accumulate(relaxed.weight.begin(), relaxed.weight.end(), 0.0);
-  plan.lp_rows = relaxed.rows;
-  plan.lp_columns = relaxed.columns;
+  plan.relaxed_seeds = std::accumulate(weight.begin(), weight.end(), 0.0);
 
   // Rounded: the candidates the relaxation weighs most, as many as its weights add up to.
   std::vector<std::size_t> order(r.candidates.size());
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return relaxed.weight[a] > relaxed.weight[b];
-  });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return weight[a] > weight[b]; });
   const auto rounded = static_cast<std::size_t>(std::ceil(plan.relaxed_seeds - 1e-6));
   for (std::size_t m = 0; m < std::min(rounded, order.size()); ++m)
-    if (relaxed.weight[order[m]] > 1e-6) scene.set(order[m], true);
+    if (weight[order[m]] > 1e-6) scene.set(order[m], true);
 
   // Repaired and pruned on the sample, judged on every voxel; what the whole missed is
   // tightened on the sample and repaired again.
   std::vector<bool> banned(r.candidates.size(), false);
   Tightening tighten;
   bool found = false;
-  for (int round = 0; round < 6 && !found; ++round) {
+  for (int round = 0; round < 6; ++round) {
     const auto bounds = boundsOf(r, scene, tighten);
     const bool held = repair(scene, bounds, banned, progress);
-    if (held) prune(scene, bounds, relaxed.weight);
+    if (held) prune(scene, bounds, weight);
     if (progress) progress(0, 1, "every voxel");
     auto judged = evaluatePlan(r, seedsOf(r, scene.chosenList()));
     if (progress) progress(1, 1, "every voxel");

@@ -2,6 +2,7 @@
 // them roles, and an operator's override of one target's clearance.
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <sstream>
 
 #include <fmt/format.h>
@@ -15,6 +16,14 @@ namespace ignav::workflow::detail {
 namespace {
 
 using anatomy::kMaxMargin_mm;
+
+// The whole word as a finite number; none for anything else ("", "5mm", "nan").
+std::optional<double> finiteNumber(const std::string& word) {
+  char* end = nullptr;
+  const double number = std::strtod(word.c_str(), &end);
+  if (word.empty() || *end != '\0' || !std::isfinite(number)) return std::nullopt;
+  return number;
+}
 
 std::string names(const anatomy::StructureSet& set) {
   std::string out;
@@ -203,11 +212,9 @@ Refusal startTargetProposal(Session& s, const Input& in, ActionOutput& out) {
   };
   if (last == std::string::npos) return bad("a structure and a spacing are needed");
   const std::string word = in.path.substr(last + 1);
-  char* end = nullptr;
-  const double spacing = std::strtod(word.c_str(), &end);
-  if (word.empty() || *end != '\0' || !std::isfinite(spacing)) {
-    return bad("'" + word + "' is not a spacing in mm");
-  }
+  const auto parsed = finiteNumber(word);
+  if (!parsed) return bad("'" + word + "' is not a spacing in mm");
+  const double spacing = *parsed;
   if (spacing < kMinProposalSpacing_mm || spacing > kMaxProposalSpacing_mm) {
     return bad(fmt::format("a spacing of {:g} mm is outside {:g}-{:g} mm", spacing,
                            kMinProposalSpacing_mm, kMaxProposalSpacing_mm));
@@ -263,10 +270,9 @@ Refusal startSeedPlan(Session& s, const Input& in, ActionOutput& out) {
       ask.implanted = value == "confirmation";
       continue;
     }
-    char* end = nullptr;
-    const double number = std::strtod(value.c_str(), &end);
-    if (value.empty() || *end != '\0' || !std::isfinite(number))
-      return bad(fmt::format("{} '{}' is not a number", key, value));
+    const auto parsed = finiteNumber(value);
+    if (!parsed) return bad(fmt::format("{} '{}' is not a number", key, value));
+    const double number = *parsed;
     if (key == "rx")
       ask.prescription_Gy = number;
     else if (key == "strength")

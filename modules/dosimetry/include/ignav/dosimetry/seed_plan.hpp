@@ -83,15 +83,10 @@ struct PlanEvaluation {
 Expected<PlanEvaluation> evaluatePlan(const SeedPlanRequest& request,
                                       const std::vector<Seed>& seeds);
 
-// The permanent-implant dose (Gy) of one seed of `strength_U` at a point.
-double seedDose_Gy(const DoseRateTable& table, const Seed& seed, double strength_U,
-                   const Eigen::Vector3d& point_lps_mm);
-
 struct SeedPlan {
   std::vector<std::size_t> chosen;  // indices into the request's candidates, ascending
   PlanEvaluation evaluation;
   double relaxed_seeds = 0.0;  // the linear relaxation's Σ weights: a floor for the count
-  std::size_t lp_rows = 0, lp_columns = 0;
   // Re-planning: each organ's limit the implanted seeds already exceed, and what it became
   // ("urethra D10 160.2 % delivered already, held to 165.2 %").
   std::vector<std::string> raised_limits;
