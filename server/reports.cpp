@@ -12,6 +12,7 @@
 
 #include <Eigen/Geometry>
 
+#include "ignav/dosimetry/isodose.hpp"
 #include "ignav/kinematics/reachable_region.hpp"
 #include "ignav/kinematics/workspace_map.hpp"
 #include "ignav/registration/slicer_export.hpp"
@@ -100,6 +101,15 @@ volume::Overlays overlaysFor(const Session& session) {
                            1.0,
                            true,
                            set->structures[n].name});
+    }
+  }
+  // The seeds' isodose lines (issue 42): the delivered dose's once a confirmation CT found seeds,
+  // else the planned.
+  if (const auto& dose = session.dose.computed) {
+    if (const auto* latest = dose->latest()) {
+      for (auto& line :
+           dosimetry::isodoseOverlays(latest->dose_Gy, dose->grid, dose->seeds.prescription_Gy))
+        o.regions.push_back(std::move(line));
     }
   }
   for (const auto& t : session.targets) {

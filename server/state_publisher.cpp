@@ -128,6 +128,29 @@ void StatePublisher::publishStructures(const Session& s, const Readings& r) {
     m.mounted_entry_mm = placed.mounted->deviation.entry_mm;
     m.mounted_axis_deg = placed.mounted->deviation.axis_deg;
   }
+  m.dose_status = s.dose.status;
+  m.dose_message = s.dose.message;
+  if (const auto& computed = s.dose.computed) {
+    for (const auto& d : computed->doses) {
+      const auto& e = d.evaluation;
+      protocol::DoseMetricsInfo target;
+      target.structure = computed->structure;
+      target.which = d.what;
+      target.d90_percent = e.target.d90_percent;
+      target.v100 = e.target.v100;
+      target.v150 = e.target.v150;
+      m.dose.push_back(target);
+      for (const auto& o : e.organs) {
+        protocol::DoseMetricsInfo organ;
+        organ.structure = o.name;
+        organ.which = d.what;
+        organ.d10_percent = o.metrics.d10_percent;
+        organ.dmax_percent = o.metrics.dmax_percent;
+        organ.d2cc_gy = o.metrics.d2cc_Gy;
+        m.dose.push_back(organ);
+      }
+    }
+  }
   structures_.write(m);
 }
 

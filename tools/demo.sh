@@ -121,6 +121,9 @@ print(f"in the rod world: T{paused} would have landed {aimed['finished_off_plan_
       f"aimed; re-aimed from its needle's path it landed {landed['landing_off_plan_mm']:.2f} mm off "
       f"(the world's truth; the server's measurement is above)")
 PY
+echo "== the seeds' dose (docs/DOSIMETRY.md): re-planned from what was implanted, TG-43U1"
+$ctl run configs/demo/seeds.yaml --out-dir "$session" | tee "$session/seed_plan.txt"
+$ctl structures ls | awk '/^robot placement/ {p = 0} /^dose / {p = 1} p' | tee "$session/dose.txt"
 echo "== what compensation buys in each world, 24 targets (ignav-plan world-study)"
 "$plan" world-study | tee "$session/world_study.md"
 echo

@@ -37,6 +37,8 @@ packages=(
   # reference DICOM files for tests (pydicom ships real edge cases); the RT Structure Set
   # reader's independent references: dicompyler-core's volumes and plastimatch's rasterisation
   python3-pydicom python3-numpy python3-dicompylercore plastimatch
+  # David Clunie's DICOM validator (dciodvfy): the RT Plan and RT Dose checked against the IODs
+  dicom3tools
   # the web viewer's browser test: Debian's chromium, driven headless by playwright-core
   chromium fonts-dejavu-core
 )

@@ -256,6 +256,46 @@ TEST(AnatomyE2E, ASeedPlanForTheProstateIsProposedAcceptedAndLocked) {
   ASSERT_GT(count, 20u);
   ASSERT_LE(count, 100u);
   ASSERT_EQ(run("targets accept").exit_code, 0);
+  // Accepted, the seeds' dose: computed on the server, in the state, its files in the session
+  // folder, its isodose lines on the slices.
+  op->waitFor(
+      [](const json& s) {
+        const auto status = stateText(s, "structures", "dose_status");
+        return status == "computed" || status == "failed";
+      },
+      120s);
+  ASSERT_EQ(stateText(op->state(), "structures", "dose_status"), "computed")
+      << stateText(op->state(), "structures", "dose_message");
+  bool prostate_seen = false;
+  for (const auto& d : op->state()["structures"]["dose"]) {
+    if (d["structure"] != "prostate") continue;
+    prostate_seen = true;
+    EXPECT_EQ(d["which"], "planned");
+    EXPECT_GE(d["v100"].get<double>(), 0.95 - 0.003);
+    EXPECT_GE(d["d90_percent"].get<double>(), 99.7);
+  }
+  EXPECT_TRUE(prostate_seen) << op->state()["structures"].dump();
+  for (const char* file :
+       {"dose/planned_rtdose.dcm", "dose/planned_rtplan.dcm", "dose/structures_rtstruct.dcm",
+        "dose/planned_dose.nrrd", "dose/dvh.png", "dose/dvh.csv"})
+    EXPECT_TRUE(waitForFile(server.sessionDir() / file)) << file;
+  protocol::SliceArgs through;
+  through.view = "axial";
+  const json first_target = op->state()["targets"].begin().value();
+  through.centre_lps = vec(first_target["lps"]);
+  through.size_px = 256;
+  through.pixel_mm = 0.25;
+  const auto slice = op->slice(through, 30s);
+  ASSERT_TRUE(slice.ok) << slice.message;
+  const cv::Mat img = cv::imdecode(slice.png, cv::IMREAD_COLOR);
+  int isodose_px = 0;  // the 100 % line's red (255, 40, 40)
+  for (int v = 0; v < img.rows; ++v)
+    for (int u = 0; u < img.cols; ++u)
+      isodose_px += img.at<cv::Vec3b>(v, u) == cv::Vec3b(40, 40, 255);
+  EXPECT_GT(isodose_px, 40);
+  const auto refused_dose = run("targets dose prostate rx=-5");
+  EXPECT_NE(refused_dose.exit_code, 0);
+  EXPECT_NE(refused_dose.output.find("bad_seed_plan"), std::string::npos) << refused_dose.output;
   acceptedLockedAndReplayed(server, std::move(op), count);
 }
 

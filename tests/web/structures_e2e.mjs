@@ -13,7 +13,8 @@
 //     the proposed skin entry drawn where the slice puts it; registered, the mounted robot measured
 //   plan seeds at 0.7 U: progress, then as many proposals as the plan's message says (issue 42)
 //   propose targets at 8 mm: every proposal as the markups file has it and inside the prostate's
-//     voxels, drawn on its slice; one accepted, then all
+//     voxels, drawn on its slice; one accepted, then all; their dose as seeds (Dose): its metrics
+//     in the page as the state has them
 //   a target clicked where the demo's needle crosses the urethra: its clearance cell names the
 //     urethra, too close; lock_plan refuses it; overridden with a reason, the plan locks
 //
@@ -397,6 +398,15 @@ async function run(pages) {
     const className = await cell.getAttribute("class");
     check(!className.includes("warning"), `T${t.id} (${p.label}) is shown too close: ${await cell.textContent()}`);
   }
+
+  step("those targets' dose as seeds of 0.7 U (Dose): computed on the server, its metrics in the page");
+  await expectAccepted(page, "compute_dose", () => byTestId(page, "action-compute_dose").click());
+  const dosed = await waitText(page, "dose-status", /^computed: dose of oncura_6711 at 0\.7 U for 145 Gy to 'prostate'/, kJobTimeoutMs);
+  const planned = (await appState(page)).structures.dose.find((d) => d.structure === "prostate" && d.which === "planned");
+  const metrics = await byTestId(page, "dose-metrics-prostate-planned").textContent();
+  check(planned && metrics.includes(`D90 ${planned.d90_percent.toFixed(1)} %`) &&
+    metrics.includes(`V100 ${(100 * planned.v100).toFixed(1)} %`), `the page shows "${metrics}"`);
+  console.log(`   ${dosed.slice(0, 160)}…`);
 
   step(`a target clicked where the demo's needle crosses the urethra (robot ${fmt(kUrethralRobotMm)} mm)`);
   const registration = (await appState(page)).registration;

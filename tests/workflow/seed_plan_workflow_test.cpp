@@ -7,16 +7,21 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <functional>
 #include <random>
+#include <tuple>
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include "ignav/anatomy/site.hpp"
 #include "ignav/dosimetry/seed_plan.hpp"
 #include "ignav/dosimetry/tg43.hpp"
 #include "ignav/workflow/background_jobs.hpp"
 #include "ignav/workflow/reducer.hpp"
+#include "support/command_output.hpp"
+#include "support/dciodvfy.hpp"
 #include "workflow/bench.hpp"
 
 namespace ignav::workflow {
@@ -36,6 +41,13 @@ Reply sendAndRunJob(Bench& b, InputKind command, const std::string& text, JobKin
   for (const auto& job : pendingJobs(b.s))
     if (job.kind == kind) b.feed(job.run({}));
   return started;
+}
+
+// The job of `kind` the session awaits, run as the server's job thread runs it: with the session
+// folder `dir`.
+void runJob(Bench& b, JobKind kind, const std::filesystem::path& dir) {
+  for (const auto& job : pendingJobs(b.s))
+    if (job.kind == kind) b.feed(job.run({dir, {}}));
 }
 
 // A bench whose session has the prostate site (what config_loaded carries from server.yaml
@@ -255,6 +267,21 @@ TEST(SeedPlans, AfterTheConfirmationCtTheSeedsAddedRecoverWhatWasDelivered) {
   const auto [delivered_v100, delivered_d90] = coverage(delivered);
   EXPECT_LT(delivered_d90, planned_d90);
   EXPECT_LT(delivered_v100, 0.95);
+  // The dose the confirmation CT started: delivered beside planned, as the formalism gives here.
+  ASSERT_EQ(b.s.dose.status, "computing") << b.s.dose.message;
+  runJob(b, JobKind::kDoseComputation, {});
+  ASSERT_EQ(b.s.dose.status, "computed") << b.s.dose.message;
+  ASSERT_EQ(b.s.dose.computed->doses.size(), 2u);
+  for (const auto& [d, v100, d90, count] :
+       {std::tuple{&b.s.dose.computed->doses[0], planned_v100, planned_d90, planned.size()},
+        std::tuple{&b.s.dose.computed->doses[1], delivered_v100, delivered_d90,
+                   delivered.size()}}) {
+    EXPECT_EQ(d->seeds, count) << d->what;
+    EXPECT_NEAR(d->evaluation.target.v100, v100, 0.003) << d->what;
+    EXPECT_NEAR(d->evaluation.target.d90_percent, 100.0 * d90, 0.3) << d->what;
+  }
+  EXPECT_EQ(b.s.dose.computed->doses[1].what, "delivered");
+  EXPECT_FALSE(b.s.dose.computed->doses[1].cold_spots.empty());
   // Accepted, the seeds added are targets: each along its needle's tip, as the plan had them.
   const std::size_t before = b.s.targets.size();
   ASSERT_TRUE(b.send(b.command(InputKind::kAcceptProposals)).accepted);
@@ -281,6 +308,135 @@ TEST(SeedPlans, AfterTheConfirmationCtTheSeedsAddedRecoverWhatWasDelivered) {
       "%%, urethra D10 %.1f %%; with %zu added V100 %.1f %%, D90 %.1f %%, urethra D10 %.1f %%\n",
       100 * planned_v100, 100 * planned_d90, 100 * delivered_v100, 100 * delivered_d90,
       100 * urethra_delivered, added.size(), 100 * v100, 100 * d90, 100 * urethra_after);
+}
+
+// An accepted seed plan's dose, computed by the job accepting started, into a session folder:
+// its metrics against the formalism computed here, and the files read back by third parties:
+// dicompyler-core's DVH of the exported RT Dose and RT Structure Set (D90 and V100 within 1 %),
+// pydicom's reading of the RT Plan (a seed at each target), dciodvfy's check of the plan and
+// the dose, plastimatch's statistics of the NRRD.
+TEST(SeedDose, AnAcceptedPlansDoseIsWrittenAndThirdPartiesReadTheSameDose) {
+  namespace fs = std::filesystem;
+  using test::commandOutput;
+  Bench b;
+  withProstateSite(b);
+  ASSERT_TRUE(
+      sendAndRunJob(b, InputKind::kPlanSeeds, "prostate", JobKind::kTargetProposal).accepted);
+  ASSERT_TRUE(b.send(b.command(InputKind::kAcceptProposals)).accepted);
+  ASSERT_EQ(b.s.dose.status, "computing") << b.s.dose.message;
+  const fs::path dir = fs::temp_directory_path() / "ignav_seed_dose_test";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  runJob(b, JobKind::kDoseComputation, dir);
+  ASSERT_EQ(b.s.dose.status, "computed") << b.s.dose.message;
+  std::printf("%s\n", b.s.dose.message.c_str());
+  const auto& dose = *b.s.dose.computed;
+  ASSERT_EQ(dose.doses.size(), 1u);  // no confirmation CT: planned only
+  const auto& planned = dose.doses.front();
+  EXPECT_EQ(planned.what, "planned");
+  ASSERT_EQ(planned.seeds, b.s.targets.size());
+
+  // The metrics, against the formalism here on every voxel of the prostate.
+  std::vector<SeedAt> seeds;
+  for (const auto& t : b.s.targets) {
+    const auto path = needlePathLps(b.s, t.commandedJoints());
+    seeds.push_back({t.lps_mm, (path.back() - path[path.size() - 2]).normalized()});
+  }
+  const auto model = dosimetry::readSeedModel(IGNAV_SOURCE_DIR "/configs/seeds/oncura_6711.yaml");
+  ASSERT_TRUE(model.ok());
+  const double rx = 145.0;
+  const auto prostate =
+      implantDoses(*model, seeds, 0.6, voxelsOf(*b.s.structures.loaded.set->find("prostate")));
+  const double v100 = static_cast<double>(std::count_if(prostate.begin(), prostate.end(),
+                                                        [&](double d) { return d >= rx; })) /
+                      static_cast<double>(prostate.size());
+  const auto& e = planned.evaluation;
+  EXPECT_NEAR(e.target.v100, v100, 0.003);
+  EXPECT_NEAR(e.target.d90_percent, 100.0 * hottest(prostate, 0.9) / rx, 0.3);
+
+  // dicompyler-core, from the files the job wrote.
+  auto file = [&](const char* name) {
+    EXPECT_TRUE(fs::exists(dir / "dose" / name)) << name;
+    return (dir / "dose" / name).string();
+  };
+  const auto theirs = nlohmann::json::parse(commandOutput(
+      "/usr/bin/python3 " IGNAV_SOURCE_DIR "/tests/dosimetry/dvh_reference.py dvh " +
+      file("structures_rtstruct.dcm") + " " + file("planned_rtdose.dcm") + " 145 prostate"));
+  ASSERT_TRUE(theirs.contains("prostate")) << theirs.dump();
+  const auto& p = theirs.at("prostate");
+  EXPECT_NEAR(p.at("d90_gy").get<double>() / (e.target.d90_percent * rx / 100.0), 1.0, 0.01);
+  EXPECT_NEAR(p.at("v100").get<double>(), e.target.v100, 0.01);
+  std::printf("prostate D90 %.1f Gy (dicompyler-core %.1f), V100 %.3f (%.3f)\n",
+              e.target.d90_percent * rx / 100.0, p.at("d90_gy").get<double>(), e.target.v100,
+              p.at("v100").get<double>());
+
+  // The RT Plan: a seed at each target, the model and strength asked for.
+  const auto plan = nlohmann::json::parse(commandOutput(
+      "/usr/bin/python3 " IGNAV_SOURCE_DIR "/tests/dosimetry/rt_plan_reference.py plan " +
+      file("planned_rtplan.dcm")));
+  ASSERT_EQ(plan.at("seeds").size(), b.s.targets.size());
+  for (std::size_t n = 0; n < b.s.targets.size(); ++n)
+    for (int a = 0; a < 3; ++a)
+      EXPECT_NEAR(plan.at("seeds")[n][a].get<double>(), b.s.targets[n].lps_mm[a], 1e-3);
+  EXPECT_NEAR(plan.at("air_kerma_rate").get<double>(), 0.6, 1e-9);
+  EXPECT_EQ(plan.at("isotope"), "I-125");
+  EXPECT_EQ(test::iodErrors(file("planned_rtplan.dcm"), "RTPlan"), std::vector<std::string>{});
+  EXPECT_EQ(test::iodErrors(test::readableByDciodvfy(file("planned_rtdose.dcm")), "RTDose"),
+            std::vector<std::string>{});
+
+  // The NRRD: plastimatch's maximum is the grid's.
+  const std::string stats = commandOutput("plastimatch stats " + file("planned_dose.nrrd"));
+  const auto at = stats.find("MAX");
+  ASSERT_NE(at, std::string::npos) << stats;
+  const double max_Gy = *std::max_element(planned.dose_Gy->begin(), planned.dose_Gy->end());
+  EXPECT_NEAR(std::stod(stats.substr(at + 3)), max_Gy, 1e-3 * max_Gy) << stats;
+  EXPECT_TRUE(fs::exists(dir / "dose/dvh.png"));
+  EXPECT_TRUE(fs::exists(dir / "dose/dvh.csv"));
+  // The report shows the metrics and the plot.
+  const std::string report = procedureReport(b.s, {});
+  EXPECT_NE(report.find("## Dose (computed)"), std::string::npos);
+  EXPECT_NE(report.find("![dose-volume histograms](dose/dvh.png)"), std::string::npos);
+}
+
+// compute_dose's bad words leave the session as it was, each refusal naming what.
+TEST(SeedDose, BadDoseRequestsAreRefusedNamingWhatAndChangeNothing) {
+  Bench b;
+  EXPECT_EQ(b.send(withText(b, InputKind::kComputeDose, "prostate")).error_code, "no_structures");
+  withProstateSite(b);
+  // A target clicked in the prostate (the demo's first).
+  const Reply added = b.send(
+      b.command(InputKind::kAddTarget, {b.s.registration->toImage(Eigen::Vector3d(8, 12, -175))}));
+  ASSERT_TRUE(added.accepted) << added.message;
+  ASSERT_TRUE(b.s.targets.front().plannable()) << b.s.targets.front().message;
+  const auto before = b.s.revision;
+  struct Case {
+    const char* text;
+    const char* code;
+    const char* says;
+  };
+  for (const Case& c :
+       {Case{"", "bad_arguments", "needs"}, Case{"rx=150", "nothing_to_dose", "which structure"},
+        Case{"prostate rx=0", "bad_seed_plan", "prescription"},
+        Case{"prostate rx=nan", "bad_seed_plan", "not a number"},
+        Case{"prostate strength=20", "bad_seed_plan", "seed strength"},
+        Case{"prostate spacing=5", "bad_seed_plan", "'spacing'"},
+        Case{"prostate model=nothing", "unknown_seed_model", "nothing"},
+        Case{"bladder", "unknown_structure", "bladder"},
+        Case{"urethra", "bad_seed_plan", "not a target"}}) {
+    const Reply r = b.send(withText(b, InputKind::kComputeDose, c.text));
+    EXPECT_FALSE(r.accepted) << c.text;
+    EXPECT_EQ(r.error_code, c.code) << c.text << ": " << r.message;
+    EXPECT_NE(r.message.find(c.says), std::string::npos) << c.text << ": " << r.message;
+  }
+  EXPECT_EQ(b.s.dose.status, "none");
+  EXPECT_EQ(b.s.revision, before);
+  // Asked well, for the target clicked: a dose of that one seed.
+  const Reply ok = b.send(withText(b, InputKind::kComputeDose, "prostate strength=0.5"));
+  ASSERT_TRUE(ok.accepted) << ok.message;
+  runJob(b, JobKind::kDoseComputation, {});
+  ASSERT_EQ(b.s.dose.status, "computed") << b.s.dose.message;
+  EXPECT_EQ(b.s.dose.computed->doses.front().seeds, 1u);
+  EXPECT_EQ(b.s.dose.computed->seeds.strength_U, 0.5);
 }
 
 // The site's dose limits and seed plan defaults are journaled with config_loaded: a replayed

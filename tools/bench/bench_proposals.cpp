@@ -5,7 +5,10 @@
 // they join the plan, on the event thread) and `clear_targets`, while a second client sends
 // `ping` every 5 ms. Prints the proposal's duration, accept_proposals' round trip and the pings'
 // median, p95, p99 and worst in milliseconds, idle and meanwhile. With COMMAND plan_seeds (issue
-// 42) the proposal is a seed plan, ARGS its words after the structure (e.g. strength=0.6).
+// 42) the proposal is a seed plan, ARGS its words after the structure (e.g. strength=0.6); the
+// dose computation an accepted plan starts is waited for between rounds, untimed. With COMMAND
+// compute_dose, one seed plan is made and accepted first, then each round computes its dose
+// again (the planned dose of its seeds on the CT's voxels, the files into the session folder).
 //   bench_proposals DOMAIN DDS_CONFIG_XML [ROUNDS] [ARGS] [COMMAND]
 #include <cstdio>
 #include <string>
@@ -37,23 +40,42 @@ int main(int argc, char** argv) {
                             ignav::protocol::chooseRobot(domain, xml, nullptr, "", 10s));
   if (!ignav::bench::phantomWithAnatomy(c, domain)) return 3;
 
+  if (command == "compute_dose") {
+    // The plan whose dose is computed again, accepted, and its first dose done.
+    const auto planned = c.send("plan_seeds", {request, {}, {}});
+    if (!planned.accepted || c.waitForJobOutcome(planned.job, 300s).status != "done") return 4;
+    const auto accepted = c.send("accept_proposals");
+    if (!accepted.accepted || c.waitForJobOutcome(accepted.job, 300s).status != "done") return 4;
+    const auto run = ignav::bench::timeJobsWhilePinging(c, domain, xml, rounds, [&] {
+      return c.send("compute_dose", {"prostate", {}, {}});
+    });
+    return ignav::bench::printJobsWhilePinging(run, command, "dose computation",
+                                               "the dose is computed")
+               ? 0
+               : 5;
+  }
   std::vector<double> accept_ms;
-  bool before = false;
-  const auto run = ignav::bench::timeJobsWhilePinging(c, domain, xml, rounds, [&] {
-    // The round before: its proposals into the plan (timed), then out again. (Its state follows
-    // its outcome on another topic: the wait is a moment, counted in this round.)
-    const auto proposed = [](const json& s) {
-      return s.contains("structures") && s["structures"]["proposal_status"] == "proposed";
-    };
-    if (before) c.waitFor(proposed, 5s);
-    before = true;
-    if (proposed(c.state())) {
-      const auto t = Clock::now();
-      if (c.send("accept_proposals").accepted) accept_ms.push_back(sinceMs(t));
-      c.send("clear_targets");
-    }
-    return c.send(command, {request, {}, {}});
-  });
+  const auto run = ignav::bench::timeJobsWhilePinging(
+      c, domain, xml, rounds,
+      [&] {
+        return c.send(command, {request, {}, {}});
+      },
+      [&] {
+        // The round before: its proposals into the plan (timed), then out again; an accepted
+        // seed plan's dose computation ends first. (Its state follows its outcome on another
+        // topic: the wait is a moment.)
+        c.waitFor(
+            [](const json& s) {
+              return s.contains("structures") && s["structures"]["proposal_status"] == "proposed";
+            },
+            5s);
+        const auto t = Clock::now();
+        const auto accepted = c.send("accept_proposals");
+        if (!accepted.accepted) return;
+        accept_ms.push_back(sinceMs(t));
+        if (accepted.job != 0) (void)c.waitForJobOutcome(accepted.job, 300s);
+        c.send("clear_targets");
+      });
   if (!ignav::bench::printJobsWhilePinging(run, command, "target proposal",
                                            "targets are proposed and accepted")) {
     return 5;

@@ -118,7 +118,8 @@ struct JobsWhilePinging {
 };
 inline JobsWhilePinging timeJobsWhilePinging(protocol::Client& c, std::uint32_t domain,
                                              const std::string& xml, int rounds,
-                                             const std::function<protocol::Reply()>& send) {
+                                             const std::function<protocol::Reply()>& send,
+                                             const std::function<void()>& between = {}) {
   JobsWhilePinging out;
   Pinger pinger(domain, xml);
   pinger.record(true);
@@ -127,6 +128,7 @@ inline JobsWhilePinging timeJobsWhilePinging(protocol::Client& c, std::uint32_t 
   out.idle_ms = pinger.take();
   pinger.record(true);
   for (int r = 0; r < rounds; ++r) {
+    if (between && r > 0) between();  // untimed: what the round before leaves to tidy
     const auto t = Clock::now();
     const auto sent = send();
     if (!sent.accepted) {

@@ -35,6 +35,7 @@ constexpr Alias kAliases[] = {
     {"targets propose", "propose_targets"},      // STRUCTURE SPACING_MM; waits for the outcome
     {"targets seeds", "plan_seeds"},  // STRUCTURE [model=..] [rx=..] [strength=..] [spacing=..]
     {"targets accept", "accept_proposals"},  // [ID...]: none, all of them
+    {"targets dose", "compute_dose"},        // STRUCTURE [model=..] [rx=..] [strength=..]; waits
     {"structures load", "load_structures"},
     {"structures role", "structure_role"},  // NAME ROLE [MARGIN_MM]
     {"structures place", "place_robot"},    // STRUCTURE [from SIDE]; waits for the outcome

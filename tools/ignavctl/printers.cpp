@@ -85,6 +85,19 @@ void printStructures(const protocol::StateMirror& state) {
       std::printf("  P%-4u (%8.2f, %8.2f, %8.2f) mm LPS\n", p.id, p.lps[0], p.lps[1], p.lps[2]);
     if (!s.proposed.empty()) std::cout << "  (targets accept [ID...] makes them targets)\n";
   }
+  if (!s.dose_status.empty() && s.dose_status != "none") {
+    std::cout << "dose " << s.dose_status << ": " << s.dose_message << "\n";
+    for (const auto& d : s.dose) {
+      if (std::isfinite(d.d90_percent)) {
+        std::printf("  %-14s %-9s V100 %5.1f %%  D90 %5.1f %%  V150 %5.1f %%\n",
+                    d.structure.c_str(), d.which.c_str(), 100.0 * d.v100, d.d90_percent,
+                    100.0 * d.v150);
+      } else {
+        std::printf("  %-14s %-9s D10 %5.1f %%  Dmax %6.0f %%  D2cc %6.1f Gy\n",
+                    d.structure.c_str(), d.which.c_str(), d.d10_percent, d.dmax_percent, d.d2cc_gy);
+      }
+    }
+  }
   if (s.placement_status.empty() || s.placement_status == "none") return;
   std::cout << "robot placement " << s.placement_status << ": " << s.placement_message << "\n";
   for (std::size_t n = 0; n < s.placements.size(); ++n) {

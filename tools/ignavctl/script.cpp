@@ -155,6 +155,21 @@ int runScript(Client& client, const std::string& path, const std::string& out_di
       if (!asExpected(step, reply, where)) return kExitRejected;
       if (step.contains("name")) names[step["name"]] = reply.target_id;
       catchUp(reply);
+      // wait_job: until the background job the command started ends (its JobOutcome, not a
+      // state field a job before it may have left as it is waited for).
+      if (step.value("wait_job", false) && reply.accepted && reply.job != 0) {
+        const auto seconds = step.value("timeout_s", 60.0);
+        const auto outcome = client.waitForJobOutcome(
+            reply.job, std::chrono::milliseconds(static_cast<long>(seconds * 1000)));
+        std::cout << where << " job " << outcome.job << " (" << outcome.kind
+                  << "): " << outcome.status << ": " << outcome.message << "\n";
+        if (outcome.status != "done") return kExitRejected;
+        client.waitUntil(
+            [&](const StateMirror& m) {
+              return m.workflow && m.workflow->revision >= outcome.revision;
+            },
+            std::chrono::seconds(10));
+      }
     } else if (step.contains("approve") || step.contains("emergency_stop")) {
       // approve: pending  approves what ApprovalState shows; {plan_id, digest} sends exactly
       // those (scripts use it to show that wrong ones are refused).

@@ -101,7 +101,8 @@ int structuresJob(Server& s, const AliasCall& call, double wait_s) {
       [](const protocol::StateMirror& m) {
         return m.structures && m.structures->status != "loading" &&
                m.structures->proposal_status != "proposing" &&
-               m.structures->placement_status != "placing";
+               m.structures->placement_status != "placing" &&
+               m.structures->dose_status != "computing";
       },
       std::chrono::seconds(5));
   if (s.as_json) {
@@ -166,14 +167,15 @@ void addAliasCommands(CLI::App& app, Action& chosen) {
   auto* targets = app.add_subcommand("targets", targets_usage);
   auto propose_wait_s = std::make_shared<double>(300.0);
   targets->add_option("--wait-s", *propose_wait_s,
-                      "propose, seeds: how long to wait for the proposal (default 300)");
+                      "propose, seeds, dose: how long to wait for the outcome (default 300)");
   onServerReadNow(
       targets, chosen,
       [words = wordsOf(targets, targets_usage), targets_usage, propose_wait_s]() -> Work {
         if (*words == std::vector<std::string>{"ls"}) return listTargets;
         return [call = aliasCall("targets", *words, targets_usage), propose_wait_s](Server& s) {
           if (call.row.kind == commands::InputKind::kProposeTargets ||
-              call.row.kind == commands::InputKind::kPlanSeeds)
+              call.row.kind == commands::InputKind::kPlanSeeds ||
+              call.row.kind == commands::InputKind::kComputeDose)
             return structuresJob(s, call, *propose_wait_s);
           return sendCall(s, call);
         };

@@ -92,7 +92,7 @@ Status writeRtStructureSet(const StructureSet& set, const CtFrame& ct,
       ct.frame_of_reference_uid.empty() ? newUid() : ct.frame_of_reference_uid;
   const std::string study = header.study_uid.empty() ? newUid() : header.study_uid;
   put(ds, DCM_SOPClassUID, UID_RTStructureSetStorage);
-  put(ds, DCM_SOPInstanceUID, newUid());
+  put(ds, DCM_SOPInstanceUID, header.sop_instance_uid.empty() ? newUid() : header.sop_instance_uid);
   put(ds, DCM_Modality, "RTSTRUCT");
   put(ds, DCM_Manufacturer, "ignav");
   put(ds, DCM_PatientName, header.patient_name);

@@ -12,15 +12,10 @@
 #include <Eigen/Geometry>
 
 #include "ignav/dosimetry/rt_dose.hpp"
+#include "ignav/dosimetry/rt_plan.hpp"
 
 namespace ignav::dosimetry {
 namespace {
-
-std::string newUid() {
-  char uid[100];
-  dcmGenerateUniqueIdentifier(uid, SITE_INSTANCE_UID_ROOT);
-  return uid;
-}
 
 std::string decimals(std::initializer_list<double> values) {
   std::string out;
@@ -69,17 +64,22 @@ Status writeRtDose(const std::vector<float>& dose_Gy, const volume::Geometry& gr
   const auto& s = grid.spacing_mm;
   const auto& o = grid.origin_lps_mm;
   put(DCM_SOPClassUID, UID_RTDoseStorage);
-  put(DCM_SOPInstanceUID, newUid());
+  put(DCM_SOPInstanceUID, newDicomUid());
   put(DCM_Modality, "RTDOSE");
   put(DCM_Manufacturer, "ignav");
   put(DCM_PatientName, header.patient_name);
   put(DCM_PatientID, header.patient_id);
-  put(DCM_StudyInstanceUID, header.study_uid.empty() ? newUid() : header.study_uid);
-  put(DCM_SeriesInstanceUID, newUid());
+  // Type 2 (present, may be empty), as the RT Dose IOD asks.
+  for (const DcmTagKey& tag : {DCM_PatientBirthDate, DCM_PatientSex, DCM_StudyDate, DCM_StudyTime,
+                               DCM_ReferringPhysicianName, DCM_StudyID, DCM_AccessionNumber,
+                               DCM_OperatorsName, DCM_PositionReferenceIndicator})
+    put(tag, "");
+  put(DCM_StudyInstanceUID, header.study_uid.empty() ? newDicomUid() : header.study_uid);
+  put(DCM_SeriesInstanceUID, newDicomUid());
   put(DCM_SeriesNumber, "1");
   put(DCM_InstanceNumber, "1");
   put(DCM_FrameOfReferenceUID,
-      header.frame_of_reference_uid.empty() ? newUid() : header.frame_of_reference_uid);
+      header.frame_of_reference_uid.empty() ? newDicomUid() : header.frame_of_reference_uid);
   put(DCM_ImagePositionPatient, decimals({o.x(), o.y(), o.z()}));
   put(DCM_ImageOrientationPatient,
       decimals({d(0, 0), d(1, 0), d(2, 0), d(0, 1), d(1, 1), d(2, 1)}));
@@ -102,12 +102,25 @@ Status writeRtDose(const std::vector<float>& dose_Gy, const volume::Geometry& gr
   put(DCM_DoseUnits, "GY");
   put(DCM_DoseType, "PHYSICAL");
   put(DCM_DoseSummationType, "PLAN");
+  if (!header.plan_uid.empty() && c.good()) {
+    DcmItem* plan = nullptr;
+    c = ds.findOrCreateSequenceItem(DCM_ReferencedRTPlanSequence, plan, -2);
+    if (c.good()) c = plan->putAndInsertString(DCM_ReferencedSOPClassUID, UID_RTPlanStorage);
+    if (c.good())
+      c = plan->putAndInsertString(DCM_ReferencedSOPInstanceUID, header.plan_uid.c_str());
+  }
   put(DCM_DoseComment, header.comment);
   put(DCM_DoseGridScaling, fmt::format("{:.10e}", scaling));
   if (c.good()) {
-    c = ds.putAndInsertUint8Array(
-        DCM_PixelData, reinterpret_cast<const Uint8*>(counts.data()),
-        static_cast<unsigned long>(counts.size() * sizeof(std::uint32_t)));
+    // OW, as DICOM wants pixels of more than 8 bits: each 32-bit count as two 16-bit words, the
+    // low one first (little endian, as the file is written).
+    std::vector<Uint16> words(2 * counts.size());
+    for (std::size_t v = 0; v < counts.size(); ++v) {
+      words[2 * v] = static_cast<Uint16>(counts[v] & 0xffffu);
+      words[2 * v + 1] = static_cast<Uint16>(counts[v] >> 16);
+    }
+    c = ds.putAndInsertUint16Array(DCM_PixelData, words.data(),
+                                   static_cast<unsigned long>(words.size()));
   }
   if (c.good()) c = file.saveFile(path.c_str(), EXS_LittleEndianExplicit);
   if (c.bad()) return makeError(ErrorCode::kIo, path + ": cannot write the RT Dose: " + c.text());

@@ -414,7 +414,25 @@ constexpr std::size_t kTargetSample = 12000, kOrganSample = 4000;
 
 }  // namespace
 
-Status validate(const SeedPlanRequest& r) {
+namespace {
+
+// Every seed's centre finite and its axis a unit vector (`what` names them in the error).
+Status seedsFit(const std::vector<Seed>& seeds, const char* what) {
+  for (std::size_t j = 0; j < seeds.size(); ++j) {
+    const Seed& c = seeds[j];
+    if (!c.centre_lps_mm.allFinite() || !c.axis_lps.allFinite() ||
+        std::abs(c.axis_lps.norm() - 1.0) > 1e-6) {
+      return makeError(
+          ErrorCode::kInvalidArgument,
+          fmt::format("{} {}: its centre or axis (a unit vector) is not finite", what, j),
+          "bad_candidate");
+    }
+  }
+  return Ok{};
+}
+
+// What a dose needs of a request (validate without the candidates): evaluating given seeds.
+Status validateDose(const SeedPlanRequest& r) {
   auto bad = [](std::string message, const char* reason) -> Status {
     return makeError(ErrorCode::kInvalidArgument, std::move(message), reason);
   };
@@ -449,23 +467,19 @@ Status validate(const SeedPlanRequest& r) {
         return bad(fmt::format("organ '{}': a dose limit of {} % is no limit", o.structure.name, v),
                    "bad_limit");
   }
-  if (r.candidates.empty())
-    return bad("seed plan: no candidate positions (none reachable with every clearance kept)",
-               "no_candidates");
-  auto unfit = [](const Seed& c) {
-    return !c.centre_lps_mm.allFinite() || !c.axis_lps.allFinite() ||
-           std::abs(c.axis_lps.norm() - 1.0) > 1e-6;
-  };
-  for (std::size_t j = 0; j < r.candidates.size(); ++j)
-    if (unfit(r.candidates[j]))
-      return bad(fmt::format("candidate {}: its centre or axis (a unit vector) is not finite", j),
-                 "bad_candidate");
-  for (std::size_t j = 0; j < r.implanted.size(); ++j)
-    if (unfit(r.implanted[j]))
-      return bad(
-          fmt::format("implanted seed {}: its centre or axis (a unit vector) is not finite", j),
-          "bad_candidate");
-  return Ok{};
+  return seedsFit(r.implanted, "implanted seed");
+}
+
+}  // namespace
+
+Status validate(const SeedPlanRequest& r) {
+  if (auto ok = validateDose(r); !ok.ok()) return ok;
+  if (r.candidates.empty()) {
+    return makeError(ErrorCode::kInvalidArgument,
+                     "seed plan: no candidate positions (none reachable with every clearance kept)",
+                     "no_candidates");
+  }
+  return seedsFit(r.candidates, "candidate");
 }
 
 std::string PlanEvaluation::describe() const {
@@ -479,7 +493,8 @@ std::string PlanEvaluation::describe() const {
 }
 
 Expected<PlanEvaluation> evaluatePlan(const SeedPlanRequest& r, const std::vector<Seed>& seeds) {
-  if (auto ok = validate(r); !ok.ok()) return ok.error();
+  if (auto ok = validateDose(r); !ok.ok()) return ok.error();
+  if (auto ok = seedsFit(seeds, "seed"); !ok.ok()) return ok.error();
   const double g = implantGyPerRate(*r.table, r.strength_U), rx = r.prescription_Gy;
   std::vector<Seed> all = seeds;
   all.insert(all.end(), r.implanted.begin(), r.implanted.end());
@@ -487,6 +502,12 @@ Expected<PlanEvaluation> evaluatePlan(const SeedPlanRequest& r, const std::vecto
   auto target = DoseVolumeHistogram::of(dosesAt(*r.table, all, g, r.target.voxels_lps_mm),
                                         r.target.voxel_cm3);
   if (!target.ok()) return target.error();
+  auto curve = [rx](const std::string& name, const DoseVolumeHistogram& h) {
+    auto cumulative = h.cumulative(kCurveBin_Gy);
+    cumulative.resize(std::min(cumulative.size(), static_cast<std::size_t>(3.0 * rx) + 2));
+    return StructureCurve{name, std::move(cumulative)};
+  };
+  e.curves.push_back(curve(r.target.name, *target));
   e.target = targetMetrics(*target, rx);
   e.target_cm3 = target->volume_cm3();
   if (e.target.v100 < r.min_v100)
@@ -499,6 +520,7 @@ Expected<PlanEvaluation> evaluatePlan(const SeedPlanRequest& r, const std::vecto
     auto h = DoseVolumeHistogram::of(dosesAt(*r.table, all, g, o.structure.voxels_lps_mm),
                                      o.structure.voxel_cm3);
     if (!h.ok()) return h.error();
+    e.curves.push_back(curve(o.structure.name, *h));
     OrganResult result{o.structure.name, organMetrics(*h, rx), o.limits};
     const auto& m = result.metrics;
     const double d2cc_percent = 100.0 * m.d2cc_Gy / rx;
@@ -628,7 +650,8 @@ Expected<UniformLoading> uniformLoading(const SeedPlanRequest& r) {
 
 Expected<std::vector<ColdSpot>> coldSpots(const SeedPlanRequest& r, const std::vector<Seed>& seeds,
                                           double min_cm3) {
-  if (auto ok = validate(r); !ok.ok()) return ok.error();
+  if (auto ok = validateDose(r); !ok.ok()) return ok.error();
+  if (auto ok = seedsFit(seeds, "seed"); !ok.ok()) return ok.error();
   std::vector<Seed> all = seeds;
   all.insert(all.end(), r.implanted.begin(), r.implanted.end());
   const auto& voxels = r.target.voxels_lps_mm;

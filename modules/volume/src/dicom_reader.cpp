@@ -46,6 +46,7 @@ void registerDecodersOnce() {
 struct FileHeader {
   std::string path;
   std::string series_uid, modality, description, frame_of_reference_uid;
+  std::string study_uid, patient_name, patient_id;
   int rows = 0, cols = 0, frames = 1;
   Eigen::Vector3d row_dir, col_dir;         // IOP
   double row_spacing = 0, col_spacing = 0;  // PixelSpacing [row spacing, column spacing]
@@ -157,6 +158,9 @@ Expected<FileHeader> readHeader(const std::string& path, DcmFileFormat& ff, std:
   if (h.series_uid.empty()) return bad("missing SeriesInstanceUID (0020,000E)");
   h.description = str(ds, DCM_SeriesDescription);
   h.frame_of_reference_uid = str(ds, DCM_FrameOfReferenceUID);
+  h.study_uid = str(ds, DCM_StudyInstanceUID);
+  h.patient_name = str(ds, DCM_PatientName);
+  h.patient_id = str(ds, DCM_PatientID);
   Uint16 u16 = 0;
   auto needU16 = [&](const DcmTagKey& tag, int& out) {
     if (ds.findAndGetUint16(tag, u16).bad()) return false;
@@ -610,6 +614,9 @@ Expected<DicomLoadResult> readDicomSeries(const std::vector<std::string>& paths,
   vol.modality = ref.modality;
   vol.series_uid = uid;
   vol.frame_of_reference_uid = ref.frame_of_reference_uid;
+  vol.study_uid = ref.study_uid;
+  vol.patient_name = ref.patient_name;
+  vol.patient_id = ref.patient_id;
   vol.description = ref.description;
 
   // Storage: HU directly when the rescale is an integer shift, else raw with scale/offset.

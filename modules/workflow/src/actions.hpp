@@ -132,6 +132,24 @@ Refusal startSeedPlan(Session& s, const Input& in, ActionOutput& out);
 Refusal adoptProposals(Session& s, const Input& in, ActionOutput& out);
 Refusal noteProposalFailure(Session& s, const Input& in, ActionOutput& out);
 Refusal acceptProposals(Session& s, const Input& in, ActionOutput& out);
+// plan_seeds' and compute_dose's words: [STRUCTURE] [model=] [rx=] [strength=] (and for a plan
+// [spacing=] [implanted=], a structure required), each checked, the model among the site's, the
+// structure a target; defaults: the site's dosimetry (for a dose, the accepted seed plan's).
+struct SeedWords {
+  SeedPlanAsk ask;
+  double spacing_mm = 0.0;
+  std::string structure;  // as the set names it; "" when none was given
+};
+Refusal readSeedWords(const Session& s, const std::string& text, bool planning, SeedWords& out);
+
+// ---- Actions: the seeds' dose (dose_actions.cpp) ----
+
+Refusal startDoseComputation(Session& s, const Input& in, ActionOutput& out);
+Refusal adoptDose(Session& s, const Input& in, ActionOutput& out);
+Refusal noteDoseFailure(Session& s, const Input& in, ActionOutput& out);
+// The dose of the session's seeds again (after a seed plan is accepted, a confirmation CT
+// measured): started when the session knows its seeds (DoseStatus::seeds).
+void recomputeDose(Session& s, const std::string& why, ActionOutput& out);
 
 // ---- Actions: where to mount the robot (placement_actions.cpp) ----
 

@@ -68,6 +68,7 @@ Refusal adoptStructures(Session& s, const Input& in, ActionOutput& out) {
   st.source = in.path;
   st.message = in.summary;
   s.proposals = {};        // proposed in the structures before (one under way is ignored)
+  s.dose = {};             // judged on them
   s.robot_placement = {};  // placed for them likewise
   out.effects.structures_changed = true;
   evaluateAll(s, out.effects);
@@ -234,29 +235,30 @@ Refusal startTargetProposal(Session& s, const Input& in, ActionOutput& out) {
   return std::nullopt;
 }
 
-Refusal startSeedPlan(Session& s, const Input& in, ActionOutput& out) {
-  if (auto refused = canPropose(s)) return refused;
+Refusal readSeedWords(const Session& s, const std::string& text, bool planning, SeedWords& out) {
   if (!s.site || !s.site->dosimetry) {
     return Rejection{ReplyCode::kUnknownSeedModel,
                      "no seed models: the site file (server.yaml site:) has no dosimetry: block"};
   }
   const auto& site = *s.site->dosimetry;
-  // STRUCTURE [model=NAME] [rx=GY] [strength=U] [spacing=MM] [implanted=none]; the site's
-  // defaults otherwise.
-  SeedPlanAsk ask{site.seed_model, "", site.prescription_Gy, site.strength_U, true};
-  double spacing = site.spacing_mm;
-  std::string name;
+  // The site's defaults, or for a dose the seed plan's.
+  out.ask = planning || !s.dose.seeds
+                ? SeedPlanAsk{site.seed_model, "", site.prescription_Gy, site.strength_U, true}
+                : *s.dose.seeds;
+  out.spacing_mm = site.spacing_mm;
+  out.structure.clear();
+  SeedPlanAsk& ask = out.ask;
+  const char* usage = planning ? "STRUCTURE [model=NAME] [rx=GY] [strength=U] [spacing=MM] "
+                                 "[implanted=none]"
+                               : "STRUCTURE [model=NAME] [rx=GY] [strength=U]";
   const auto bad = [&](const std::string& why) {
-    return Rejection{ReplyCode::kBadSeedPlan,
-                     fmt::format("'{}': {} (STRUCTURE [model=NAME] [rx=GY] [strength=U] "
-                                 "[spacing=MM] [implanted=none])",
-                                 in.path, why)};
+    return Rejection{ReplyCode::kBadSeedPlan, fmt::format("'{}': {} ({})", text, why, usage)};
   };
-  std::istringstream words(in.path);
+  std::istringstream words(text);
   for (std::string word; words >> word;) {
     const auto eq = word.find('=');
     if (eq == std::string::npos) {
-      name += (name.empty() ? "" : " ") + word;
+      out.structure += (out.structure.empty() ? "" : " ") + word;
       continue;
     }
     const std::string key = word.substr(0, eq), value = word.substr(eq + 1);
@@ -264,7 +266,7 @@ Refusal startSeedPlan(Session& s, const Input& in, ActionOutput& out) {
       ask.seed_model = value;
       continue;
     }
-    if (key == "implanted") {
+    if (key == "implanted" && planning) {
       if (value != "none" && value != "confirmation")
         return bad("implanted='" + value + "' is neither confirmation nor none");
       ask.implanted = value == "confirmation";
@@ -277,20 +279,22 @@ Refusal startSeedPlan(Session& s, const Input& in, ActionOutput& out) {
       ask.prescription_Gy = number;
     else if (key == "strength")
       ask.strength_U = number;
-    else if (key == "spacing")
-      spacing = number;
+    else if (key == "spacing" && planning)
+      out.spacing_mm = number;
     else
-      return bad("'" + key + "' is none of model, rx, strength, spacing, implanted");
+      return bad(planning ? "'" + key + "' is none of model, rx, strength, spacing, implanted"
+                          : "'" + key + "' is none of model, rx, strength");
   }
-  if (name.empty()) return bad("a structure to cover is needed");
+  if (out.structure.empty() && planning) return bad("a structure to cover is needed");
   if (!(ask.prescription_Gy > 0.0 && ask.prescription_Gy <= 1000.0))
     return bad(fmt::format("a prescription of {:g} Gy is outside 0-1000 Gy", ask.prescription_Gy));
   if (!(ask.strength_U >= dosimetry::kMinSeedStrength_U &&
         ask.strength_U <= dosimetry::kMaxSeedStrength_U))
     return bad(fmt::format("a seed strength of {:g} U is outside {:g}-{:g} U", ask.strength_U,
                            dosimetry::kMinSeedStrength_U, dosimetry::kMaxSeedStrength_U));
-  if (!(spacing >= anatomy::kMinSeedSpacing_mm && spacing <= anatomy::kMaxSeedSpacing_mm))
-    return bad(fmt::format("a spacing of {:g} mm is outside {:g}-{:g} mm", spacing,
+  if (!(out.spacing_mm >= anatomy::kMinSeedSpacing_mm &&
+        out.spacing_mm <= anatomy::kMaxSeedSpacing_mm))
+    return bad(fmt::format("a spacing of {:g} mm is outside {:g}-{:g} mm", out.spacing_mm,
                            anatomy::kMinSeedSpacing_mm, anatomy::kMaxSeedSpacing_mm));
   if (std::find(site.seed_models.begin(), site.seed_models.end(), ask.seed_model) ==
       site.seed_models.end()) {
@@ -299,12 +303,24 @@ Refusal startSeedPlan(Session& s, const Input& in, ActionOutput& out) {
                                  fmt::join(site.seed_models, ", "))};
   }
   ask.seed_model_path = site.seed_models_dir + "/" + ask.seed_model + ".yaml";
-  const auto* structure = s.structures.loaded.set->find(name);
-  if (!structure) return unknownStructure(s, name);
+  if (out.structure.empty()) return std::nullopt;
+  const auto* structure = s.structures.loaded.set->find(out.structure);
+  if (!structure) return unknownStructure(s, out.structure);
+  out.structure = structure->name;
   const auto index =
       static_cast<std::size_t>(structure - s.structures.loaded.set->structures.data());
   if (s.structures.roles.at(index).role != anatomy::Role::kTarget)
     return bad(fmt::format("'{}' is not a target (structure_role gives it one)", structure->name));
+  return std::nullopt;
+}
+
+Refusal startSeedPlan(Session& s, const Input& in, ActionOutput& out) {
+  if (auto refused = canPropose(s)) return refused;
+  SeedWords words;
+  if (auto refused = readSeedWords(s, in.path, true, words)) return refused;
+  const SeedPlanAsk& ask = words.ask;
+  const double spacing = words.spacing_mm;
+  const auto* structure = s.structures.loaded.set->find(words.structure);
   const std::string what =
       fmt::format("planning seeds of {} at {:g} U for {:g} Gy to '{}' (candidates {:g} mm apart)",
                   ask.seed_model, ask.strength_U, ask.prescription_Gy, structure->name, spacing);
@@ -391,6 +407,11 @@ Refusal acceptProposals(Session& s, const Input& in, ActionOutput& out) {
     if (std::find(taken.begin(), taken.end(), &t) == taken.end()) left.push_back(t);
   p.targets = std::move(left);
   out.effects.structures_changed = true;
+  if (p.seed_plan) {  // the targets are seeds: their dose, planned
+    s.dose.seeds = *p.seed_plan;
+    s.dose.structure = p.structure;
+    recomputeDose(s, "a seed plan accepted", out);
+  }
   out.note = fmt::format("targets {} added{}; {} still proposed", added,
                          not_plannable ? fmt::format(" ({} of them no longer plannable: see "
                                                      "their messages)",

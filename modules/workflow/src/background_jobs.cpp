@@ -92,6 +92,16 @@ std::optional<BackgroundJob> robotPlacement(const Session& s) {
                        }};
 }
 
+std::optional<BackgroundJob> doseComputation(const Session& s) {
+  const auto& d = s.dose;
+  if (d.computing == 0) return std::nullopt;
+  return BackgroundJob{
+      JobKind::kDoseComputation, d.computing,
+      fmt::format("{} for '{}'", d.seeds ? d.seeds->seed_model : "", d.structure),
+      [job = d.computing, snapshot = std::make_shared<const Session>(s)](
+          const JobContext& context) { return computeDose(job, snapshot, context); }};
+}
+
 std::optional<BackgroundJob> placementCheck(const Session& s) {
   const auto& p = s.robot_placement;
   if (p.checking == 0 || p.poses.empty() || !s.registration) return std::nullopt;
@@ -152,6 +162,11 @@ const std::vector<JobKindSpec> kJobKinds = {
      placementCheck,
      [](const Session& s, const Input& in) {
        return staleJob("placement check", s.robot_placement.checking, in);
+     }},
+    {JobKind::kDoseComputation, "dose computation", InputKind::kDoseComputed,
+     InputKind::kDoseFailed, [](const Session& s) { return s.dose.computing; }, doseComputation,
+     [](const Session& s, const Input& in) {
+       return staleJob("dose computation", s.dose.computing, in);
      }},
 };
 

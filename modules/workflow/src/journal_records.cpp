@@ -546,6 +546,19 @@ Expected<ReplayedStep> replayRecord(const Session& session, const std::string& l
     }
     in.structures = std::move(again.structures);
   }
+  if (in.kind == InputKind::kDoseComputed &&
+      jobKindSpec(JobKind::kDoseComputation).awaited(session) == in.job) {
+    // Computed again on the session as it was asked (no files: they were written live): the
+    // same dose unless a seed model's file changed since (the summary gives the metrics).
+    auto again = computeDose(in.job, std::make_shared<const Session>(session), {});
+    if (again.kind != InputKind::kDoseComputed || again.summary != in.summary) {
+      return makeError(ErrorCode::kIo, fmt::format("{}: cannot compute the dose again ({})", where,
+                                                   again.kind == InputKind::kDoseComputed
+                                                       ? "it is now " + again.summary
+                                                       : again.error));
+    }
+    in.dose = std::move(again.dose);
+  }
   Step step = reduce(session, in);
   if (step.session.revision != entry->revision || toString(step.session.phase) != entry->phase) {
     // A refusal says why (the step's reply); a server's own input has no reply to show.

@@ -33,6 +33,7 @@ Refusal startVolumeLoad(Session& s, const Input& in, ActionOutput& out) {
   s.detecting = 0;    // a detection on the CT before is ignored when it ends
   s.structures = {};  // drawn on the CT before (a load under way is ignored when it ends)
   s.proposals = {};   // in them
+  s.dose = {};        // on it
   s.robot_placement = {};
   e.structures_changed = true;
   e.start_jobs.push_back(JobKind::kVolumeLoad);  // its outcome names this step's revision

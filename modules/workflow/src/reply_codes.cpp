@@ -148,12 +148,16 @@ const std::vector<ReplyCodeSpec> kCodes = {
      "`place_robot` naming a side the needle cannot come from (not inferior, superior, anterior, "
      "posterior, left or right)"},
     {C::kBadSeedPlan, "bad_seed_plan",
-     "`plan_seeds`: no structure, a word that is not model=, rx=, strength= or spacing=, a "
+     "`plan_seeds` (and `compute_dose`): no structure, a word that is not model=, rx=, strength= "
+     "or spacing=, a "
      "prescription outside 0-1000 Gy, a seed strength outside 0.05-10 U, a spacing outside "
      "2-15 mm, or a structure that is not a target"},
     {C::kUnknownSeedModel, "unknown_seed_model",
      "`plan_seeds` naming a seed model the site's seed models folder does not hold, or a site "
      "with no dosimetry: block"},
+    {C::kNothingToDose, "nothing_to_dose",
+     "`compute_dose` with no targets and no confirmation CT's seeds, or no structure named to "
+     "judge the dose on when no seed plan was accepted"},
     {C::kJournalFailed, "journal_failed",
      "the session journal cannot be written (disk full, I/O error): nothing was done, and every "
      "later change is refused until the server is restarted; `Health.journal` says why "

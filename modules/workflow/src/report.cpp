@@ -1,5 +1,6 @@
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <ctime>
 
@@ -119,6 +120,48 @@ std::string anatomySection(const Session& s) {
   return out;
 }
 
+// The seeds' dose (compute_dose): the metrics planned and delivered side by side, the DVH plot,
+// the files for 3D Slicer and planning systems.
+std::string doseSection(const Session& s) {
+  const auto& d = s.dose;
+  if (d.status == "none") return "";
+  std::string out = fmt::format("\n## Dose ({})\n\n- {}\n", d.status, d.message);
+  const auto& computed = d.computed;
+  if (!computed) return out;
+  const double rx = computed->seeds.prescription_Gy;
+  out += fmt::format("\n| dose | seeds | {} V100 | D90 | V150 |", computed->structure);
+  const auto& first = computed->doses.front().evaluation;
+  for (const auto& o : first.organs)
+    out += fmt::format(" {} D10 | D2cc |", o.name);
+  out += "\n|---|---|---|---|---|";
+  for (std::size_t n = 0; n < first.organs.size(); ++n)
+    out += "---|---|";
+  out += "\n";
+  for (const auto& dose : computed->doses) {
+    const auto& e = dose.evaluation;
+    out += fmt::format("| {} | {} | {:.1f} % | {:.1f} % ({:.0f} Gy) | {:.1f} % |", dose.what,
+                       dose.seeds, 100.0 * e.target.v100, e.target.d90_percent,
+                       e.target.d90_percent * rx / 100.0, 100.0 * e.target.v150);
+    for (const auto& o : e.organs)
+      out += fmt::format(" {:.1f} % | {:.1f} Gy |", o.metrics.d10_percent, o.metrics.d2cc_Gy);
+    out += "\n";
+  }
+  out += fmt::format(
+      "\nTG-43U1 ({} at {:g} U, {:g} Gy prescribed), judged on every voxel of the structures; "
+      "the percentages are of the prescription.\n",
+      computed->seeds.seed_model, computed->seeds.strength_U, rx);
+  const auto& files = computed->files;
+  if (std::find(files.begin(), files.end(), "dose/dvh.png") != files.end())
+    out += "\n![dose-volume histograms](dose/dvh.png)\n";
+  if (!files.empty()) {
+    out +=
+        "\nFor 3D Slicer (SlicerRT) and planning systems, in `dose/`: the structures "
+        "(`structures_rtstruct.dcm`), the seeds as RT Plans (`*_rtplan.dcm`), each dose as RT "
+        "Dose (`*_rtdose.dcm`) and NRRD (`*_dose.nrrd`, Gy), the DVHs as `dvh.csv`.\n";
+  }
+  return out;
+}
+
 // Where the robot was proposed to stand (place_robot) and, once mounted, where it stands.
 std::string placementSection(const Session& s) {
   const auto& p = s.robot_placement;
@@ -211,6 +254,7 @@ std::string procedureReport(const Session& s, const std::vector<std::string>& im
   }
   if (!notes.empty()) out += "\n" + notes;
   out += anatomySection(s);
+  out += doseSection(s);
   out += placementSection(s);
   out += motionSection(s);
   out += verificationSection(s);

@@ -11,7 +11,6 @@
 #include "proposal_lattice.hpp"
 
 namespace ignav::workflow {
-namespace {
 
 dosimetry::DoseStructure doseStructure(const anatomy::Structure& s) {
   dosimetry::DoseStructure out;
@@ -27,7 +26,6 @@ dosimetry::DoseStructure doseStructure(const anatomy::Structure& s) {
   return out;
 }
 
-// The seed a needle leaves at a kept target: at its tip, along its last step.
 dosimetry::Seed seedAt(const Session& s, const Target& t) {
   const auto path = needlePathLps(s, t.commandedJoints());
   dosimetry::Seed seed;
@@ -39,9 +37,6 @@ dosimetry::Seed seedAt(const Session& s, const Target& t) {
   return seed;
 }
 
-// The seeds the confirmation CT found (tips and rejected ones left out), in the planning CT's
-// frame, each along the robot's insertion axis there (a found seed's own orientation is not
-// measured).
 std::vector<dosimetry::Seed> implantedSeeds(const Session& s) {
   std::vector<dosimetry::Seed> out;
   const auto& c = s.confirmation;
@@ -56,6 +51,34 @@ std::vector<dosimetry::Seed> implantedSeeds(const Session& s) {
   }
   return out;
 }
+
+Expected<dosimetry::SeedPlanRequest> doseRequest(const Session& s, const SeedPlanAsk& ask,
+                                                 const anatomy::Structure& target) {
+  const auto model = dosimetry::readSeedModel(ask.seed_model_path);
+  if (!model) {
+    return makeError(model.error().code,
+                     fmt::format("seed model '{}': {}", ask.seed_model, model.error().message),
+                     model.error().reason);
+  }
+  auto table = dosimetry::DoseRateTable::make(*model);
+  if (!table) return table.error();
+  dosimetry::SeedPlanRequest request;
+  request.table = std::make_shared<const dosimetry::DoseRateTable>(std::move(*table));
+  request.strength_U = ask.strength_U;
+  request.prescription_Gy = ask.prescription_Gy;
+  request.target = doseStructure(target);
+  const auto* set = s.structures.loaded.set.get();
+  for (std::size_t n = 0; set && n < set->structures.size(); ++n) {
+    const auto& st = set->structures[n];
+    if (s.structures.roles.at(n).role != anatomy::Role::kAvoid) continue;
+    const anatomy::SiteRole* role = s.site ? s.site->roleFor(st.name) : nullptr;
+    request.organs.push_back(
+        {doseStructure(st), role ? role->dose_limits : dosimetry::OrganLimits{}});
+  }
+  return request;
+}
+
+namespace {
 
 std::string lps(const Eigen::Vector3d& p) {
   return fmt::format("({:.1f}, {:.1f}, {:.1f})", p.x(), p.y(), p.z());
@@ -110,12 +133,6 @@ Input planSeedTargets(std::uint64_t job, const std::string& structure, double sp
   const Session& s = *snapshot;
   auto [in, target] = startProposal(job, structure, spacing_mm, s);
   if (!target) return in;
-  const auto* set = s.structures.loaded.set.get();
-  const auto model = dosimetry::readSeedModel(ask.seed_model_path);
-  if (!model) {
-    in.error = fmt::format("seed model '{}': {}", ask.seed_model, model.error().message);
-    return in;
-  }
   const Progress progress{context};
 
   const auto lattice = latticeIn(target->mask, *s.registration, spacing_mm);
@@ -135,23 +152,12 @@ Input planSeedTargets(std::uint64_t job, const std::string& structure, double sp
     return in;
   }
 
-  auto table = dosimetry::DoseRateTable::make(*model);
-  if (!table) {
-    in.error = table.error().message;
+  auto asked = doseRequest(s, ask, *target);
+  if (!asked) {
+    in.error = asked.error().message;
     return in;
   }
-  dosimetry::SeedPlanRequest request;
-  request.table = std::make_shared<const dosimetry::DoseRateTable>(std::move(*table));
-  request.strength_U = ask.strength_U;
-  request.prescription_Gy = ask.prescription_Gy;
-  request.target = doseStructure(*target);
-  for (std::size_t n = 0; n < set->structures.size(); ++n) {
-    const auto& st = set->structures[n];
-    if (s.structures.roles.at(n).role != anatomy::Role::kAvoid) continue;
-    const anatomy::SiteRole* role = s.site ? s.site->roleFor(st.name) : nullptr;
-    request.organs.push_back(
-        {doseStructure(st), role ? role->dose_limits : dosimetry::OrganLimits{}});
-  }
+  dosimetry::SeedPlanRequest request = std::move(asked).value();
   for (const auto& t : judged.kept)
     request.candidates.push_back(seedAt(s, t));
   const std::size_t room = s.policy.limits.max_targets > s.targets.size()
@@ -191,7 +197,7 @@ Input planSeedTargets(std::uint64_t job, const std::string& structure, double sp
   in.summary = fmt::format(
       "{}seed plan: {} seeds {}of {} at {:g} U for {:g} Gy to '{}' ({:.1f} cm³): V100 {:.1f} %, "
       "D90 {:.1f} %, V150 {:.1f} %{}; {}",
-      delivered, chosen.size(), request.implanted.empty() ? "" : "to add ", model->name,
+      delivered, chosen.size(), request.implanted.empty() ? "" : "to add ", ask.seed_model,
       ask.strength_U, ask.prescription_Gy, target->name, e.target_cm3, 100.0 * e.target.v100,
       e.target.d90_percent, 100.0 * e.target.v150, organs, candidates);
   if (!plan->raised_limits.empty())

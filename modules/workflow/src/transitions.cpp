@@ -182,6 +182,7 @@ std::vector<Transition> buildTable() {
     t.push_back({p, I::kRejectSeed, always, p, rejectSeed, "no seed"});
     t.push_back({p, I::kFitTissue, always, p, fitTissue, "tissue fitted"});
     t.push_back({p, I::kDiscardTissue, always, p, discardTissue, "a fit forgotten"});
+    t.push_back({p, I::kComputeDose, always, p, startDoseComputation, "the seeds' dose"});
   }
   for (Phase p : kAllPhases) {
     if (p == P::kStartup) continue;
@@ -233,6 +234,8 @@ std::vector<Transition> buildTable() {
         {p, I::kPlacementChecked, always, p, adoptPlacementCheck, "mounted robot measured"});
     t.push_back({p, I::kPlacementCheckFailed, always, p, notePlacementCheckFailure,
                  "mounted robot not measured"});
+    t.push_back({p, I::kDoseComputed, always, p, adoptDose, "dose computed"});
+    t.push_back({p, I::kDoseFailed, always, p, noteDoseFailure, "no dose"});
   }
   // resume returns to the phase the first interruption left (a move in flight: plan_locked, to be
   // approved again), or to done when nothing is left to move. Interruptions taken while

@@ -222,6 +222,24 @@ struct Fields<PlacementInfo> {
                       IGNAV_FIELD(skin_distance_mm), IGNAV_FIELD(skin_seen));
 };
 
+struct DoseMetricsInfo {
+  std::string structure;
+  std::string which;  // planned | delivered
+  double d90_percent = std::numeric_limits<double>::quiet_NaN();
+  double v100 = std::numeric_limits<double>::quiet_NaN();
+  double v150 = std::numeric_limits<double>::quiet_NaN();
+  double d10_percent = std::numeric_limits<double>::quiet_NaN();
+  double dmax_percent = std::numeric_limits<double>::quiet_NaN();
+  double d2cc_gy = std::numeric_limits<double>::quiet_NaN();
+};
+template <>
+struct Fields<DoseMetricsInfo> {
+  using T = DoseMetricsInfo;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(structure), IGNAV_FIELD(which), IGNAV_FIELD(d90_percent), IGNAV_FIELD(v100),
+      IGNAV_FIELD(v150), IGNAV_FIELD(d10_percent), IGNAV_FIELD(dmax_percent), IGNAV_FIELD(d2cc_gy));
+};
+
 struct StructuresState {
   std::string status;  // none | loading | loaded | failed
   std::string source;
@@ -244,6 +262,9 @@ struct StructuresState {
   double mounted_coverage = std::numeric_limits<double>::quiet_NaN();
   double mounted_entry_mm = std::numeric_limits<double>::quiet_NaN();
   double mounted_axis_deg = std::numeric_limits<double>::quiet_NaN();
+  std::string dose_status;  // none | computing | computed | failed
+  std::string dose_message;
+  std::vector<DoseMetricsInfo> dose;
 };
 template <>
 struct Fields<StructuresState> {
@@ -256,7 +277,8 @@ struct Fields<StructuresState> {
       IGNAV_FIELD(placement_message), IGNAV_FIELD(placement_structure),
       IGNAV_FIELD(placement_progress_done), IGNAV_FIELD(placement_progress_total),
       IGNAV_FIELD(placements), IGNAV_FIELD(mounted_status), IGNAV_FIELD(mounted_message),
-      IGNAV_FIELD(mounted_coverage), IGNAV_FIELD(mounted_entry_mm), IGNAV_FIELD(mounted_axis_deg));
+      IGNAV_FIELD(mounted_coverage), IGNAV_FIELD(mounted_entry_mm), IGNAV_FIELD(mounted_axis_deg),
+      IGNAV_FIELD(dose_status), IGNAV_FIELD(dose_message), IGNAV_FIELD(dose));
 };
 IGNAV_TOPIC_OF(StructuresState, topic::kStructures, Qos::kState);
 

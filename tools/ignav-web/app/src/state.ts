@@ -147,6 +147,21 @@ export interface StructuresState {
   mounted_coverage: number | null; // null before it is measured (NaN on the wire)
   mounted_entry_mm: number | null;
   mounted_axis_deg: number | null;
+  dose_status: string; // none | computing | computed | failed
+  dose_message: string;
+  dose: DoseMetricsInfo[];
+}
+
+// One structure's dose metrics (compute_dose); null: not judged for its role (NaN on the wire).
+export interface DoseMetricsInfo {
+  structure: string;
+  which: string; // planned | delivered
+  d90_percent: number | null;
+  v100: number | null;
+  v150: number | null;
+  d10_percent: number | null;
+  dmax_percent: number | null;
+  d2cc_gy: number | null;
 }
 
 export interface PlannedMove {

@@ -47,6 +47,14 @@ export class StructuresPanel {
       };
       this.actions.command("plan_seeds", { path: seedPlanCommand(name, number("seed-rx"), number("seed-strength")) });
     });
+    byId("compute-dose").addEventListener("click", () => {
+      const name = byId<HTMLSelectElement>("proposal-structure").value;
+      const number = (id: string) => {
+        const text = byId<HTMLInputElement>(id).value.trim();
+        return text === "" ? NaN : Number(text);
+      };
+      this.actions.command("compute_dose", { path: seedPlanCommand(name, number("seed-rx"), number("seed-strength")) });
+    });
     byId("place").addEventListener("click", () => {
       const name = byId<HTMLSelectElement>("placement-structure").value;
       this.actions.command("place_robot", { path: placeCommand(name, side.value) });
@@ -61,6 +69,7 @@ export class StructuresPanel {
     const names = structureChoices(s?.structures ?? []);
     byId<HTMLButtonElement>("propose").disabled = !allowed.has("propose_targets") || names.length === 0;
     byId<HTMLButtonElement>("plan-seeds").disabled = !allowed.has("plan_seeds") || names.length === 0;
+    byId<HTMLButtonElement>("compute-dose").disabled = !allowed.has("compute_dose") || names.length === 0;
     byId<HTMLButtonElement>("place").disabled = !allowed.has("place_robot") || names.length === 0;
     byId<HTMLButtonElement>("accept-all").disabled = !allowed.has("accept_proposals") || !s?.proposed.length;
     if (this.shown.changed("choices", names)) {
@@ -69,6 +78,32 @@ export class StructuresPanel {
     this.structures(s, allowed.has("structure_role"));
     this.proposals(s, allowed.has("accept_proposals"));
     this.placement(s);
+    this.dose(s);
+  }
+
+  // The seeds' dose: a row per structure and dose (planned, delivered), the metrics its role is
+  // judged by.
+  private dose(s: StructuresState | undefined): void {
+    if (!this.shown.changed("dose", [s?.dose_status, s?.dose_message, s?.dose])) return;
+    const state = s?.dose_status ?? "none";
+    const status = byId("dose-status");
+    status.className = state === "failed" ? "bad" : "small";
+    status.textContent = state === "none" || state === "" ? "no dose computed" : `${state}: ${s?.dose_message ?? ""}`;
+    const value = (x: number | null, digits: number, unit: string) =>
+      x === null || !Number.isFinite(x) ? "" : `${x.toFixed(digits)}${unit}`;
+    const rows = (s?.dose ?? []).map((d) =>
+      el(
+        "tr",
+        { "data-testid": `dose-row-${d.structure}-${d.which}` },
+        el("td", { class: "name" }, d.structure),
+        el("td", {}, d.which),
+        el("td", { "data-testid": `dose-metrics-${d.structure}-${d.which}` },
+          d.d90_percent !== null && Number.isFinite(d.d90_percent)
+            ? `V100 ${percent(d.v100)}, D90 ${value(d.d90_percent, 1, " %")}, V150 ${percent(d.v150)}`
+            : `D10 ${value(d.d10_percent, 1, " %")}, Dmax ${value(d.dmax_percent, 0, " %")}, D2cc ${value(d.d2cc_gy, 1, " Gy")}`),
+      ),
+    );
+    byId("dose-body").replaceChildren(...rows);
   }
 
   private structures(s: StructuresState | undefined, canSetRole: boolean): void {

@@ -50,6 +50,7 @@ struct RtStructureSetHeader {
   std::string patient_name, patient_id;
   std::string study_uid;              // "" -> a new one
   std::string referenced_series_uid;  // the CT's SeriesInstanceUID ("" -> not referenced)
+  std::string sop_instance_uid;       // "" -> a new one (an RT Plan may name it beforehand)
 };
 
 // Every structure of `set` as an ROI of closed planar contours on `ct`'s slices: each slice's

@@ -58,6 +58,7 @@ enum class InputKind {
   kAcceptProposals,
   kPlaceRobot,
   kPlanSeeds,
+  kComputeDose,
   kConfigLoaded,
   kVolumeLoaded,
   kVolumeLoadFailed,
@@ -78,6 +79,8 @@ enum class InputKind {
   kRobotPlacementFailed,
   kPlacementChecked,
   kPlacementCheckFailed,
+  kDoseComputed,
+  kDoseFailed,
 };
 
 // Who may give a command: each role may do what the one before it may, and more. Commands travel
@@ -390,6 +393,16 @@ inline constexpr InputSpec kInputRows[] = {
      "delivered, the cold spots) and the plan adds to them; the seeds "
      "arrive as proposed targets (StructuresState.proposed, the dose in its message) that "
      "accept_proposals makes the plan's"},
+    {I::kComputeDose, "compute_dose", 38, R::kPlanner, kCommand,
+     kNone.text("STRUCTURE [model=NAME] [rx=GY] [strength=U]: the target structure to judge "
+                "the dose on and the seeds' model, prescription and air-kerma strength (default: "
+                "the accepted seed plan's, else the site's dosimetry: defaults; after a seed "
+                "plan, the structure may be left out)"),
+     "compute the dose of the plan's targets as seeds and, after a confirmation CT, of the seeds "
+     "found on it, in the background: the metrics planned and delivered (StructuresState.dose_*), "
+     "isodose lines on every slice, and into the session folder the dose as NRRD and DICOM RT "
+     "Dose, an RT Plan with the seeds, the RT Structure Set and the DVH plot; accepting a seed "
+     "plan and a confirmation CT after one start it by themselves"},
     {I::kConfigLoaded, "config_loaded", kNoWireKind, R::kApprover, kServer, kNone,
      "the server started with a valid robot config"},
     {I::kVolumeLoaded, "volume_loaded", kNoWireKind, R::kApprover, kServer, kNone,
@@ -433,6 +446,10 @@ inline constexpr InputSpec kInputRows[] = {
      "the mounted robot measured against the placement proposed: how far, what it covers"},
     {I::kPlacementCheckFailed, "placement_check_failed", kNoWireKind, R::kApprover, kServer, kNone,
      "the mounted robot could not be measured against the placement: why"},
+    {I::kDoseComputed, "dose_computed", kNoWireKind, R::kApprover, kServer, kNone,
+     "a dose computation the server ran finished: the dose of the seeds, planned and delivered"},
+    {I::kDoseFailed, "dose_failed", kNoWireKind, R::kApprover, kServer, kNone,
+     "a dose computation the server ran could not finish: why"},
 };
 
 static_assert(inEnumOrder(kInputRows, &InputSpec::kind),

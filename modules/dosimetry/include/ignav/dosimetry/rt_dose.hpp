@@ -15,6 +15,7 @@ struct RtDoseHeader {
   std::string study_uid;               // "" -> a new one
   std::string patient_name, patient_id;
   std::string comment = "ignav TG-43U1";  // DoseComment
+  std::string plan_uid;  // the RT Plan whose dose it is (ReferencedRTPlanSequence; "" -> none)
 };
 
 // `dose_Gy` at every voxel of `grid` (x fastest), as a multi-frame RT Dose (DoseUnits GY,

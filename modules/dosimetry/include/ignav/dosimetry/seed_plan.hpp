@@ -71,12 +71,23 @@ struct OrganResult {
   OrganLimits limits;
 };
 
+// A structure's cumulative DVH on 1 Gy bins (the fraction receiving at least k Gy), up to three
+// prescriptions: for plots and exchange.
+struct StructureCurve {
+  std::string name;
+  std::vector<double> cumulative;
+};
+constexpr double kCurveBin_Gy = 1.0;
+
 // A set of seeds, with the request's implanted ones, judged on every voxel of its structures.
+// Errors as validate's, but the request needs no candidates (`seeds` need not be among them); a
+// seed not finite (bad_candidate).
 struct PlanEvaluation {
   TargetMetrics target;
   double target_cm3 = 0.0;
   std::vector<OrganResult> organs;
-  std::vector<std::string> unmet;  // each constraint missed, e.g. "urethra D10 162.3 % > 150 %"
+  std::vector<StructureCurve> curves;  // the target's, then each organ's
+  std::vector<std::string> unmet;      // each constraint missed, e.g. "urethra D10 162.3 % > 150 %"
   bool met() const { return unmet.empty(); }
   std::string describe() const;  // "V100 96.1 %, D90 104.2 %; urethra D10 131.0 %, …"
 };

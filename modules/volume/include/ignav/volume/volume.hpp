@@ -114,6 +114,9 @@ class Volume {
   // DICOM FrameOfReferenceUID: structures and registrations drawn in this frame belong here
   // ("" for NRRD/MetaImage, which carry none).
   std::string frame_of_reference_uid;
+  // DICOM's study and patient: what exported objects (RT Dose, RT Plan) share with the CT so that
+  // a DICOM browser files them together ("" for NRRD/MetaImage).
+  std::string study_uid, patient_name, patient_id;
   std::string description;  // e.g. SeriesDescription or the file name
 
   std::size_t index(int i, int j, int k) const {

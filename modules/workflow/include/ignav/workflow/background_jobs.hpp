@@ -35,7 +35,8 @@ enum class JobKind {
   kStructureLoad,
   kTargetProposal,
   kRobotPlacement,
-  kPlacementCheck
+  kPlacementCheck,
+  kDoseComputation
 };
 
 // What the job thread gives every run besides its snapshot: the session folder (for files a job
@@ -164,5 +165,19 @@ Input checkPlacement(std::uint64_t job, const std::string& structure,
 // the feasible volume (target), a urethra through it (avoid 3 mm), a rectum behind (5 mm), a
 // pubic arch in front (2 mm).
 std::vector<anatomy::Shape> phantomAnatomy(const kinematics::Kinematics& kinematics);
+
+// How far around the dosed structure's box the dose grid reaches (the CT's voxels): the organs
+// near it, and the 50 % isodose of a prostate implant.
+constexpr double kDoseMargin_mm = 20.0;
+
+// compute_dose's job (dose_computation.cpp), for the session's DoseStatus (its seeds and
+// structure): the dose of the plannable targets as seeds ("planned") and of the confirmation
+// CT's seeds ("delivered"), on the CT's voxels within kDoseMargin_mm of the structure, each
+// judged on every voxel of the structures, as dose_computed naming `job` (`summary` gives the
+// metrics; `error` what could not be written), or dose_failed with why. With a session folder,
+// into its dose/: the RT Structure Set, an RT Plan per set of seeds, each dose as RT Dose and
+// NRRD, the DVHs as dvh.png and dvh.csv.
+Input computeDose(std::uint64_t job, const std::shared_ptr<const Session>& snapshot,
+                  const JobContext& context);
 
 }  // namespace ignav::workflow

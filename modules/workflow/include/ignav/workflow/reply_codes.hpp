@@ -87,6 +87,7 @@ enum class ReplyCode {
   // Dose (issue 42).
   kBadSeedPlan,
   kUnknownSeedModel,
+  kNothingToDose,
   // The server.
   kJournalFailed,
   kInternal,

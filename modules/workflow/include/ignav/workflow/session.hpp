@@ -18,6 +18,7 @@
 #include "ignav/anatomy/site.hpp"
 #include "ignav/config/robot_config.hpp"
 #include "ignav/config/tissue_profiles.hpp"
+#include "ignav/dosimetry/seed_plan.hpp"
 #include "ignav/kinematics/solver.hpp"
 #include "ignav/placement/robot_placement.hpp"
 #include "ignav/planning/insertion_plan.hpp"
@@ -115,6 +116,8 @@ struct MountedPlacement {
   placement::SkinEntry skin;     // where its axis meets the skin
 };
 
+struct ComputedDose;  // below: the dose of the session's seeds
+
 struct Input {
   InputKind kind = InputKind::kQuery;
   double time_s = 0.0;    // Unix seconds, stamped by the server; the reducer never reads a clock
@@ -162,6 +165,8 @@ struct Input {
   // kRobotPlaced: the poses found, the best first; kPlacementChecked: the mounted robot's.
   std::vector<placement::PlacedPose> placements;
   std::optional<MountedPlacement> mounted;
+  // kDoseComputed: the dose of the seeds (`summary` says it, so replay can tell a changed one).
+  std::shared_ptr<const ComputedDose> dose;
   // kConfigLoaded: the site's roles for structures by name (server.yaml site:); none: every
   // structure is shown only until structure_role gives it a role.
   std::optional<anatomy::Site> site;
@@ -386,6 +391,37 @@ struct TargetProposals {
   std::vector<ProposedTarget> targets;   // not yet accepted
 };
 
+// The dose of the session's seeds (issue 42, part 5): the targets as the seeds a plan leaves and,
+// after a confirmation CT, the seeds found on it, each on the same grid (the CT's voxels around the
+// structure dosed) and judged on every voxel of the structures.
+struct SeedDose {
+  std::string what;  // "planned" | "delivered"
+  std::size_t seeds = 0;
+  std::shared_ptr<const std::vector<float>> dose_Gy;  // ComputedDose::grid's, i fastest
+  dosimetry::PlanEvaluation evaluation;
+  std::vector<dosimetry::ColdSpot> cold_spots;  // the structure's, largest first
+};
+
+struct ComputedDose {
+  SeedPlanAsk seeds;      // the model, strength and prescription
+  std::string structure;  // the target dosed
+  volume::Geometry grid;
+  std::vector<SeedDose> doses;     // planned, then delivered when a confirmation CT found seeds
+  std::vector<std::string> files;  // left in the session folder (relative to it)
+  const SeedDose* latest() const { return doses.empty() ? nullptr : &doses.back(); }
+};
+
+struct DoseStatus {
+  std::string status = "none";  // none | computing | computed | failed
+  std::string message;          // the metrics, planned and delivered, or why none
+  std::uint64_t computing = 0;  // the dose computation awaited (its revision); 0: none
+  // What the plan's seeds are (accept_proposals of a seed plan, or compute_dose) and the structure
+  // their dose is judged on: a confirmation CT computes the delivered dose with them.
+  std::optional<SeedPlanAsk> seeds;
+  std::string structure;
+  std::shared_ptr<const ComputedDose> computed;
+};
+
 // place_robot's outcome in the session (MountedPlacement above).
 struct RobotPlacement {
   std::string status = "none";               // none | placing | placed | failed
@@ -438,6 +474,7 @@ struct Session {
   // The patient's structures on the CT (issue 41) and the site's roles for them.
   StructuresStatus structures;
   TargetProposals proposals;
+  DoseStatus dose;
   RobotPlacement robot_placement;
   std::optional<anatomy::Site> site;
   std::vector<FittedTissue> fitted_tissues;

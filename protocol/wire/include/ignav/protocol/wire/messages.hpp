@@ -88,6 +88,7 @@ IGNAV_PROTOCOL_MSG(TargetState, ignav_msg_TargetState);
 IGNAV_PROTOCOL_MSG(StructureInfo, ignav_msg_StructureInfo);
 IGNAV_PROTOCOL_MSG(ProposedTargetInfo, ignav_msg_ProposedTargetInfo);
 IGNAV_PROTOCOL_MSG(PlacementInfo, ignav_msg_PlacementInfo);
+IGNAV_PROTOCOL_MSG(DoseMetricsInfo, ignav_msg_DoseMetricsInfo);
 IGNAV_PROTOCOL_MSG(StructuresState, ignav_msg_StructuresState);
 IGNAV_PROTOCOL_MSG(PlannedMove, ignav_msg_PlannedMove);
 IGNAV_PROTOCOL_MSG(ApprovalState, ignav_msg_ApprovalState);

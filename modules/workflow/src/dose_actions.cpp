@@ -1,0 +1,72 @@
+// The seeds' dose (issue 42, part 5): compute_dose and the job's outcomes; accepting a seed plan
+// and measuring a confirmation CT start it too (recomputeDose).
+#include <fmt/format.h>
+
+#include "actions.hpp"
+
+namespace ignav::workflow::detail {
+
+void recomputeDose(Session& s, const std::string& why, ActionOutput& out) {
+  auto& d = s.dose;
+  if (!d.seeds || d.structure.empty()) return;
+  d.computing = s.revision + 1;  // this step's revision: the job names it
+  d.status = "computing";
+  d.message = fmt::format("computing the dose of {} at {:g} U for {:g} Gy to '{}' ({})",
+                          d.seeds->seed_model, d.seeds->strength_U, d.seeds->prescription_Gy,
+                          d.structure, why);
+  out.effects.start_jobs.push_back(JobKind::kDoseComputation);
+  out.effects.structures_changed = true;
+}
+
+Refusal startDoseComputation(Session& s, const Input& in, ActionOutput& out) {
+  if (!s.structures.loaded.set) {
+    return Rejection{ReplyCode::kNoStructures,
+                     "no structures are loaded: the dose is judged on one (load_structures)"};
+  }
+  SeedWords words;
+  if (auto refused = readSeedWords(s, in.path, false, words)) return refused;
+  if (words.structure.empty()) words.structure = s.dose.structure;
+  if (words.structure.empty()) {
+    return Rejection{ReplyCode::kNothingToDose,
+                     "which structure is dosed? name one (compute_dose STRUCTURE): no seed plan "
+                     "was accepted"};
+  }
+  const bool seeds_found = !s.confirmation.seeds.empty() && s.confirmation.registration;
+  if (s.targets.empty() && !seeds_found) {
+    return Rejection{ReplyCode::kNothingToDose,
+                     "no targets, and no confirmation CT's seeds: nothing to dose"};
+  }
+  s.dose.seeds = words.ask;
+  s.dose.structure = words.structure;
+  recomputeDose(s, "asked", out);
+  out.note = fmt::format("dose computation #{} started: {}; StructuresState shows its metrics",
+                         s.dose.computing, s.dose.message);
+  return std::nullopt;
+}
+
+Refusal adoptDose(Session& s, const Input& in, ActionOutput& out) {
+  auto& d = s.dose;
+  d.computing = 0;
+  d.status = "computed";
+  d.computed = in.dose;
+  d.message = in.summary;
+  if (in.dose && !in.dose->files.empty())
+    d.message += fmt::format("; in the session folder: {}", fmt::join(in.dose->files, ", "));
+  if (!in.error.empty()) d.message += "; not written: " + in.error;
+  out.effects.structures_changed = true;
+  out.note = d.message;
+  return std::nullopt;
+}
+
+Refusal noteDoseFailure(Session& s, const Input& in, ActionOutput& out) {
+  auto& d = s.dose;
+  d.computing = 0;
+  d.status = "failed";
+  d.computed.reset();
+  d.message = in.error;
+  out.effects.structures_changed = true;
+  out.note = in.error;
+  return std::nullopt;
+}
+
+}  // namespace ignav::workflow::detail
