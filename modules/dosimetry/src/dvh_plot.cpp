@@ -89,7 +89,9 @@ Expected<std::vector<std::uint8_t>> dvhPlotPng(const std::vector<DvhCurve>& curv
       cv::polylines(canvas, points, false, colour, 2, cv::LINE_8);
     }
     const cv::Point key(l.width_px - l.right_px + 16, l.top_px + 10 + 22 * static_cast<int>(n));
-    cv::line(canvas, key, key + cv::Point(26, 0), colour, 2);
+    for (int x = 0; x < 26; x += c.dashed ? 12 : 26)  // dashed as its curve
+      cv::line(canvas, key + cv::Point(x, 0),
+               key + cv::Point(std::min(26, x + (c.dashed ? 6 : 26)), 0), colour, 2);
     text(c.name, key + cv::Point(32, 5), 0.42);
   }
   return volume::encodePngBgr(canvas.data, canvas.cols, canvas.rows, canvas.step[0]);

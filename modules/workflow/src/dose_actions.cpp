@@ -3,19 +3,41 @@
 #include <fmt/format.h>
 
 #include "actions.hpp"
+#include "session_seeds.hpp"
 
 namespace ignav::workflow::detail {
+
+namespace {
+
+// The session's seeds now: a seed at each plannable target, and the confirmation CT's.
+void captureSeeds(const Session& s, std::vector<dosimetry::Seed>& planned,
+                  std::vector<dosimetry::Seed>& delivered) {
+  planned.clear();
+  for (const auto& t : s.targets)
+    if (t.plannable()) planned.push_back(seedAt(s, t));
+  delivered = implantedSeeds(s);
+}
+
+}  // namespace
 
 void recomputeDose(Session& s, const std::string& why, ActionOutput& out) {
   auto& d = s.dose;
   if (!d.seeds || d.structure.empty()) return;
+  out.effects.structures_changed = true;
+  captureSeeds(s, d.planned_seeds, d.delivered_seeds);
+  if (d.planned_seeds.empty() && d.delivered_seeds.empty()) {
+    d.computing = 0;
+    d.status = "failed";
+    d.computed.reset();
+    d.message = "no seeds: no target is plannable, and no confirmation CT found any";
+    return;
+  }
   d.computing = s.revision + 1;  // this step's revision: the job names it
   d.status = "computing";
   d.message = fmt::format("computing the dose of {} at {:g} U for {:g} Gy to '{}' ({})",
                           d.seeds->seed_model, d.seeds->strength_U, d.seeds->prescription_Gy,
                           d.structure, why);
   out.effects.start_jobs.push_back(JobKind::kDoseComputation);
-  out.effects.structures_changed = true;
 }
 
 Refusal startDoseComputation(Session& s, const Input& in, ActionOutput& out) {
@@ -31,10 +53,11 @@ Refusal startDoseComputation(Session& s, const Input& in, ActionOutput& out) {
                      "which structure is dosed? name one (compute_dose STRUCTURE): no seed plan "
                      "was accepted"};
   }
-  const bool seeds_found = !s.confirmation.seeds.empty() && s.confirmation.registration;
-  if (s.targets.empty() && !seeds_found) {
+  std::vector<dosimetry::Seed> planned, delivered;
+  captureSeeds(s, planned, delivered);
+  if (planned.empty() && delivered.empty()) {
     return Rejection{ReplyCode::kNothingToDose,
-                     "no targets, and no confirmation CT's seeds: nothing to dose"};
+                     "no plannable targets, and no confirmation CT's seeds: nothing to dose"};
   }
   s.dose.seeds = words.ask;
   s.dose.structure = words.structure;

@@ -196,22 +196,18 @@ Input computeDose(std::uint64_t job, const std::shared_ptr<const Session>& snaps
     in.error = request.error().message;
     return in;
   }
-  // Planned: a seed where each plannable target is; delivered: those the confirmation CT found.
+  // As they were when the dose was asked: planned, a seed at each plannable target; delivered,
+  // those the confirmation CT found.
   std::vector<std::string> whats;
   std::vector<std::vector<dosimetry::Seed>> seeds;
-  std::vector<dosimetry::Seed> planned;
-  for (const auto& t : s.targets)
-    if (t.plannable()) planned.push_back(seedAt(s, t));
-  if (!planned.empty()) {
-    whats.push_back("planned");
-    seeds.push_back(std::move(planned));
-  }
-  if (auto delivered = implantedSeeds(s); !delivered.empty()) {
-    whats.push_back("delivered");
-    seeds.push_back(std::move(delivered));
+  for (const auto& [what, these] : {std::pair{"planned", &asked.planned_seeds},
+                                    std::pair{"delivered", &asked.delivered_seeds}}) {
+    if (these->empty()) continue;
+    whats.push_back(what);
+    seeds.push_back(*these);
   }
   if (seeds.empty()) {
-    in.error = "no seeds: no target is plannable, and no confirmation CT found any";
+    in.error = "no seeds: no target was plannable, and no confirmation CT found any";
     return in;
   }
   auto dose = std::make_shared<ComputedDose>();

@@ -156,8 +156,8 @@ const std::vector<ReplyCodeSpec> kCodes = {
      "`plan_seeds` naming a seed model the site's seed models folder does not hold, or a site "
      "with no dosimetry: block"},
     {C::kNothingToDose, "nothing_to_dose",
-     "`compute_dose` with no targets and no confirmation CT's seeds, or no structure named to "
-     "judge the dose on when no seed plan was accepted"},
+     "`compute_dose` with no plannable targets and no confirmation CT's seeds, or no structure "
+     "named to judge the dose on when no seed plan was accepted"},
     {C::kJournalFailed, "journal_failed",
      "the session journal cannot be written (disk full, I/O error): nothing was done, and every "
      "later change is refused until the server is restarted; `Health.journal` says why "

@@ -39,22 +39,18 @@ export class StructuresPanel {
       const spacing_mm = Number(byId<HTMLInputElement>("proposal-spacing").value);
       this.actions.command("propose_targets", { path: proposeCommand(name, spacing_mm) });
     });
-    byId("plan-seeds").addEventListener("click", () => {
-      const name = byId<HTMLSelectElement>("proposal-structure").value;
+    // plan_seeds and compute_dose take the same words: the structure, a prescription and a
+    // strength when given (blank: the site's, or the accepted plan's).
+    const seedWords = () => {
       const number = (id: string) => {
         const text = byId<HTMLInputElement>(id).value.trim();
         return text === "" ? NaN : Number(text);
       };
-      this.actions.command("plan_seeds", { path: seedPlanCommand(name, number("seed-rx"), number("seed-strength")) });
-    });
-    byId("compute-dose").addEventListener("click", () => {
       const name = byId<HTMLSelectElement>("proposal-structure").value;
-      const number = (id: string) => {
-        const text = byId<HTMLInputElement>(id).value.trim();
-        return text === "" ? NaN : Number(text);
-      };
-      this.actions.command("compute_dose", { path: seedPlanCommand(name, number("seed-rx"), number("seed-strength")) });
-    });
+      return seedPlanCommand(name, number("seed-rx"), number("seed-strength"));
+    };
+    byId("plan-seeds").addEventListener("click", () => this.actions.command("plan_seeds", { path: seedWords() }));
+    byId("compute-dose").addEventListener("click", () => this.actions.command("compute_dose", { path: seedWords() }));
     byId("place").addEventListener("click", () => {
       const name = byId<HTMLSelectElement>("placement-structure").value;
       this.actions.command("place_robot", { path: placeCommand(name, side.value) });

@@ -170,13 +170,13 @@ std::vector<anatomy::Shape> phantomAnatomy(const kinematics::Kinematics& kinemat
 // near it, and the 50 % isodose of a prostate implant.
 constexpr double kDoseMargin_mm = 20.0;
 
-// compute_dose's job (dose_computation.cpp), for the session's DoseStatus (its seeds and
-// structure): the dose of the plannable targets as seeds ("planned") and of the confirmation
-// CT's seeds ("delivered"), on the CT's voxels within kDoseMargin_mm of the structure, each
-// judged on every voxel of the structures, as dose_computed naming `job` (`summary` gives the
-// metrics; `error` what could not be written), or dose_failed with why. With a session folder,
-// into its dose/: the RT Structure Set, an RT Plan per set of seeds, each dose as RT Dose and
-// NRRD, the DVHs as dvh.png and dvh.csv.
+// compute_dose's job (dose_computation.cpp), for the session's DoseStatus (its seeds' model, its
+// structure, the seeds as they were asked): the dose of the plannable targets as seeds
+// ("planned") and of the confirmation CT's seeds ("delivered"), on the CT's voxels within
+// kDoseMargin_mm of the structure, each judged on every voxel of the structures, as dose_computed
+// naming `job` (`summary` gives the metrics; `error` what could not be written), or dose_failed
+// with why. With a session folder, into its dose/: the RT Structure Set, an RT Plan per set of
+// seeds, each dose as RT Dose and NRRD, the DVHs as dvh.png and dvh.csv.
 Input computeDose(std::uint64_t job, const std::shared_ptr<const Session>& snapshot,
                   const JobContext& context);
 

@@ -419,6 +419,9 @@ struct DoseStatus {
   // their dose is judged on: a confirmation CT computes the delivered dose with them.
   std::optional<SeedPlanAsk> seeds;
   std::string structure;
+  // The seeds as they were when the dose was asked (the job's, and replay's, whatever changed
+  // since): a seed at each plannable target, along its needle; the confirmation CT's.
+  std::vector<dosimetry::Seed> planned_seeds, delivered_seeds;
   std::shared_ptr<const ComputedDose> computed;
 };
 
