@@ -215,5 +215,7 @@ echo "feasible_volume.ply (robot frame) under the transform to see it in the CT.
 echo "structures.seg.nrrd (Slicer) or phantom_anatomy_rtstruct.dcm (SlicerRT, planning systems);"
 echo "the targets proposed to fill the prostate: proposed_targets.mrk.json; where to mount the"
 echo "robot: robot_placement.tfm (put feasible_volume.ply under it) and robot_placement.mrk.json."
+echo "The seeds' dose: dose/ (in SlicerRT over phantom_ct/: structures_rtstruct.dcm, the RT Plans"
+echo "and RT Doses; *_dose.nrrd as a scalar volume in Slicer; dvh.png, dvh.csv; report.md's Dose)."
 echo "The slice PNGs (with their pixel -> LPS mapping in the matching .json) and IK_STUDY.md open"
 echo "in any viewer."
