@@ -150,7 +150,7 @@ Refusal noteDoseFailure(Session& s, const Input& in, ActionOutput& out);
 // The dose of the session's seeds again (after a seed plan is accepted, a confirmation CT
 // measured): when the session knows its seeds' model (DoseStatus::seeds), the seeds as they are
 // now are kept for the job (failed at once when there are none).
-void recomputeDose(Session& s, const std::string& why, ActionOutput& out);
+void recomputeDose(Session& s, const Input& in, const std::string& why, ActionOutput& out);
 
 // ---- Actions: where to mount the robot (placement_actions.cpp) ----
 

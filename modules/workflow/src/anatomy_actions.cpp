@@ -410,7 +410,7 @@ Refusal acceptProposals(Session& s, const Input& in, ActionOutput& out) {
   if (p.seed_plan) {  // the targets are seeds: their dose, planned
     s.dose.seeds = *p.seed_plan;
     s.dose.structure = p.structure;
-    recomputeDose(s, "a seed plan accepted", out);
+    recomputeDose(s, in, "a seed plan accepted", out);
   }
   out.note = fmt::format("targets {} added{}; {} still proposed", added,
                          not_plannable ? fmt::format(" ({} of them no longer plannable: see "

@@ -20,7 +20,7 @@ void captureSeeds(const Session& s, std::vector<dosimetry::Seed>& planned,
 
 }  // namespace
 
-void recomputeDose(Session& s, const std::string& why, ActionOutput& out) {
+void recomputeDose(Session& s, const Input& in, const std::string& why, ActionOutput& out) {
   auto& d = s.dose;
   if (!d.seeds || d.structure.empty()) return;
   out.effects.structures_changed = true;
@@ -33,6 +33,7 @@ void recomputeDose(Session& s, const std::string& why, ActionOutput& out) {
     return;
   }
   d.computing = s.revision + 1;  // this step's revision: the job names it
+  d.asked_s = in.time_s;
   d.status = "computing";
   d.message = fmt::format("computing the dose of {} at {:g} U for {:g} Gy to '{}' ({})",
                           d.seeds->seed_model, d.seeds->strength_U, d.seeds->prescription_Gy,
@@ -49,19 +50,19 @@ Refusal startDoseComputation(Session& s, const Input& in, ActionOutput& out) {
   if (auto refused = readSeedWords(s, in.path, false, words)) return refused;
   if (words.structure.empty()) words.structure = s.dose.structure;
   if (words.structure.empty()) {
-    return Rejection{ReplyCode::kNothingToDose,
+    return Rejection{ReplyCode::kNoDoseToCompute,
                      "which structure is dosed? name one (compute_dose STRUCTURE): no seed plan "
                      "was accepted"};
   }
   std::vector<dosimetry::Seed> planned, delivered;
   captureSeeds(s, planned, delivered);
   if (planned.empty() && delivered.empty()) {
-    return Rejection{ReplyCode::kNothingToDose,
+    return Rejection{ReplyCode::kNoDoseToCompute,
                      "no plannable targets, and no confirmation CT's seeds: nothing to dose"};
   }
   s.dose.seeds = words.ask;
   s.dose.structure = words.structure;
-  recomputeDose(s, "asked", out);
+  recomputeDose(s, in, "asked", out);
   out.note = fmt::format("dose computation #{} started: {}; StructuresState shows its metrics",
                          s.dose.computing, s.dose.message);
   return std::nullopt;

@@ -42,10 +42,11 @@ volume::Geometry doseGrid(const volume::Geometry& ct, const anatomy::Mask& struc
   return grid;
 }
 
-std::string utcNow(const char* format) {
-  const std::time_t now = std::time(nullptr);
+// `unix_s` (the server's stamp on the input that asked) as UTC in `format`.
+std::string utc(double unix_s, const char* format) {
+  const auto t = static_cast<std::time_t>(unix_s);
   std::tm tm{};
-  gmtime_r(&now, &tm);
+  gmtime_r(&t, &tm);
   char buf[32];
   std::strftime(buf, sizeof buf, format, &tm);
   return buf;
@@ -106,8 +107,8 @@ std::vector<std::string> writeDoseFiles(const Session& s, const ComputedDose& do
       plan.patient_id = ct.patient_id;
       plan.label = what == "planned" ? "ignav planned" : "ignav implanted";
       plan.structure_set_uid = structures.sop_instance_uid;
-      plan.date_yyyymmdd = utcNow("%Y%m%d");
-      plan.time_hhmmss = utcNow("%H%M%S");
+      plan.date_yyyymmdd = utc(s.dose.asked_s, "%Y%m%d");
+      plan.time_hhmmss = utc(s.dose.asked_s, "%H%M%S");
       note(dosimetry::writeSeedRtPlan(seeds[n], model, dose.seeds.strength_U, rx, plan,
                                       (dir / ("dose/" + what + "_rtplan.dcm")).string()),
            "dose/" + what + "_rtplan.dcm");

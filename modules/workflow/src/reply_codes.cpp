@@ -155,7 +155,7 @@ const std::vector<ReplyCodeSpec> kCodes = {
     {C::kUnknownSeedModel, "unknown_seed_model",
      "`plan_seeds` naming a seed model the site's seed models folder does not hold, or a site "
      "with no dosimetry: block"},
-    {C::kNothingToDose, "nothing_to_dose",
+    {C::kNoDoseToCompute, "nothing_to_dose",
      "`compute_dose` with no plannable targets and no confirmation CT's seeds, or no structure "
      "named to judge the dose on when no seed plan was accepted"},
     {C::kJournalFailed, "journal_failed",

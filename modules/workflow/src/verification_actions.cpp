@@ -265,7 +265,7 @@ Refusal adoptConfirmation(Session& s, const Input& in, ActionOutput& out) {
   c = std::move(fresh);
   rematch(s);
   c.message = c.registration->message + "; " + c.message;
-  recomputeDose(s, "the seeds a confirmation CT found", out);  // delivered beside planned
+  recomputeDose(s, in, "the seeds a confirmation CT found", out);  // delivered beside planned
   return std::nullopt;
 }
 

@@ -87,7 +87,7 @@ enum class ReplyCode {
   // Dose (issue 42).
   kBadSeedPlan,
   kUnknownSeedModel,
-  kNothingToDose,
+  kNoDoseToCompute,
   // The server.
   kJournalFailed,
   kInternal,

@@ -422,6 +422,7 @@ struct DoseStatus {
   // The seeds as they were when the dose was asked (the job's, and replay's, whatever changed
   // since): a seed at each plannable target, along its needle; the confirmation CT's.
   std::vector<dosimetry::Seed> planned_seeds, delivered_seeds;
+  double asked_s = 0.0;  // Unix s, the asking input's (the RT Plan's date): no clock in the job
   std::shared_ptr<const ComputedDose> computed;
 };
 
