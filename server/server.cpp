@@ -101,6 +101,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
                 {participant_, &ignav_msg_Command_desc, topic::kCommandApprover, Qos::kRequest}},
       replies_(participant_),
       slice_requests_(participant_),
+      scene_requests_(participant_),
       approvals_(participant_, &ignav_msg_Approval_desc, topic::kApproval, Qos::kRequest),
       emergency_stops_(participant_, &ignav_msg_EmergencyStop_desc, topic::kEmergencyStop,
                        Qos::kRequest),
@@ -119,6 +120,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
     waitset_.attach(c.handle());
   if (identity_) senders_.emplace(participant_, identity_->identity_ca);
   waitset_.attach(slice_requests_.handle());
+  waitset_.attach(scene_requests_.handle());
   waitset_.attach(approvals_.handle());
   waitset_.attach(emergency_stops_.handle());
   session_ =
@@ -274,6 +276,8 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
     // Slices are drawn on the slices thread, from the session as it is now.
     handled += slice_requests_.take(
         [&](const protocol::SliceRequest& r) { slices_.request(r, snapshot()); });
+    handled += scene_requests_.take(
+        [&](const protocol::SceneRequest& r) { slices_.request(r, snapshot()); });
     takeControllerEvents();
     releaseHeld();
     if (handled > 0) last_event = Clock::now();
@@ -405,6 +409,7 @@ void Server::serveReadOnly(Clock::time_point until, const std::atomic<bool>& sto
     emergency_stops_.take(
         [&](const ignav_msg_EmergencyStop& e) { refuse(e.client_id, e.request_id); });
     slice_requests_.take([&](const protocol::SliceRequest& r) { slices_.request(r, snapshot()); });
+    scene_requests_.take([&](const protocol::SceneRequest& r) { slices_.request(r, snapshot()); });
     std::size_t handled = 0;
     if (igtl_) {
       // The bridge answers; every input it makes is refused.

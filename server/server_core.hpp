@@ -124,6 +124,7 @@ class Server {
   protocol::Reader<ignav_msg_Command> commands_[3];  // by Role
   protocol::TopicWriter<protocol::Reply> replies_;
   protocol::TopicReader<protocol::SliceRequest> slice_requests_;
+  protocol::TopicReader<protocol::SceneRequest> scene_requests_;
   protocol::Reader<ignav_msg_Approval> approvals_;
   protocol::Reader<ignav_msg_EmergencyStop> emergency_stops_;
   // Every Health in this robot's partition, this server's own included: another server with the

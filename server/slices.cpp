@@ -16,7 +16,7 @@ namespace ignav::server {
 using namespace ignav::protocol;
 
 Slices::Slices(const Participant& participant)
-    : replies_(participant), thread_([this] { loop(); }) {}
+    : replies_(participant), scene_replies_(participant), thread_([this] { loop(); }) {}
 
 Slices::~Slices() {
   std::deque<Job> left;
@@ -51,6 +51,19 @@ void Slices::request(const SliceRequest& r, Snapshot session) {
   job.level = r.level;
   job.overlays = r.overlays;
   job.region_only = r.region_only;
+  enqueue(std::move(job));
+}
+
+void Slices::request(const SceneRequest& r, Snapshot session) {
+  Job job;
+  job.session = std::move(session);
+  job.client_id = r.client_id;
+  job.request_id = r.request_id;
+  job.scene = r;
+  enqueue(std::move(job));
+}
+
+void Slices::enqueue(Job job) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (queue_.size() < kMaxQueued) {
@@ -61,8 +74,8 @@ void Slices::request(const SliceRequest& r, Snapshot session) {
     ++refused_;
   }
   // Full: the newest is refused, so that those who asked first get theirs.
-  refuse(job,
-         fmt::format("busy: {} slice requests are waiting to be drawn; ask again", kMaxQueued));
+  refuse(job, fmt::format("busy: {} slice and scene requests are waiting to be drawn; ask again",
+                          kMaxQueued));
 }
 
 void Slices::loop() {
@@ -77,8 +90,12 @@ void Slices::loop() {
     }
     // A slice that cannot be drawn or sent is said in the log; it never stops the server.
     try {
-      Result result = render(job);
-      send(result);
+      if (job.scene) {
+        scene_replies_.write(scene_.build(*job.scene, *job.session));
+      } else {
+        Result result = render(job);
+        send(result);
+      }
     } catch (const std::exception& e) {
       spdlog::error("slices: request {} from '{}': {}", job.request_id, job.client_id, e.what());
     }
@@ -136,6 +153,15 @@ Slices::Result Slices::render(const Job& req) {
 }
 
 void Slices::refuse(const Job& job, const std::string& why) const {
+  if (job.scene) {
+    SceneReply r;
+    r.client_id = job.client_id;
+    r.request_id = job.request_id;
+    r.part = job.scene->part;
+    r.message = why;
+    scene_replies_.write(r);
+    return;
+  }
   Result out;
   out.client_id = job.client_id;
   out.request_id = job.request_id;

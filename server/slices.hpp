@@ -8,6 +8,9 @@
 // request that finds kMaxQueued waiting is refused at once with a reply that says so (the client
 // asks again), never queued and never waited for. At destruction the slice being drawn is
 // finished and the ones still waiting are answered that the server is stopping.
+//
+// The 3D view's scene (SceneRequest -> SceneReply, scene.hpp) is made here too, in the same
+// queue: what a view shows is drawn on one thread, off the event thread, in the order asked.
 #pragma once
 
 #include <Eigen/Core>
@@ -18,6 +21,7 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -25,6 +29,7 @@
 #include "ignav/protocol/wire/messages.hpp"
 #include "ignav/volume/render.hpp"
 #include "ignav/workflow/session.hpp"
+#include "scene.hpp"
 
 namespace ignav::server {
 
@@ -41,6 +46,8 @@ class Slices {
 
   // Queues `request`, to be drawn from `session`; refuses it at once if the queue is full.
   void request(const protocol::SliceRequest& request, Snapshot session);
+  // Queues a part of the 3D view's scene, the same way.
+  void request(const protocol::SceneRequest& request, Snapshot session);
 
  private:
   struct Job {
@@ -51,6 +58,7 @@ class Slices {
     std::uint32_t size_px = 0;
     double pixel_mm = 0.0, window = 0.0, level = 0.0;
     bool overlays = false, region_only = false;
+    std::optional<protocol::SceneRequest> scene;  // set: a part of the scene, not a slice
   };
   struct Result {
     std::string client_id, message;
@@ -61,12 +69,15 @@ class Slices {
     std::vector<std::uint8_t> png;
   };
 
+  void enqueue(Job job);
   void loop();
   Result render(const Job& job);
   void send(Result& result) const;
   void refuse(const Job& job, const std::string& why) const;
 
   protocol::TopicWriter<protocol::SliceReply> replies_;
+  protocol::TopicWriter<protocol::SceneReply> scene_replies_;
+  SceneBuilder scene_;              // the slices thread's alone, as the renderer
   volume::SliceRenderer renderer_;  // the slices thread's alone: its buffers serve every slice
   std::mutex mutex_;
   std::condition_variable wake_;

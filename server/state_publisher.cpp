@@ -211,6 +211,7 @@ void StatePublisher::publishMotion(const Session& s, const actuation::Controller
   const Eigen::Vector3d tip = robot.kinematics.forward(joints).tip_mm;
   m.tip_robot = toPoint3(tip);
   if (s.registration) m.tip_lps = toPoint3(s.registration->toImage(tip));
+  m.needle_lps = toPoints3(workflow::needlePathLps(s, joints));
   m.uptime_s = uptimeS();
   motion_.write(m);
 }

@@ -10,6 +10,8 @@ packages=(
   libeigen3-dev libyaml-cpp-dev nlohmann-json3-dev libspdlog-dev libfmt-dev libcli11-dev
   # images, point clouds, DICOM
   libopencv-dev libpcl-dev libdcmtk-dev dcmtk zlib1g-dev libpng-dev libdeflate-dev
+  # the 3D view's surfaces (flying edges, windowed-sinc smoothing): VTK, which PCL brings too
+  libvtk9-dev
   # ODE integration (Boost.Odeint, header-only) for the needle-deflection model
   libboost-dev
   # the seed plan's linear programme (GLPK's simplex)

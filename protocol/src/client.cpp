@@ -66,6 +66,8 @@ struct Client::Impl {
   Reader<ignav_msg_Reply> replies;
   TopicWriter<SliceRequest> slice_requests;
   TopicReader<SliceReply> slice_replies;
+  TopicWriter<SceneRequest> scene_requests;
+  TopicReader<SceneReply> scene_replies;
   TopicReader<WorkflowState> workflow;
   TopicReader<RobotState> robot;
   TopicReader<VolumeState> volume;
@@ -80,7 +82,8 @@ struct Client::Impl {
   TopicReader<StructuresState> structures;
   TopicReader<JobOutcome> job_outcomes;
   std::map<std::uint64_t, JobOutcome> outcomes_seen;  // by job, the newest 64
-  WaitSet waitset;
+  WaitSet waitset;                                    // replies to commands
+  WaitSet views_waitset;  // slices and scenes: waited on by another thread than commands
 
   template <typename T>
   static bool mine(const void* sample, void* id) {
@@ -99,6 +102,8 @@ struct Client::Impl {
                 &mine<ignav_msg_Reply>, &client_id),
         slice_requests(participant),
         slice_replies(participant, &mine<ignav_msg_SliceReply>, &client_id),
+        scene_requests(participant),
+        scene_replies(participant, &mine<ignav_msg_SceneReply>, &client_id),
         workflow(participant),
         robot(participant),
         volume(participant),
@@ -112,9 +117,11 @@ struct Client::Impl {
         verification(participant),
         structures(participant),
         job_outcomes(participant),
-        waitset(participant) {
+        waitset(participant),
+        views_waitset(participant) {
     waitset.attach(replies.handle());
-    waitset.attach(slice_replies.handle());
+    views_waitset.attach(slice_replies.handle());
+    views_waitset.attach(scene_replies.handle());
   }
 };
 
@@ -292,7 +299,30 @@ SliceResult Client::slice(const SliceArgs& args, std::chrono::milliseconds timeo
     if (mine) break;
     const auto now = Clock::now();
     if (now >= end) throw Timeout("slice: no reply");
-    impl_->waitset.wait(std::chrono::duration_cast<std::chrono::milliseconds>(end - now));
+    impl_->views_waitset.wait(std::chrono::duration_cast<std::chrono::milliseconds>(end - now));
+  }
+  return *mine;
+}
+
+SceneReply Client::scene(const std::string& part, std::uint32_t first_slice,
+                         std::uint32_t max_voxels_per_axis, std::chrono::milliseconds timeout) {
+  SceneRequest req;
+  req.client_id = client_id_;
+  req.request_id = next_request_++;
+  req.part = part;
+  req.first_slice = first_slice;
+  req.max_voxels_per_axis = max_voxels_per_axis;
+  impl_->scene_requests.write(req);
+  const auto end = Clock::now() + timeout;
+  std::optional<SceneReply> mine;
+  while (!mine) {
+    impl_->scene_replies.take([&](const SceneReply& r) {
+      if (r.client_id == client_id_ && r.request_id == req.request_id) mine = r;
+    });
+    if (mine) break;
+    const auto now = Clock::now();
+    if (now >= end) throw Timeout("scene " + part + ": no reply");
+    impl_->views_waitset.wait(std::chrono::duration_cast<std::chrono::milliseconds>(end - now));
   }
   return *mine;
 }

@@ -56,6 +56,7 @@ MotionState aMotion() {
   m.tip_robot = {1, 2, 3};
   m.tip_lps = Point3{4, 5, 6};
   m.uptime_s = 12.5;
+  m.needle_lps = {{1, 2, 3}, {1, 2, 13}, {2, 2, 20}};
   return m;
 }
 
@@ -105,7 +106,8 @@ TEST(JsonView, MotionIsWhatBrowsersRead) {
     "plan_id": 42, "target_id": 7,
     "move_index": 2, "move_count": 4, "move_kind": "translate_cannula", "steps": [1, 2, 3],
     "goal_steps": [4, 5, 6], "verified_steps": [-1, -2, -3], "joints": [0.5, 10.0, 2.0],
-    "tip_robot": [1, 2, 3], "tip_lps": [4, 5, 6], "uptime_s": 12.5})");
+    "tip_robot": [1, 2, 3], "tip_lps": [4, 5, 6], "uptime_s": 12.5,
+    "needle_lps": [[1, 2, 3], [1, 2, 13], [2, 2, 20]]})");
   EXPECT_EQ(json(aMotion()), expected);
 }
 

@@ -1,5 +1,5 @@
 // The web viewer's pure helpers (tools/ignav-web/app/src/geometry.ts, status.ts, clock.ts,
-// approval.ts, alerts.ts, verification.ts and structures.ts), bundled on the fly with the app's own esbuild and checked against
+// approval.ts, alerts.ts, verification.ts, structures.ts and the 3D view's scene.ts), bundled on the fly with the app's own esbuild and checked against
 // closed-form cases.
 //   node --test tests/web/app_units.test.mjs
 import assert from "node:assert/strict";
@@ -27,6 +27,7 @@ const ap = await load("approval.ts");
 const alerts = await load("alerts.ts");
 const ver = await load("verification.ts");
 const st = await load("structures.ts");
+const sc = await load("scene.ts");
 
 const near = (actual, expected, tolerance = 1e-9) =>
   assert.ok(
@@ -475,4 +476,59 @@ test("colours, progress and the placement axis through the structure's far corne
   near(tilted[1], [105 * c * c, 0, 105 * c * c], 1e-9);
   // No structure known: to the skin's entry.
   near(st.placementAxis(placement, undefined)[1], [0, 0, 50]);
+});
+
+// ---- the 3D view's pure parts (scene.ts) ----------------------------------------------------
+
+test("standard views: right-handed cameras whose screen right and up are anatomy's", () => {
+  const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+  // Screen right = (direction of projection) x up, the direction of projection = -from.
+  const right = (v) => cross(v.from.map((x) => -x), v.up);
+  // From the front (anterior, -y in LPS) the patient's left (+x) is on the right, superior up.
+  near(right(sc.kStandardViews.A), [1, 0, 0]);
+  near(sc.kStandardViews.A.up, [0, 0, 1]);
+  // From behind, the patient's right; from the left side, posterior (+y); from the right, anterior.
+  near(right(sc.kStandardViews.P), [-1, 0, 0]);
+  near(right(sc.kStandardViews.L), [0, 1, 0]);
+  near(right(sc.kStandardViews.R), [0, -1, 0]);
+  // From above, anterior up and the patient's right on the right; from below the axial picture
+  // of radiology: anterior up, the patient's left on the right.
+  near(right(sc.kStandardViews.S), [-1, 0, 0]);
+  near(right(sc.kStandardViews.I), [1, 0, 0]);
+  for (const v of Object.values(sc.kStandardViews)) assert.equal(Math.abs(v.from.reduce((a, x, i) => a + x * v.up[i], 0)), 0);
+});
+
+test("imageGeometry: spacing and direction columns from an oblique ijk -> LPS matrix", () => {
+  const c = Math.cos(0.4);
+  const n = Math.sin(0.4);
+  // Columns: i axis 0.8 mm along (c, n, 0), j 0.9 mm along (-n, c, 0), k 1.5 mm along z.
+  const m = [0.8 * c, -0.9 * n, 0, 10, 0.8 * n, 0.9 * c, 0, -20, 0, 0, 1.5, 30, 0, 0, 0, 1];
+  const geometry = sc.imageGeometry(m);
+  near(geometry.spacing, [0.8, 0.9, 1.5], 1e-12);
+  near(geometry.origin, [10, -20, 30]);
+  near(geometry.direction, [c, n, 0, -n, c, 0, 0, 0, 1], 1e-12);
+});
+
+test("windowTransfer: grey across the window in stored values, transparent up to the level", () => {
+  // A stored value v is v * 2 - 1024 HU: the window 400 / 40 HU is -160..240 HU, 432..632 stored.
+  const t = sc.windowTransfer(400, 40, 2, -1024);
+  assert.deepEqual(t.colour, [[432, 0], [632, 1]]);
+  assert.deepEqual(t.opacity, [[432, 0], [532, 0], [632, sc.kMaxOpacity]]);
+});
+
+test("stripsToTriangles: every triangle of a strip, wound as its first", () => {
+  // One strip of 5 vertices (3 triangles) and one of 3 (1 triangle).
+  const cells = sc.stripsToTriangles(Uint32Array.from([5, 10, 11, 12, 13, 14, 3, 20, 21, 22]));
+  assert.deepEqual(Array.from(cells), [3, 10, 11, 12, 3, 12, 11, 13, 3, 12, 13, 14, 3, 20, 21, 22]);
+});
+
+test("slabsComplete: slabs that follow each other to the last slice, and no others", () => {
+  assert.equal(sc.slabsComplete([4, 4, 10], [{ first_slice: 0, slice_count: 6 }, { first_slice: 6, slice_count: 4 }]), true);
+  assert.equal(sc.slabsComplete([4, 4, 10], [{ first_slice: 0, slice_count: 6 }]), false);
+  assert.equal(sc.slabsComplete([4, 4, 10], [{ first_slice: 0, slice_count: 6 }, { first_slice: 5, slice_count: 5 }]), false);
+});
+
+test("triangleCells and polylineCells: vtk.js's cell arrays", () => {
+  assert.deepEqual(Array.from(sc.triangleCells(Uint32Array.from([0, 1, 2, 2, 1, 3]))), [3, 0, 1, 2, 3, 2, 1, 3]);
+  assert.deepEqual(Array.from(sc.polylineCells(3)), [3, 0, 1, 2]);
 });

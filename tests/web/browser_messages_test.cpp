@@ -201,6 +201,47 @@ TEST(BrowserMessages, RepliesSlicesAndErrorsForTheBrowser) {
   EXPECT_EQ(e["code"], "bad_request");
 }
 
+// The 3D view's scene (issue 43): the request's fields, and the numbers as base64 of their
+// little-endian bytes (an int16 of -2 is FE FF; a float32 of 1.0 is 00 00 80 3F).
+TEST(BrowserMessages, SceneRequestsAndTheirNumbersAsLittleEndianBase64) {
+  const auto volume = std::get<SceneRequest>(
+      parsed(R"({"op":"scene","seq":3,"part":"volume","first_slice":64})").body);
+  EXPECT_EQ(volume.part, "volume");
+  EXPECT_EQ(volume.first_slice, 64u);
+  EXPECT_EQ(volume.max_voxels_per_axis, 0u);
+  const auto surfaces =
+      std::get<SceneRequest>(parsed(R"({"op":"scene","seq":4,"part":"surfaces"})").body);
+  EXPECT_EQ(surfaces.part, "surfaces");
+  EXPECT_NE(refused(R"({"op":"scene","seq":5,"part":"mesh"})").message.find("'part' \"mesh\""),
+            std::string::npos);
+  EXPECT_NE(refused(R"({"op":"scene","seq":6})").message.find("part"), std::string::npos);
+  EXPECT_NE(refused(R"({"op":"scene","seq":7,"part":"volume","first_slice":-1})")
+                .message.find("first_slice"),
+            std::string::npos);
+
+  protocol::SceneReply reply;
+  reply.ok = true;
+  reply.part = "volume";
+  reply.dims = {2, 1, 1};
+  reply.voxels = {-2, 1};
+  protocol::SceneSurface surface;
+  surface.name = "prostate";
+  surface.kind = "structure";
+  surface.colour_rgb = {0.5, 0.25, 1.0};
+  surface.points_lps = {1.0f};
+  surface.triangles = {0x01020304u};
+  reply.surfaces.push_back(surface);
+  const json m = sceneMessage(9, reply);
+  EXPECT_EQ(m["type"], "scene");
+  EXPECT_EQ(m["seq"], 9);
+  EXPECT_EQ(m["dims"], json({2, 1, 1}));
+  EXPECT_EQ(m["voxels_base64"], base64({0xfe, 0xff, 0x01, 0x00}));
+  EXPECT_EQ(m["surfaces"][0]["name"], "prostate");
+  EXPECT_EQ(m["surfaces"][0]["colour_rgb"], json({0.5, 0.25, 1.0}));
+  EXPECT_EQ(m["surfaces"][0]["points_base64"], base64({0x00, 0x00, 0x80, 0x3f}));
+  EXPECT_EQ(m["surfaces"][0]["triangles_base64"], base64({0x04, 0x03, 0x02, 0x01}));
+}
+
 TEST(BrowserMessages, Base64MatchesRfc4648Vectors) {
   // RFC 4648 §10.
   const std::pair<const char*, const char*> vectors[] = {{"", ""},

@@ -371,6 +371,13 @@ async function run(pages) {
   await sleep(Math.max(0, (requested_s + 5) * 1000 - Date.now()));
   const late = await newPage("late", { clockShift_ms: -7 * 60 * 1000 });
   await waitText(late, "approval-expiry", /expires in \d+ s/);
+  // The page's estimate of the server's clock errs by how late it reads the freshest sample: its
+  // 3D view's first frames (the CT and the feasible volume: WebGL contexts and shaders, seconds in
+  // headless software rendering) keep its thread busy for that long. Counted once they are drawn.
+  await late.waitForFunction(() => {
+    const d = window.ignav.view3d.describe();
+    return d.drawn_at_ms.volume !== undefined && d.drawn_at_ms.surfaces !== undefined;
+  }, null, { timeout: 60000 });
   await sleep(1500); // a fresh health sample (the gateway's cached one may be a second old)
   for (const [name, p] of [["late page", late], ["first page", page]]) {
     const { shown, left_s } = await countdown(p, first);

@@ -169,8 +169,19 @@ std::variant<BrowserRequest, BadRequest> parseBrowserMessage(std::string_view te
       out.body = EmergencyStopRequest{};
     } else if (op == "slice") {
       out.body = sliceFrom(msg);
+    } else if (op == "scene") {
+      SceneRequest s;
+      s.part = stringField(msg, "part", true);
+      if (s.part != "volume" && s.part != "surfaces") {
+        throw BadField("'part' \"" + s.part + "\" is not volume or surfaces");
+      }
+      s.first_slice =
+          static_cast<std::uint32_t>(unsignedField(msg, "first_slice", false, 0, UINT32_MAX));
+      s.max_voxels_per_axis = static_cast<std::uint32_t>(
+          unsignedField(msg, "max_voxels_per_axis", false, 0, UINT32_MAX));
+      out.body = s;
     } else {
-      throw BadField("'op' \"" + op + "\" is not command, approve, emergency_stop or slice");
+      throw BadField("'op' \"" + op + "\" is not command, approve, emergency_stop, slice or scene");
     }
   } catch (const BadField& e) {
     return BadRequest{out.seq, e.what()};
@@ -228,6 +239,35 @@ json sliceMessage(std::uint64_t seq, const protocol::SliceResult& slice) {
           {"pixel_to_lps", m},    {"png_base64", slice.ok ? base64(slice.png) : std::string()}};
 }
 
+json sceneMessage(std::uint64_t seq, const protocol::SceneReply& scene) {
+  static_assert(sizeof(float) == 4, "points travel as float32");
+  json surfaces = json::array();
+  for (const auto& s : scene.surfaces) {
+    surfaces.push_back(
+        {{"name", s.name},
+         {"kind", s.kind},
+         {"colour_rgb", s.colour_rgb},
+         {"points_base64", base64(s.points_lps.data(), s.points_lps.size() * sizeof(float))},
+         {"triangles_base64",
+          base64(s.triangles.data(), s.triangles.size() * sizeof(std::uint32_t))}});
+  }
+  return {
+      {"type", "scene"},
+      {"seq", seq},
+      {"ok", scene.ok},
+      {"message", scene.message},
+      {"part", scene.part},
+      {"volume_id", scene.volume_id},
+      {"dims", scene.dims},
+      {"ijk_to_lps", scene.ijk_to_lps},
+      {"value_scale", scene.value_scale},
+      {"value_offset", scene.value_offset},
+      {"first_slice", scene.first_slice},
+      {"slice_count", scene.slice_count},
+      {"voxels_base64", base64(scene.voxels.data(), scene.voxels.size() * sizeof(std::int16_t))},
+      {"surfaces", surfaces}};
+}
+
 json errorMessage(std::optional<std::uint64_t> seq, const std::string& code,
                   const std::string& message) {
   return {
@@ -235,11 +275,16 @@ json errorMessage(std::optional<std::uint64_t> seq, const std::string& code,
 }
 
 std::string base64(const std::vector<std::uint8_t>& bytes) {
-  std::string out(4 * ((bytes.size() + 2) / 3), '\0');
+  return base64(bytes.data(), bytes.size());
+}
+
+std::string base64(const void* bytes, std::size_t size) {
+  std::string out(4 * ((size + 2) / 3), '\0');
+  if (size == 0) return out;
   // EVP_EncodeBlock writes a terminating NUL too: room for it, then trim.
   out.resize(out.size() + 1);
-  const int n = EVP_EncodeBlock(reinterpret_cast<unsigned char*>(out.data()), bytes.data(),
-                                static_cast<int>(bytes.size()));
+  const int n = EVP_EncodeBlock(reinterpret_cast<unsigned char*>(out.data()),
+                                static_cast<const unsigned char*>(bytes), static_cast<int>(size));
   out.resize(static_cast<std::size_t>(n));
   return out;
 }

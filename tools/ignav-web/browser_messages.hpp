@@ -34,10 +34,16 @@ struct EmergencyStopRequest {};
 struct SliceRequest {
   protocol::SliceArgs args;
 };
+struct SceneRequest {  // a part of the 3D view's scene (issue 43)
+  std::string part;    // volume | surfaces
+  std::uint32_t first_slice = 0;
+  std::uint32_t max_voxels_per_axis = 0;
+};
 
 struct BrowserRequest {
   std::uint64_t seq = 0;
-  std::variant<CommandRequest, ApproveRequest, EmergencyStopRequest, SliceRequest> body;
+  std::variant<CommandRequest, ApproveRequest, EmergencyStopRequest, SliceRequest, SceneRequest>
+      body;
 };
 
 // A message the gateway refuses before it reaches the server; `seq` when it could be read.
@@ -64,11 +70,15 @@ nlohmann::json replyMessage(std::uint64_t seq, const protocol::Reply& reply);
 // waits for it).
 nlohmann::json jobOutcomeMessage(const protocol::JobOutcome& outcome);
 nlohmann::json sliceMessage(std::uint64_t seq, const protocol::SliceResult& slice);
+// The numbers travel as base64 of their little-endian bytes (int16 voxels, float32 points,
+// uint32 triangle indices): a 256-cube CT is 32 MiB of voxels, not a JSON array.
+nlohmann::json sceneMessage(std::uint64_t seq, const protocol::SceneReply& scene);
 // code: bad_request | timeout | busy | no_server | failed
 nlohmann::json errorMessage(std::optional<std::uint64_t> seq, const std::string& code,
                             const std::string& message);
 
 // Standard base64 (RFC 4648, padded), for PNG bytes inside JSON.
 std::string base64(const std::vector<std::uint8_t>& bytes);
+std::string base64(const void* bytes, std::size_t size);
 
 }  // namespace ignav::web

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <mutex>
 #include <set>
+#include <shared_mutex>
 #include <thread>
 
 #include "browser_messages.hpp"
@@ -48,11 +49,22 @@ constexpr auto kServerSilence = std::chrono::seconds(3);
 
 class WsSession;
 
-// A browser request on its way to the DDS thread.
+// A browser request on its way to a DDS thread.
 struct Job {
   std::weak_ptr<WsSession> from;
   BrowserRequest request;
 };
+
+// The requests one DDS thread answers, in order (an emergency stop first).
+struct JobQueue {
+  std::mutex mutex;
+  std::condition_variable ready;
+  std::deque<Job> jobs;
+};
+
+// How often the state thread drains the state topics when nothing arrives: what a browser sees
+// (an emergency stop's phase among it) is at most this late on top of DDS.
+constexpr auto kStatePollPeriod = std::chrono::milliseconds(2);
 
 }  // namespace
 
@@ -70,14 +82,21 @@ struct Gateway::Impl {
   bool server_matched = false;
 
   // ---- between the threads ----
-  std::mutex jobs_mutex;
-  std::condition_variable jobs_ready;
-  std::deque<Job> jobs;
+  // Three DDS threads, so that nothing waits behind a slow answer (issue 43: an emergency stop's
+  // phase reached pages 0.5-0.8 s late behind slices): "commands" answers commands, approvals and
+  // emergency stops; "views" slices and the 3D view's scene; "state" relays the state topics and
+  // watches the server. protocol::Client allows the three at once.
+  JobQueue commands, views;
   std::atomic<bool> stopping{false};
+  // The client's participant: shared by the three, made anew (DDS Security) by the state thread
+  // alone, with the other two out of it.
+  std::shared_mutex participant;
+  // When a Health sample last arrived (steady clock, ns; 0: none yet): the state thread writes
+  // it, the request threads read it.
+  std::atomic<Clock::rep> last_health_ns{0};
 
-  // ---- the DDS thread's ----
-  bool server_alive = false;                     // matched, and not silent (what browsers are told)
-  std::optional<Clock::time_point> last_health;  // when a Health sample last arrived
+  // ---- the state thread's ----
+  bool server_alive = false;  // matched, and not silent (what browsers are told)
   // Unmatched for 5 s under DDS Security: the client's participant is made anew (doubling).
   protocol::RemakeSchedule remake{std::chrono::milliseconds(5000),
                                   std::chrono::milliseconds(60000)};
@@ -120,11 +139,13 @@ struct Gateway::Impl {
   void fromBrowser(const std::shared_ptr<WsSession>& s, std::string_view text);
   void broadcast(const json& message);
 
-  // DDS thread.
-  void ddsLoop();
+  // DDS threads.
+  void stateLoop();
+  void requestLoop(JobQueue& queue);
   bool serverSilent() const;
+  std::optional<Clock::time_point> lastHealth() const;
   json answer(const BrowserRequest& request);
-  // From the DDS thread to a browser (or all), on the I/O thread.
+  // From a DDS thread to a browser (or all), on the I/O thread.
   void post(std::weak_ptr<WsSession> to, json message, bool completes_request);
 };
 
@@ -343,16 +364,19 @@ void Gateway::Impl::fromBrowser(const std::shared_ptr<WsSession>& s, std::string
         "more than " + std::to_string(kMaxInFlight) + " requests are waiting for the server"));
   }
   ++s->in_flight;
+  const bool view = std::holds_alternative<SliceRequest>(request.body) ||
+                    std::holds_alternative<SceneRequest>(request.body);
+  JobQueue& queue = view ? views : commands;
   {
-    std::lock_guard lock(jobs_mutex);
+    std::lock_guard lock(queue.mutex);
     // An emergency stop goes ahead of everything queued.
     if (emergency) {
-      jobs.push_front({s, std::move(request)});
+      queue.jobs.push_front({s, std::move(request)});
     } else {
-      jobs.push_back({s, std::move(request)});
+      queue.jobs.push_back({s, std::move(request)});
     }
   }
-  jobs_ready.notify_one();
+  queue.ready.notify_one();
 }
 
 void Gateway::Impl::broadcast(const json& message) {
@@ -385,7 +409,7 @@ json Gateway::Impl::answer(const BrowserRequest& request) {
   }
   if (!emergency && serverSilent()) {
     const auto silent_s =
-        std::chrono::duration_cast<std::chrono::seconds>(Clock::now() - *last_health).count();
+        std::chrono::duration_cast<std::chrono::seconds>(Clock::now() - *lastHealth()).count();
     return errorMessage(seq, "no_server",
                         "ignav-server on DDS domain " + std::to_string(options.domain) +
                             " has published nothing for " + std::to_string(silent_s) +
@@ -400,6 +424,10 @@ json Gateway::Impl::answer(const BrowserRequest& request) {
       return replyMessage(seq, client.approve(a->plan_id, a->digest, timeout));
     }
     if (emergency) return replyMessage(seq, client.emergencyStop(timeout));
+    if (const auto* scene = std::get_if<SceneRequest>(&request.body)) {
+      return sceneMessage(
+          seq, client.scene(scene->part, scene->first_slice, scene->max_voxels_per_axis, timeout));
+    }
     return sliceMessage(seq, client.slice(std::get<SliceRequest>(request.body).args, timeout));
   } catch (const protocol::Timeout& e) {
     return errorMessage(seq, "timeout", std::string("the server did not answer: ") + e.what());
@@ -412,35 +440,57 @@ json Gateway::Impl::answer(const BrowserRequest& request) {
 
 // Heard from once, and not since kServerSilence. (Before its first Health sample a matched server
 // counts as there: its state follows the match at once.)
-bool Gateway::Impl::serverSilent() const {
-  return last_health && Clock::now() - *last_health > kServerSilence;
+std::optional<Clock::time_point> Gateway::Impl::lastHealth() const {
+  const Clock::rep ns = last_health_ns.load();
+  if (ns == 0) return std::nullopt;
+  return Clock::time_point(Clock::duration(ns));
 }
 
-void Gateway::Impl::ddsLoop() {
-  auto next_check = Clock::now();
+bool Gateway::Impl::serverSilent() const {
+  const auto last = lastHealth();
+  return last && Clock::now() - *last > kServerSilence;
+}
+
+void Gateway::Impl::requestLoop(JobQueue& queue) {
   while (!stopping) {
     std::optional<Job> job;
     {
-      std::unique_lock lock(jobs_mutex);
-      jobs_ready.wait_for(lock, std::chrono::milliseconds(10),
-                          [&] { return stopping || !jobs.empty(); });
-      if (!jobs.empty()) {
-        job = std::move(jobs.front());
-        jobs.pop_front();
-      }
+      std::unique_lock lock(queue.mutex);
+      queue.ready.wait(lock, [&] { return stopping || !queue.jobs.empty(); });
+      if (stopping) return;
+      job = std::move(queue.jobs.front());
+      queue.jobs.pop_front();
     }
-    if (job) post(job->from, answer(job->request), true);
-    // State after the answer: a browser sees its reply, then what its command changed.
-    const auto changed = client.poll();
-    if (!changed.empty()) post({}, stateMessage(client.state(), changed), false);
-    for (const auto& outcome : client.takeJobOutcomes())
-      post({}, jobOutcomeMessage(outcome), false);
+    json message;
+    {
+      std::shared_lock lock(participant);
+      message = answer(job->request);
+    }
+    post(job->from, std::move(message), true);
+  }
+}
+
+void Gateway::Impl::stateLoop() {
+  auto next_check = Clock::now();
+  while (!stopping) {
+    std::vector<std::string> changed;
+    {
+      std::shared_lock lock(participant);
+      changed = client.poll();
+      if (!changed.empty()) post({}, stateMessage(client.state(), changed), false);
+      for (const auto& outcome : client.takeJobOutcomes())
+        post({}, jobOutcomeMessage(outcome), false);
+    }
     const bool heard = std::find(changed.begin(), changed.end(), "health") != changed.end();
-    if (heard) last_health = Clock::now();
+    if (heard) last_health_ns = Clock::now().time_since_epoch().count();
     // At once when a silent server speaks again, else every check period.
     if (Clock::now() >= next_check || (heard && !server_alive)) {
       next_check = Clock::now() + kServerCheckPeriod;
-      const bool matched = client.waitForServer(std::chrono::milliseconds(1));
+      bool matched = false;
+      {
+        std::shared_lock lock(participant);
+        matched = client.waitForServer(std::chrono::milliseconds(1));
+      }
       // With DDS Security, a handshake that lost a message never ends (Cyclone 0.10): a client
       // unmatched for a while is made anew, waiting twice as long each time (up to a minute).
       if (matched) {
@@ -448,6 +498,7 @@ void Gateway::Impl::ddsLoop() {
       } else if (options.identity && remake.due()) {
         spdlog::warn("ignav-server unmatched for {} s: making the DDS participant anew",
                      std::chrono::duration_cast<std::chrono::seconds>(remake.attempt()).count());
+        std::unique_lock lock(participant);
         client.makeParticipantAnew();
         remake.remade();
       }
@@ -462,6 +513,7 @@ void Gateway::Impl::ddsLoop() {
         post({}, connectionMessage(server_alive), false);
       }
     }
+    if (changed.empty()) std::this_thread::sleep_for(kStatePollPeriod);
   }
 }
 
@@ -475,18 +527,33 @@ std::uint16_t Gateway::port() const {
   return impl_->acceptor.local_endpoint().port();
 }
 
+namespace {
+
+void wakeRequestThreads(Gateway::Impl& impl) {
+  for (JobQueue* queue : {&impl.commands, &impl.views}) {
+    std::lock_guard lock(queue->mutex);  // a thread between its check and its wait hears it
+    queue->ready.notify_all();
+  }
+}
+
+}  // namespace
+
 void Gateway::run() {
-  std::thread dds([this] { impl_->ddsLoop(); });
+  std::thread state([this] { impl_->stateLoop(); });
+  std::thread commands([this] { impl_->requestLoop(impl_->commands); });
+  std::thread views([this] { impl_->requestLoop(impl_->views); });
   impl_->accept();
   impl_->io.run();
   impl_->stopping = true;
-  impl_->jobs_ready.notify_one();
-  dds.join();
+  wakeRequestThreads(*impl_);
+  state.join();
+  commands.join();
+  views.join();
 }
 
 void Gateway::stop() {
   impl_->stopping = true;
-  impl_->jobs_ready.notify_one();
+  wakeRequestThreads(*impl_);
   asio::post(impl_->io, [impl = impl_.get()] {
     beast::error_code ignored;
     impl->acceptor.close(ignored);

@@ -18,7 +18,10 @@ await build({
   bundle: true,
   format: "iife",
   target: "es2022",
-  sourcemap: "inline", // a stack trace in the browser names the .ts line
+  // vtk.js makes the bundle large: minified, with the map beside it (a stack trace in the
+  // browser still names the .ts line; the map is fetched only by developer tools).
+  minify: true,
+  sourcemap: "linked",
   logLevel: "warning",
 });
 for (const file of ["index.html", "app.css"]) {

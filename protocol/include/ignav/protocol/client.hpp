@@ -5,6 +5,7 @@
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -95,6 +96,10 @@ struct StateMirror {
   std::optional<StructuresState> structures;
 };
 
+// Threads: commands (send, approve, emergencyStop and what waits on them), views (slice, scene)
+// and the state (poll, state, takeJobOutcomes) may each run on a thread of its own at once, as
+// the web gateway does (a slice being drawn never holds up an emergency stop or the state); each
+// of the three on one thread at a time. makeParticipantAnew only with nothing else running.
 class Client {
  public:
   // identity: DDS Security on, as that identity (security.hpp); the writers its permissions
@@ -133,6 +138,11 @@ class Client {
   Reply emergencyStop(std::chrono::milliseconds timeout = std::chrono::seconds(30));
   SliceResult slice(const SliceArgs& args,
                     std::chrono::milliseconds timeout = std::chrono::seconds(30));
+  // A part of the 3D view's scene (issue 43): `part` "volume" (the slab from `first_slice`; ask
+  // again from first_slice + slice_count until dims[2]) or "surfaces". Not ok: message says why.
+  SceneReply scene(const std::string& part, std::uint32_t first_slice = 0,
+                   std::uint32_t max_voxels_per_axis = 0,
+                   std::chrono::milliseconds timeout = std::chrono::seconds(30));
 
   // Drains the state topics into state(); returns the names of the topics that changed
   // ("workflow", "robot", "volume", "registration", "target", "approval", "motion", "health",
@@ -178,7 +188,7 @@ class Client {
   std::string robot_id_;
   int participants_made_ = 1;
   std::string client_id_;
-  std::uint64_t next_request_ = 0;  // set from the clock (see the constructor)
+  std::atomic<std::uint64_t> next_request_{0};  // set from the clock (see the constructor)
   std::chrono::microseconds reply_spin_ =
       pollingPaysOff() ? std::chrono::milliseconds(2) : std::chrono::milliseconds(0);
   nlohmann::json state_ = nlohmann::json::object();

@@ -147,4 +147,63 @@ struct Fields<SliceReply> {
 };
 IGNAV_TOPIC_OF(SliceReply, topic::kSliceReply, Qos::kRequest);
 
+// The scene of a 3D view (issue 43): the CT by slabs, the surfaces in one reply.
+struct SceneRequest {
+  std::string client_id;
+  std::uint64_t request_id = 0;
+  std::string part;                       // volume | surfaces
+  std::uint32_t max_voxels_per_axis = 0;  // volume: 0 = 256
+  std::uint32_t first_slice = 0;          // volume: the slab's first k
+};
+template <>
+struct Fields<SceneRequest> {
+  using T = SceneRequest;
+  static constexpr auto list =
+      std::make_tuple(IGNAV_FIELD(client_id), IGNAV_FIELD(request_id), IGNAV_FIELD(part),
+                      IGNAV_FIELD(max_voxels_per_axis), IGNAV_FIELD(first_slice));
+};
+IGNAV_TOPIC_OF(SceneRequest, topic::kSceneRequest, Qos::kRequest);
+
+struct SceneSurface {
+  std::string name;
+  std::string kind;  // structure | feasible | isodose
+  std::array<double, 3> colour_rgb{};
+  std::vector<float> points_lps;         // x, y, z per vertex (mm)
+  std::vector<std::uint32_t> triangles;  // three vertex indices per triangle, wound outwards
+};
+template <>
+struct Fields<SceneSurface> {
+  using T = SceneSurface;
+  static constexpr auto list =
+      std::make_tuple(IGNAV_FIELD(name), IGNAV_FIELD(kind), IGNAV_FIELD(colour_rgb),
+                      IGNAV_FIELD(points_lps), IGNAV_FIELD(triangles));
+};
+
+struct SceneReply {
+  std::string client_id;
+  std::uint64_t request_id = 0;
+  bool ok = false;
+  std::string message;
+  std::string part;
+  std::string volume_id;  // slabs of different ids do not belong together
+  std::array<std::uint32_t, 3> dims{};
+  RowMajor4 ijk_to_lps{};
+  double value_scale = 1.0;
+  double value_offset = 0.0;
+  std::uint32_t first_slice = 0;
+  std::uint32_t slice_count = 0;
+  std::vector<std::int16_t> voxels;  // the slab, i fastest
+  std::vector<SceneSurface> surfaces;
+};
+template <>
+struct Fields<SceneReply> {
+  using T = SceneReply;
+  static constexpr auto list = std::make_tuple(
+      IGNAV_FIELD(client_id), IGNAV_FIELD(request_id), IGNAV_FIELD(ok), IGNAV_FIELD(message),
+      IGNAV_FIELD(part), IGNAV_FIELD(volume_id), IGNAV_FIELD(dims), IGNAV_FIELD(ijk_to_lps),
+      IGNAV_FIELD(value_scale), IGNAV_FIELD(value_offset), IGNAV_FIELD(first_slice),
+      IGNAV_FIELD(slice_count), IGNAV_FIELD(voxels), IGNAV_FIELD(surfaces));
+};
+IGNAV_TOPIC_OF(SceneReply, topic::kSceneReply, Qos::kRequest);
+
 }  // namespace ignav::protocol

@@ -446,6 +446,7 @@ struct MotionState {
   Point3 tip_robot;
   std::optional<Point3> tip_lps;  // with a registration
   double uptime_s = 0.0;
+  std::vector<Point3> needle_lps;  // with a registration: cannula base, cannula tip, stylet arc
 };
 template <>
 struct Fields<MotionState> {
@@ -460,7 +461,7 @@ struct Fields<MotionState> {
       IGNAV_FIELD(tip_robot),
       field("tip_lps", &T::tip_lps,
             [](auto& msg) { return std::tie(msg.tip_lps, msg.tip_lps_valid); }),
-      IGNAV_FIELD(uptime_s));
+      IGNAV_FIELD(uptime_s), IGNAV_FIELD(needle_lps));
 };
 IGNAV_TOPIC_OF(MotionState, topic::kMotion, Qos::kState);
 

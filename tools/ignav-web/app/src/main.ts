@@ -20,8 +20,9 @@ import { GatewaySocket, type SocketStatus } from "./socket";
 import type { Answer, HelloMessage, Request, ServerState, Vec3, ViewName } from "./state";
 import { targetDisplay } from "./status";
 import { placementAxis } from "./structures";
-import { StructuresPanel } from "./structures_panel";
+import { StructuresPanel, boundsCentre } from "./structures_panel";
 import { seedMarkers } from "./verification";
+import { type Selection, View3d } from "./view3d";
 import {
   type ClickMode,
   type Overlay,
@@ -50,6 +51,9 @@ let lastScroll: { view: ViewName; step: number } | null = null; // which way, fo
 let loadedVolume = ""; // which volume `settings` were made for
 let pendingFiducials: Vec3[] = [];
 let mode: ClickMode = "navigate";
+// The target or structure picked in the 3D view or clicked in its table: marked in both, and the
+// slices go to it.
+let selection: Selection = null;
 
 // The server's clock, as far as what it published tells (clock.ts): approvals count down on it.
 const serverClock = new ServerClock();
@@ -96,7 +100,10 @@ const socket = new GatewaySocket(`${location.protocol === "https:" ? "wss" : "ws
     const back = server && serverConnected !== true;
     serverConnected = server;
     // Whatever was asked while it was away (or on an older connection) is lost: ask again.
-    if (back) for (const view of views) view.refresh(true);
+    if (back) {
+      for (const view of views) view.refresh(true);
+      view3d.refetch();
+    }
     scheduleRender();
   },
   jobOutcome(outcome) {
@@ -283,6 +290,53 @@ const host: ViewHost = {
 const viewNames: ViewName[] = ["axial", "sagittal", "coronal"];
 const views = viewNames.map((name) => new SliceView(name, byId("views"), host));
 
+// The fourth view: the scene in 3D (issue 43).
+const figure3d = document.createElement("figure");
+figure3d.className = "view view3d";
+byId("views").append(figure3d);
+const view3d = new View3d(figure3d, {
+  send: (request) => (connected() ? socket.request(request) : Promise.resolve(notConnected())),
+  picked: (picked) => select(picked, true),
+});
+
+// Selects a target or a structure: its row marked (and scrolled to when the 3D view picked it),
+// the slices centred on it, the 3D view's path or surface drawn stronger.
+function select(picked: Selection, fromView: boolean): void {
+  selection = picked;
+  if (picked?.kind === "target") {
+    const target = state.targets?.[String(picked.id)];
+    if (target) setCentre(target.lps);
+  } else if (picked?.kind === "structure") {
+    const structure = state.structures?.structures.find((x) => x.name === picked.name);
+    if (structure) setCentre(boundsCentre(structure.bounds_lps));
+  }
+  markSelection(fromView);
+  scheduleRender();
+}
+
+function markSelection(scroll = false): void {
+  const want = selection?.kind === "target" ? `target-row-${selection.id}` : selection?.kind === "structure" ? `structure-row-${selection.name}` : "";
+  for (const row of document.querySelectorAll<HTMLElement>('tr[data-testid^="target-row-"], tr[data-testid^="structure-row-"]')) {
+    const on = row.dataset.testid === want;
+    row.classList.toggle("selected", on);
+    row.setAttribute("aria-selected", String(on));
+    if (on && scroll) row.scrollIntoView({ block: "nearest" });
+  }
+}
+
+// A row's click selects it too (its own handler goes to it).
+for (const [body, prefix] of [["targets-body", "target-row-"], ["structures-body", "structure-row-"]] as const) {
+  byId(body).addEventListener("click", (event) => {
+    const row = (event.target as HTMLElement).closest<HTMLElement>("tr");
+    const id = row?.dataset.testid ?? "";
+    if (!id.startsWith(prefix)) return;
+    const name = id.slice(prefix.length);
+    selection = prefix === "target-row-" ? { kind: "target", id: Number(name) } : { kind: "structure", name };
+    markSelection();
+    scheduleRender();
+  });
+}
+
 // ---- rendering, at most once a frame -------------------------------------------------------
 
 let renderScheduled = false;
@@ -306,6 +360,16 @@ function render(): void {
   panels.approval(state.approval, hello);
   panels.motion(state.motion);
   for (const view of views) view.draw();
+  markSelection();
+  view3d.update({
+    state,
+    window: settings?.window ?? Number(byId<HTMLInputElement>("window").value),
+    level: settings?.level ?? Number(byId<HTMLInputElement>("level").value),
+    centre_lps: settings?.centre_lps ?? null,
+    selection,
+    targetColour: (target) => targetDisplay(target, state.workflow?.phase ?? "", state.approval, state.motion).colour,
+    connected: connected(),
+  });
 }
 
 // ---- controls ------------------------------------------------------------------------------
@@ -375,6 +439,13 @@ Object.defineProperty(window, "ignav", {
     setPrefetching: (on: boolean) => {
       for (const view of views) view.prefetching = on;
     },
+    // The 3D view: its camera and contents, and a turn of it (benchmarks).
+    view3d: Object.freeze({
+      describe: () => view3d.describe(),
+      rotate: (degrees: number) => view3d.rotate(degrees),
+      pickAt: (clientX: number, clientY: number) => view3d.pick(clientX, clientY),
+      selection: (): Selection => structuredClone(selection),
+    }),
   }),
 });
 

@@ -102,6 +102,7 @@ export class GatewaySocket {
         return;
       case "reply":
       case "slice":
+      case "scene":
       case "error": {
         const resolve = this.pending.get(message.seq);
         if (!resolve) {

@@ -202,6 +202,7 @@ export interface MotionState {
   tip_robot: Vec3;
   tip_lps: Vec3 | null;
   uptime_s: number;
+  needle_lps?: Vec3[]; // cannula base, cannula tip, the stylet's arc (absent before issue 43)
 }
 
 export interface HealthState {
@@ -241,6 +242,8 @@ export interface SeedState {
   placed: boolean; // by place_seed
   rejected: boolean; // by reject_seed
   target_id: number; // matched to (0: none)
+  kind?: string; // "seed" | "tip" (the needle still in the scan: where its stylet ended)
+  path_lps?: Vec3[]; // a tip's needle centreline on the confirmation CT, ending at it
 }
 
 export interface MeasuredTargetState {
@@ -382,10 +385,11 @@ export type GatewayMessage =
   | ReplyMessage
   | JobOutcomeMessage
   | SliceMessage
+  | SceneMessage
   | ErrorMessage;
 
 // What a request is answered with.
-export type Answer = ReplyMessage | SliceMessage | ErrorMessage;
+export type Answer = ReplyMessage | SliceMessage | SceneMessage | ErrorMessage;
 
 export type ViewName = "axial" | "sagittal" | "coronal";
 
@@ -418,4 +422,37 @@ export interface EmergencyStopRequest {
   op: "emergency_stop";
 }
 
-export type Request = SliceRequest | CommandRequest | ApproveRequest | EmergencyStopRequest;
+// A part of the 3D view's scene (issue 43): the CT by slabs, or the surfaces.
+export interface SceneRequest {
+  op: "scene";
+  part: "volume" | "surfaces";
+  first_slice?: number;
+  max_voxels_per_axis?: number;
+}
+
+export interface SceneSurfaceMessage {
+  name: string;
+  kind: string; // structure | feasible | isodose
+  colour_rgb: Vec3; // 0-1
+  points_base64: string; // float32 x, y, z per vertex, little-endian
+  triangles_base64: string; // uint32, three per triangle
+}
+
+export interface SceneMessage {
+  type: "scene";
+  seq: number;
+  ok: boolean;
+  message: string;
+  part: string;
+  volume_id: string;
+  dims: Vec3;
+  ijk_to_lps: number[];
+  value_scale: number;
+  value_offset: number;
+  first_slice: number;
+  slice_count: number;
+  voxels_base64: string; // int16, little-endian, i fastest
+  surfaces: SceneSurfaceMessage[];
+}
+
+export type Request = SliceRequest | SceneRequest | CommandRequest | ApproveRequest | EmergencyStopRequest;

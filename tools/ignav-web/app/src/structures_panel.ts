@@ -25,7 +25,7 @@ export interface StructuresActions {
   command(kind: string, args: { ids?: number[]; path?: string }): void;
 }
 
-const boundsCentre = (b: number[]): Vec3 => [0, 1, 2].map((i) => (b[i]! + b[i + 3]!) / 2) as Vec3;
+export const boundsCentre = (b: number[]): Vec3 => [0, 1, 2].map((i) => (b[i]! + b[i + 3]!) / 2) as Vec3;
 const percent = (x: number | null) => (x === null || !Number.isFinite(x) ? "–" : `${(100 * x).toFixed(1)} %`);
 
 export class StructuresPanel {
