@@ -15,7 +15,8 @@
 //
 //   node tests/web/view3d_e2e.mjs --source SRC --build BUILD --out DIR [--chromium PATH] [--domain N]
 //
-// Screenshots go to --out (01-scene.png, 02-prostate-*.png, 03-selected.png; failure.png).
+// Screenshots go to --out (01-scene.png, 02-prostate-*.png, 03-selected.png, 04-page.png;
+// failure.png).
 import fs from "node:fs";
 import os from "node:os";
 import path from "node:path";
@@ -321,6 +322,8 @@ async function run(pages) {
   await standardView(page, "A", "anterior");
   await page.evaluate(() => window.ignav.view3d.rotate(-35));
   await canvasPicture(page, path.join(outDir, "03-selected.png"));
+  await page.evaluate(() => window.scrollTo(0, 0));
+  await page.screenshot({ path: path.join(outDir, "04-page.png") });
 }
 
 await runBrowserTest("view3d_e2e", outDir, run);

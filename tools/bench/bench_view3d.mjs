@@ -189,6 +189,34 @@ async function main() {
     console.log(`open -> scene drawn (the phantom, its 4 structures, the feasible volume), ${o.n} pages one after another:`);
     console.log(`  median ${ms(o.median)}, max ${ms(o.max)} (from navigation to the CT and the surfaces first drawn)`);
 
+    // An emergency stop while another page loads the scene (the gateway's views thread busy with
+    // its CT and surfaces): from the click to the phase shown, and back to planning each time.
+    const stops = [];
+    for (let n = 0; n < Number(args.pages); ++n) {
+      const busy = await context.newPage();
+      void busy.goto(url); // loads the 3D scene meanwhile
+      await page.waitForTimeout(300);
+      stops.push(await page.evaluate(() => new Promise((resolve) => {
+        const phase = document.querySelector('[data-testid="phase"]');
+        const t0 = performance.now();
+        const observer = new MutationObserver(() => {
+          if (phase.textContent !== "emergency") return;
+          observer.disconnect();
+          resolve(performance.now() - t0);
+        });
+        observer.observe(phase, { childList: true, characterData: true, subtree: true });
+        document.querySelector('[data-testid="estop-button"]').click();
+      })));
+      check((await sendCommand("reset_emergency")).accepted, "reset_emergency refused");
+      await page.waitForFunction(() => window.ignav.state().workflow?.phase === "stopped", null, { timeout: kTimeoutMs });
+      check((await sendCommand("resume")).accepted, "resume refused");
+      await page.waitForFunction(() => window.ignav.state().workflow?.phase === "planning", null, { timeout: kTimeoutMs });
+      await busy.close();
+    }
+    const e = summary(stops);
+    console.log(`emergency stop: click -> phase "emergency" shown, while another page loads the scene, ${e.n} stops:`);
+    console.log(`  median ${ms(e.median)}, max ${ms(e.max)}`);
+
     // The needle following motion: a target, its plan approved, each MotionState sample timed
     // from its publication (the server's uptime, on its wall clock through Health's pair) to the
     // 3D view's next frame after the page holds it.

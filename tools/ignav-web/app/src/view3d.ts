@@ -69,6 +69,11 @@ const kCannulaRadius_mm = 0.65;
 const kStyletRadius_mm = 0.35;
 const kSeedRadius_mm = 0.9;
 const kClickSlop_px = 4; // a press that moves further is a rotation, not a click
+// Without a GPU (WebGL in software: SwiftShader, llvmpipe) a frame of the CT takes hundreds of
+// milliseconds of the page's thread, and the page's banners, emergency stop and countdown wait for
+// a frame in progress: the view then draws half as many pixels each way (a quarter of the work).
+const kSoftwareResolution = 0.5;
+const kSoftwareRenderer = /swiftshader|llvmpipe|softpipe|software/i;
 
 export class View3d {
   readonly container: HTMLElement;
@@ -107,6 +112,8 @@ export class View3d {
   private renderPending = false;
   private looksKey = "";
   private readonly renderMs: number[] = []; // the last frames' time on this thread
+  private resolution = 1; // of the canvas' pixels per CSS pixel (times devicePixelRatio)
+  private readonly software: boolean; // WebGL without a GPU
   // When the CT and the surfaces were first drawn (ms since the page was opened), for benchmarks.
   private readonly drawnAt: { volume?: number; surfaces?: number } = {};
   private readonly awaitingDraw = new Set<"volume" | "surfaces">();
@@ -128,6 +135,10 @@ export class View3d {
     this.gw.resize();
     this.renderer = this.gw.getRenderer();
     this.renderWindow = this.gw.getRenderWindow();
+    const api = this.gw.getApiSpecificRenderWindow() as unknown as { getContext?(): WebGL2RenderingContext | null };
+    this.software = kSoftwareRenderer.test(webglRenderer(api.getContext?.() ?? null));
+    if (this.software) this.resolution = kSoftwareResolution;
+    this.fitCanvas();
     this.volumeActor.setMapper(this.volumeMapper);
     this.volumeActor.getProperty().setInterpolationTypeToLinear();
     this.volumeActor.getProperty().setShade(false);
@@ -135,7 +146,7 @@ export class View3d {
     this.picker.setTolerance(0);
     this.listen();
     new ResizeObserver(() => {
-      this.gw.resize();
+      this.fitCanvas();
       this.requestRender();
     }).observe(this.container);
     this.showStatus();
@@ -310,6 +321,8 @@ export class View3d {
       frames: this.framesRendered,
       drawn_at_ms: { ...this.drawnAt },
       render_ms: [...this.renderMs],
+      resolution: this.resolution,
+      software_rendering: this.software,
     };
   }
 
@@ -667,6 +680,14 @@ export class View3d {
     this.awaitingDraw.clear();
   }
 
+  // The canvas' pixels: the box's, times the device's ratio and the resolution chosen.
+  private fitCanvas(): void {
+    const ratio = (window.devicePixelRatio || 1) * this.resolution;
+    const width = Math.max(1, Math.floor(this.container.clientWidth * ratio));
+    const height = Math.max(1, Math.floor(this.container.clientHeight * ratio));
+    this.gw.getApiSpecificRenderWindow().setSize(width, height);
+  }
+
   private setStatus(text: string): void {
     this.status = text;
     this.showStatus();
@@ -727,6 +748,15 @@ function sphereActor(centre: Vec3, radius_mm: number, colour: [number, number, n
   actor.setMapper(mapper);
   actor.getProperty().setColor(...colour);
   return actor;
+}
+
+// The WebGL renderer's name ("ANGLE (Google, Vulkan 1.3.0 (SwiftShader Device …", "" unknown): of
+// vtk.js's context, else of a context made to ask.
+function webglRenderer(context: WebGL2RenderingContext | null): string {
+  const gl = context ?? document.createElement("canvas").getContext("webgl2");
+  if (!gl) return "";
+  const info = gl.getExtension("WEBGL_debug_renderer_info");
+  return String(gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER) ?? "");
 }
 
 // "#00bcd4" as 0-1 channels (grey for anything else).
