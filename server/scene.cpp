@@ -48,6 +48,45 @@ struct Timed {
 
 }  // namespace
 
+SceneBuilder::Averaged SceneBuilder::averagedOf(const volume::Volume& ct, std::uint32_t max) {
+  // Blocks of f voxels along each axis averaged into one, f the least that brings the axis to at
+  // most `max`; a last partial block is left out (under f voxels at the far face).
+  const auto& g = ct.geometry;
+  Averaged a;
+  a.max_per_axis = max;
+  std::array<int, 3> f{};
+  for (int axis = 0; axis < 3; ++axis) {
+    f[axis] = (g.dims[axis] + static_cast<int>(max) - 1) / static_cast<int>(max);
+    a.dims[axis] = static_cast<std::uint32_t>(std::max(1, g.dims[axis] / f[axis]));
+  }
+  // The block's centre: (f - 1) / 2 voxels in from its first voxel.
+  Eigen::Matrix4d block = Eigen::Matrix4d::Identity();
+  for (int axis = 0; axis < 3; ++axis) {
+    block(axis, axis) = f[axis];
+    block(axis, 3) = (f[axis] - 1) / 2.0;
+  }
+  a.ijk_to_lps = g.ijkToLps() * block;
+  if (f[0] * f[1] * f[2] == 1) return a;  // small enough: the CT's own voxels are served
+  a.voxels.resize(static_cast<std::size_t>(a.dims[0]) * a.dims[1] * a.dims[2]);
+  const double per_block = static_cast<double>(f[0]) * f[1] * f[2];
+  std::size_t n = 0;
+  for (std::uint32_t k = 0; k < a.dims[2]; ++k) {
+    for (std::uint32_t j = 0; j < a.dims[1]; ++j) {
+      for (std::uint32_t i = 0; i < a.dims[0]; ++i) {
+        double sum = 0.0;
+        for (int dk = 0; dk < f[2]; ++dk)
+          for (int dj = 0; dj < f[1]; ++dj)
+            for (int di = 0; di < f[0]; ++di)
+              sum += ct.voxels[ct.index(static_cast<int>(i) * f[0] + di,
+                                        static_cast<int>(j) * f[1] + dj,
+                                        static_cast<int>(k) * f[2] + dk)];
+        a.voxels[n++] = static_cast<std::int16_t>(std::lround(sum / per_block));
+      }
+    }
+  }
+  return a;
+}
+
 SceneReply SceneBuilder::build(const SceneRequest& request, const workflow::Session& session) {
   SceneReply out;
   out.client_id = request.client_id;
@@ -79,42 +118,7 @@ void SceneBuilder::volumePart(const SceneRequest& request, const workflow::Sessi
   }
   const auto& ct = session.ct.volume;
   if (averaged_of_ != ct || averaged_.max_per_axis != max) {
-    // Blocks of f voxels along each axis averaged into one, f the least that brings the axis to
-    // at most `max`; a last partial block is left out (under f voxels at the far face).
-    const auto& g = ct->geometry;
-    Averaged a;
-    a.source = ct.get();
-    a.max_per_axis = max;
-    std::array<int, 3> f{};
-    for (int axis = 0; axis < 3; ++axis) {
-      f[axis] = (g.dims[axis] + static_cast<int>(max) - 1) / static_cast<int>(max);
-      a.dims[axis] = static_cast<std::uint32_t>(std::max(1, g.dims[axis] / f[axis]));
-    }
-    // The block's centre: (f - 1) / 2 voxels in from its first voxel.
-    Eigen::Matrix4d block = Eigen::Matrix4d::Identity();
-    for (int axis = 0; axis < 3; ++axis) {
-      block(axis, axis) = f[axis];
-      block(axis, 3) = (f[axis] - 1) / 2.0;
-    }
-    a.ijk_to_lps = g.ijkToLps() * block;
-    a.voxels.resize(static_cast<std::size_t>(a.dims[0]) * a.dims[1] * a.dims[2]);
-    const double per_block = static_cast<double>(f[0]) * f[1] * f[2];
-    std::size_t n = 0;
-    for (std::uint32_t k = 0; k < a.dims[2]; ++k) {
-      for (std::uint32_t j = 0; j < a.dims[1]; ++j) {
-        for (std::uint32_t i = 0; i < a.dims[0]; ++i) {
-          double sum = 0.0;
-          for (int dk = 0; dk < f[2]; ++dk)
-            for (int dj = 0; dj < f[1]; ++dj)
-              for (int di = 0; di < f[0]; ++di)
-                sum += ct->voxels[ct->index(static_cast<int>(i) * f[0] + di,
-                                            static_cast<int>(j) * f[1] + dj,
-                                            static_cast<int>(k) * f[2] + dk)];
-          a.voxels[n++] = static_cast<std::int16_t>(std::lround(sum / per_block));
-        }
-      }
-    }
-    averaged_ = std::move(a);
+    averaged_ = averagedOf(*ct, max);
     averaged_of_ = ct;
   }
   const auto& a = averaged_;
@@ -132,9 +136,10 @@ void SceneBuilder::volumePart(const SceneRequest& request, const workflow::Sessi
   out.ijk_to_lps = protocol::toRowMajor(a.ijk_to_lps);
   out.value_scale = ct->value_scale;
   out.value_offset = ct->value_offset;
-  const auto first = a.voxels.begin() + static_cast<std::ptrdiff_t>(slice_voxels) *
-                                            static_cast<std::ptrdiff_t>(request.first_slice);
-  out.voxels.assign(first, first + static_cast<std::ptrdiff_t>(slice_voxels * out.slice_count));
+  // No voxels of its own: the CT needed no averaging and is served as it is.
+  const std::int16_t* voxels = a.voxels.empty() ? ct->voxels.data() : a.voxels.data();
+  const std::int16_t* first = voxels + slice_voxels * request.first_slice;
+  out.voxels.assign(first, first + slice_voxels * out.slice_count);
   out.ok = true;
 }
 

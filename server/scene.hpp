@@ -31,12 +31,12 @@ class SceneBuilder {
 
  private:
   struct Averaged {  // the CT averaged over blocks of voxels
-    const volume::Volume* source = nullptr;
     std::uint32_t max_per_axis = 0;
     std::array<std::uint32_t, 3> dims{};
     Eigen::Matrix4d ijk_to_lps = Eigen::Matrix4d::Identity();
-    std::vector<std::int16_t> voxels;
+    std::vector<std::int16_t> voxels;  // empty: blocks of one voxel, the CT's own voxels
   };
+  static Averaged averagedOf(const volume::Volume& ct, std::uint32_t max);
   void volumePart(const protocol::SceneRequest& request, const workflow::Session& session,
                   protocol::SceneReply& out);
   void surfacesPart(const workflow::Session& session, protocol::SceneReply& out);

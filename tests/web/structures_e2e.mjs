@@ -35,6 +35,8 @@ import {
   expectAccepted,
   fmt,
   goTo,
+  invert3,
+  invertAffine,
   kTimeoutMs,
   openPage,
   replyTo,
@@ -69,25 +71,6 @@ function siteRoles(file) {
     roles[name[1].trim()] = { role: line.match(/role: (\w+)/)[1], margin_mm: margin ? Number(margin[1]) : 0 };
   }
   return roles;
-}
-
-// The inverse of a 3x3 matrix (rows) by its cofactors, and its determinant.
-function invert3(a) {
-  const minor = (r, c) => {
-    const rows = [0, 1, 2].filter((x) => x !== r);
-    const cols = [0, 1, 2].filter((x) => x !== c);
-    return a[rows[0]][cols[0]] * a[rows[1]][cols[1]] - a[rows[0]][cols[1]] * a[rows[1]][cols[0]];
-  };
-  const det = a[0][0] * minor(0, 0) - a[0][1] * minor(0, 1) + a[0][2] * minor(0, 2);
-  const inverse = [0, 1, 2].map((r) => [0, 1, 2].map((c) => ((r + c) % 2 ? -minor(c, r) : minor(c, r)) / det));
-  return { inverse, det };
-}
-
-// The inverse of an affine [A t] given by its rows (the registration: a similarity).
-function invertAffine(m) {
-  const { inverse } = invert3(m.slice(0, 3).map((row) => row.slice(0, 3)));
-  const t = [m[0][3], m[1][3], m[2][3]];
-  return inverse.map((row) => [...row, -(row[0] * t[0] + row[1] * t[1] + row[2] * t[2])]);
 }
 
 // A 3D Slicer segmentation (.seg.nrrd, gzip, unsigned char, 3D or 4D with the layers first): its

@@ -21,6 +21,7 @@ import fs from "node:fs";
 import os from "node:os";
 import path from "node:path";
 import {
+  apply,
   appState,
   byTestId,
   check,
@@ -28,6 +29,7 @@ import {
   expectAccepted,
   fmt,
   goTo,
+  invertAffine,
   kTimeoutMs,
   openPage,
   rows4,
@@ -69,21 +71,6 @@ function project(camera, p, [W, H]) {
   const ny = y / half;
   return [((nx + 1) / 2) * W, ((1 - ny) / 2) * H];
 }
-
-// The inverse of an affine [A t] given by its rows (the registration: a similarity).
-function invertAffine(m) {
-  const a = m.slice(0, 3).map((row) => row.slice(0, 3));
-  const minor = (r, c) => {
-    const rows = [0, 1, 2].filter((x) => x !== r);
-    const cols = [0, 1, 2].filter((x) => x !== c);
-    return a[rows[0]][cols[0]] * a[rows[1]][cols[1]] - a[rows[0]][cols[1]] * a[rows[1]][cols[0]];
-  };
-  const det = a[0][0] * minor(0, 0) - a[0][1] * minor(0, 1) + a[0][2] * minor(0, 2);
-  const inverse = [0, 1, 2].map((r) => [0, 1, 2].map((c) => ((r + c) % 2 ? -minor(c, r) : minor(c, r)) / det));
-  const t = [m[0][3], m[1][3], m[2][3]];
-  return inverse.map((row) => [...row, -(row[0] * t[0] + row[1] * t[1] + row[2] * t[2])]);
-}
-const applyRows = (m, p) => [0, 1, 2].map((r) => m[r][0] * p[0] + m[r][1] * p[1] + m[r][2] * p[2] + m[r][3]);
 
 // ---- the 3D view's pixels ------------------------------------------------------------------
 
@@ -187,7 +174,7 @@ async function run(pages) {
   await expectAccepted(page, "auto_fiducials", () => byTestId(page, "action-auto_fiducials").click());
   await waitText(page, "registration-status", /^registered/, kJobTimeoutMs);
   const robotToLps = invertAffine(rows4((await appState(page)).registration.image_to_robot));
-  const targetsLps = kTargetsRobotMm.map((p) => applyRows(robotToLps, p));
+  const targetsLps = kTargetsRobotMm.map((p) => apply(robotToLps, p));
   await byTestId(page, "mode-target").check();
   for (const lps of targetsLps) {
     await goTo(page, lps, [9, -6]);
