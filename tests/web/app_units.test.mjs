@@ -532,3 +532,11 @@ test("triangleCells and polylineCells: vtk.js's cell arrays", () => {
   assert.deepEqual(Array.from(sc.triangleCells(Uint32Array.from([0, 1, 2, 2, 1, 3]))), [3, 0, 1, 2, 3, 2, 1, 3]);
   assert.deepEqual(Array.from(sc.polylineCells(3)), [3, 0, 1, 2]);
 });
+
+test("decodeBase64: RFC 4648's vectors, as bytes", async () => {
+  const text = (buffer) => Buffer.from(buffer).toString("latin1");
+  assert.equal(text(await sc.decodeBase64("")), "");
+  assert.equal(text(await sc.decodeBase64("Zg==")), "f");
+  assert.equal(text(await sc.decodeBase64("Zm9vYmFy")), "foobar");
+  assert.deepEqual(Array.from(new Uint8Array(await sc.decodeBase64("//4A"))), [0xff, 0xfe, 0x00]);
+});

@@ -166,7 +166,9 @@ async function main() {
     await page.waitForFunction((size) => /^CT (\d+) ×/.exec(window.ignav.view3d.describe().status)?.[1] === String(size), size, { timeout: kTimeoutMs });
     const large = await describe(page);
     printTurning(`synthetic ${size} × ${size} × ${size} (1 mm)`, await turning(page, Number(args.seconds)));
-    console.log(`  (loaded and first drawn ${((Date.now() - started) / 1000).toFixed(2)} s after load_volume; ${large.status})`);
+    const t = large.volume_timings;
+    console.log(`  (loaded and first drawn ${((Date.now() - started) / 1000).toFixed(2)} s after load_volume; ${large.status}: ` +
+      `its slabs received in ${(t.received_ms / 1000).toFixed(2)} s, decoded by ${(t.decoded_ms / 1000).toFixed(2)} s)`);
 
     // The phantom, its anatomy, registered.
     check((await sendCommand("load_volume", [], "phantom:")).accepted, "load_volume phantom: refused");
@@ -194,7 +196,7 @@ async function main() {
     const stops = [];
     for (let n = 0; n < Number(args.pages); ++n) {
       const busy = await context.newPage();
-      void busy.goto(url); // loads the 3D scene meanwhile
+      const loading = busy.goto(url).catch(() => {}); // loads the 3D scene meanwhile
       await page.waitForTimeout(300);
       stops.push(await page.evaluate(() => new Promise((resolve) => {
         const phase = document.querySelector('[data-testid="phase"]');
@@ -211,6 +213,7 @@ async function main() {
       await page.waitForFunction(() => window.ignav.state().workflow?.phase === "stopped", null, { timeout: kTimeoutMs });
       check((await sendCommand("resume")).accepted, "resume refused");
       await page.waitForFunction(() => window.ignav.state().workflow?.phase === "planning", null, { timeout: kTimeoutMs });
+      await loading;
       await busy.close();
     }
     const e = summary(stops);

@@ -100,10 +100,9 @@ const socket = new GatewaySocket(`${location.protocol === "https:" ? "wss" : "ws
     const back = server && serverConnected !== true;
     serverConnected = server;
     // Whatever was asked while it was away (or on an older connection) is lost: ask again.
-    if (back) {
-      for (const view of views) view.refresh(true);
-      view3d.refetch();
-    }
+    // (The 3D view keeps its scene: it asks again only when the CT or what the surfaces are made
+    // of changed, or a fetch failed.)
+    if (back) for (const view of views) view.refresh(true);
     scheduleRender();
   },
   jobOutcome(outcome) {

@@ -63,11 +63,15 @@ export function windowTransfer(window: number, level: number, valueScale: number
   };
 }
 
-// Standard base64 to bytes (the browser's own decoder: a 256-cube CT is 43 MB of text).
+// Standard base64 to bytes: the browser's own decoder where it has one (Uint8Array.fromBase64,
+// Chromium 140 on), else atob. (A data: URL through fetch took 5.7 s for a 256-cube CT's 43 MB.)
 export async function decodeBase64(text: string): Promise<ArrayBuffer> {
-  if (!text) return new ArrayBuffer(0);
-  const response = await fetch(`data:application/octet-stream;base64,${text}`);
-  return response.arrayBuffer();
+  const native = (Uint8Array as unknown as { fromBase64?: (text: string) => Uint8Array }).fromBase64;
+  if (native) return native(text).buffer as ArrayBuffer;
+  const binary = atob(text);
+  const bytes = new Uint8Array(binary.length);
+  for (let i = 0; i < binary.length; ++i) bytes[i] = binary.charCodeAt(i);
+  return bytes.buffer;
 }
 
 // The buffers travel little-endian; so is every machine a browser runs on, but say so.

@@ -112,6 +112,8 @@ export class View3d {
   private renderPending = false;
   private looksKey = "";
   private readonly renderMs: number[] = []; // the last frames' time on this thread
+  // The last CT's fetch: its slabs received, then decoded, from its first request (ms).
+  private volumeTimings: { received_ms: number; decoded_ms: number } | null = null;
   private resolution = 1; // of the canvas' pixels per CSS pixel (times devicePixelRatio)
   private readonly software: boolean; // WebGL without a GPU
   // When the CT and the surfaces were first drawn (ms since the page was opened), for benchmarks.
@@ -248,13 +250,6 @@ export class View3d {
     if (this.dirty) this.requestRender();
   }
 
-  // After a reconnection: whatever the server makes is asked for again.
-  refetch(): void {
-    this.volumeKey = "";
-    this.surfacesKey = "";
-    if (this.input) this.update(this.input);
-  }
-
   standardView(view: StandardView): void {
     const { from, up } = kStandardViews[view];
     const camera = this.renderer.getActiveCamera();
@@ -321,6 +316,7 @@ export class View3d {
       frames: this.framesRendered,
       drawn_at_ms: { ...this.drawnAt },
       render_ms: [...this.renderMs],
+      volume_timings: this.volumeTimings,
       resolution: this.resolution,
       software_rendering: this.software,
     };
@@ -343,25 +339,39 @@ export class View3d {
       return;
     }
     const started = performance.now();
-    const slabs: SceneMessage[] = [];
-    let next = 0;
-    for (;;) {
-      const answer = await this.host.send({ op: "scene", part: "volume", first_slice: next });
-      if (generation !== this.fetchGeneration) return; // a newer volume is being fetched
-      if (answer.type !== "scene" || !answer.ok) {
-        this.volumeKey = ""; // asked again on the next update
-        this.setStatus(`CT not shown: ${answer.type === "scene" ? answer.message : answer.type === "error" ? answer.message : "no answer"}`);
-        return;
-      }
-      if (slabs.length > 0 && answer.volume_id !== slabs[0]?.volume_id) {
-        // The CT changed while its slabs came: start again.
+    // The first slab says how many slices a slab holds; the rest are asked for at once, so that
+    // the server's, the gateway's and this page's work on successive slabs overlaps.
+    const fail = (answer: Answer): boolean => {
+      if (generation !== this.fetchGeneration) return true; // a newer volume is being fetched
+      if (answer.type === "scene" && answer.ok) return false;
+      this.volumeKey = ""; // asked again on the next update
+      this.setStatus(`CT not shown: ${answer.type === "scene" || answer.type === "error" ? answer.message : "no answer"}`);
+      return true;
+    };
+    const head = await this.host.send({ op: "scene", part: "volume", first_slice: 0 });
+    if (fail(head) || head.type !== "scene") return;
+    const slabs: SceneMessage[] = [head];
+    let slicesReceived = head.slice_count;
+    const rest: Array<Promise<Answer>> = [];
+    for (let next = head.slice_count; head.slice_count > 0 && next < head.dims[2]; next += head.slice_count) {
+      rest.push(
+        this.host.send({ op: "scene", part: "volume", first_slice: next }).then((answer) => {
+          if (answer.type === "scene" && answer.ok) {
+            slicesReceived += answer.slice_count;
+            this.setStatus(`CT: ${slicesReceived} of ${head.dims[2]} slices received`);
+          }
+          return answer;
+        }),
+      );
+    }
+    for (const answer of await Promise.all(rest)) {
+      if (fail(answer) || answer.type !== "scene") return;
+      // The CT changed while its slabs came: asked again on the next update.
+      if (answer.volume_id !== head.volume_id) {
         this.volumeKey = "";
         return;
       }
       slabs.push(answer);
-      next = answer.first_slice + answer.slice_count;
-      this.setStatus(`CT: ${next} of ${answer.dims[2]} slices received`);
-      if (next >= answer.dims[2]) break;
     }
     const first = slabs[0];
     if (!first || !slabsComplete(first.dims, slabs)) {
@@ -369,6 +379,7 @@ export class View3d {
       this.setStatus("CT not shown: its slabs did not add up");
       return;
     }
+    const received = performance.now();
     const [nx, ny, nz] = first.dims;
     const voxels = new Int16Array(nx * ny * nz);
     let offset = 0;
@@ -378,6 +389,7 @@ export class View3d {
       offset += part.length;
     }
     if (generation !== this.fetchGeneration) return;
+    this.volumeTimings = { received_ms: received - started, decoded_ms: performance.now() - started };
     const geometry = imageGeometry(first.ijk_to_lps);
     const image = vtkImageData.newInstance();
     image.setDimensions(nx, ny, nz);
