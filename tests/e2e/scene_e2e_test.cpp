@@ -2,13 +2,18 @@
 // voxels of the DICOM series the server wrote for its phantom (read here) and, averaged down, the
 // means of their blocks computed here; the structures' surfaces on the boundary of the voxels of
 // the segmentation the server wrote, enclosing their volume; the feasible volume's on the boundary
-// of the robot's reachable region through the registration; bad requests refused by name with
-// the server running on. Real ignav-server process over Cyclone DDS on loopback; domain 124.
+// of the robot's reachable region through the registration; after a seed plan is accepted, each
+// isodose surface where the dose the server wrote (dose/planned_dose.nrrd, read here) is its level;
+// bad requests refused by name with the server running on. Real ignav-server process over Cyclone
+// DDS on loopback; domain 124.
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstring>
+#include <fstream>
 #include <map>
+#include <regex>
 
 #include "ignav/anatomy/structures.hpp"
 #include "ignav/config/robot_config.hpp"
@@ -66,6 +71,50 @@ double enclosed_mm3(const protocol::SceneSurface& s) {
     six += vertex(s, s.triangles[t])
                .dot(vertex(s, s.triangles[t + 1]).cross(vertex(s, s.triangles[t + 2])));
   return six / 6.0;
+}
+
+// A raw float NRRD as the server writes the dose (dosimetry/dose_nrrd.hpp), read by its header's
+// sizes, space directions and origin: its grid and values.
+struct FloatNrrd {
+  volume::Geometry grid;
+  std::vector<float> values;
+  double at(const Eigen::Vector3d& lps) const {
+    const auto v = volume::trilinear(grid.dims, grid.toIjk(lps), [&](int i, int j, int k) {
+      return values[static_cast<std::size_t>(i) +
+                    static_cast<std::size_t>(grid.dims[0]) *
+                        (static_cast<std::size_t>(j) + static_cast<std::size_t>(grid.dims[1]) * k)];
+    });
+    return v ? *v : NAN;
+  }
+};
+
+FloatNrrd readFloatNrrd(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  FloatNrrd out;
+  std::string line;
+  const std::regex vector(R"(\(([^,]+),([^,]+),([^)]+)\))");
+  while (std::getline(in, line) && !line.empty()) {
+    if (line.rfind("sizes: ", 0) == 0) {
+      std::istringstream sizes(line.substr(7));
+      sizes >> out.grid.dims[0] >> out.grid.dims[1] >> out.grid.dims[2];
+    }
+    std::vector<Eigen::Vector3d> found;
+    for (std::sregex_iterator m(line.begin(), line.end(), vector), end; m != end; ++m)
+      found.emplace_back(std::stod((*m)[1]), std::stod((*m)[2]), std::stod((*m)[3]));
+    if (line.rfind("space directions: ", 0) == 0 && found.size() == 3) {
+      for (int a = 0; a < 3; ++a) {
+        out.grid.spacing_mm[a] = found[static_cast<std::size_t>(a)].norm();
+        out.grid.direction.col(a) = found[static_cast<std::size_t>(a)] / out.grid.spacing_mm[a];
+      }
+    }
+    if (line.rfind("space origin: ", 0) == 0 && found.size() == 1)
+      out.grid.origin_lps_mm = found[0];
+  }
+  out.values.resize(out.grid.voxelCount());
+  in.read(reinterpret_cast<char*>(out.values.data()),
+          static_cast<std::streamsize>(out.values.size() * sizeof(float)));
+  if (!in) out.values.clear();
+  return out;
 }
 
 TEST(SceneE2E, TheCtBySlabsTheStructuresAndTheFeasibleVolumeAsTheirFilesAndTheRobotSayIt) {
@@ -210,6 +259,52 @@ TEST(SceneE2E, TheCtBySlabsTheStructuresAndTheFeasibleVolumeAsTheirFilesAndTheRo
   std::cout << "feasible volume: the surface encloses " << feasible_cm3 << " cm³, the robot says "
             << robot_cm3 << " cm³; " << vertices << " vertices" << std::endl;
   EXPECT_NEAR(feasible_cm3, robot_cm3, 0.05 * robot_cm3);
+
+  // A seed plan accepted: its dose's isodose surfaces, each where the dose file says its level.
+  ASSERT_TRUE(op->send("plan_seeds", {"prostate", {}, {}}).accepted);
+  op->waitFor(
+      [](const json& s) { return stateText(s, "structures", "proposal_status") == "proposed"; },
+      60s);
+  ASSERT_TRUE(op->send("accept_proposals").accepted);
+  op->waitFor(
+      [](const json& s) {
+        const auto status = stateText(s, "structures", "dose_status");
+        return status == "computed" || status == "failed";
+      },
+      120s);
+  ASSERT_EQ(stateText(op->state(), "structures", "dose_status"), "computed");
+  const std::string plan = stateText(op->state(), "structures", "proposal_message");
+  const auto for_gy = plan.find(" Gy");
+  ASSERT_NE(for_gy, std::string::npos) << plan;
+  const double rx_Gy = std::stod(plan.substr(plan.rfind(' ', for_gy - 1) + 1));
+  const FloatNrrd dose = readFloatNrrd(server.sessionDir() / "dose" / "planned_dose.nrrd");
+  ASSERT_EQ(dose.values.size(), dose.grid.voxelCount());
+  ASSERT_GT(dose.values.size(), 1000u);
+  const auto with_dose = op->scene("surfaces", 0, 0, 60s);
+  ASSERT_TRUE(with_dose.ok) << with_dose.message;
+  int isodoses = 0;
+  for (const auto& surface : with_dose.surfaces) {
+    if (surface.kind != "isodose") continue;
+    ++isodoses;
+    SCOPED_TRACE(surface.name);
+    const double level_Gy =
+        rx_Gy * std::stod(surface.name.substr(surface.name.find(' ') + 1)) / 100.0;
+    // Flying edges interpolates linearly along the grid's edges, where trilinear is linear too:
+    // float's rounding only.
+    const double tolerance_Gy = 1e-3 * level_Gy;
+    int checked = 0, off_level = 0;
+    for (std::size_t v = 0; v < surface.points_lps.size() / 3; v += 5) {
+      const double at = dose.at(vertex(surface, v));
+      if (std::isnan(at)) continue;  // where the grid's faces close it
+      ++checked;
+      if (std::abs(at - level_Gy) > tolerance_Gy) ++off_level;
+    }
+    std::cout << surface.name << ": " << checked << " vertices at " << level_Gy << " Gy, "
+              << off_level << " off by more than " << tolerance_Gy << " Gy" << std::endl;
+    EXPECT_GT(checked, 50);
+    EXPECT_EQ(off_level, 0);
+  }
+  EXPECT_GE(isodoses, 3) << "50 %, 100 %, 150 % at least";
 
   // Bad requests: refused by name, the server answering on.
   const auto part = op->scene("mesh", 0, 0, 30s);
