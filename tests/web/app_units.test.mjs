@@ -540,3 +540,11 @@ test("decodeBase64: RFC 4648's vectors, as bytes", async () => {
   assert.equal(text(await sc.decodeBase64("Zm9vYmFy")), "foobar");
   assert.deepEqual(Array.from(new Uint8Array(await sc.decodeBase64("//4A"))), [0xff, 0xfe, 0x00]);
 });
+
+test("volumeBox: the box of an oblique volume's voxel centres", () => {
+  // i along (0.6, 0.8, 0) at 1 mm, j along (-0.8, 0.6, 0), k 2 mm along z; 11 x 6 x 4 voxels at (5, 0, -3).
+  const m = [0.6, -0.8, 0, 5, 0.8, 0.6, 0, 0, 0, 0, 2, -3, 0, 0, 0, 1];
+  const [lo, hi] = g.volumeBox(m, [11, 6, 4]);
+  near(lo, [5 - 0.8 * 5, 0, -3]);
+  near(hi, [5 + 0.6 * 10, 0.8 * 10 + 0.6 * 5, 3]);
+});

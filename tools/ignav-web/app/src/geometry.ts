@@ -137,20 +137,30 @@ export function viewCentre(pan: Vec3, shared: Vec3, normal: Vec3): Vec3 {
   return add(pan, scale(normal, dot(sub(shared, pan), normal)));
 }
 
+// The eight corners of the volume's voxel centres (LPS).
+export function volumeCorners(ijkToLps: Mat4, dims: Vec3): Vec3[] {
+  const corners: Vec3[] = [];
+  for (const i of [0, dims[0] - 1])
+    for (const j of [0, dims[1] - 1]) for (const k of [0, dims[2] - 1]) corners.push(transformPoint(ijkToLps, [i, j, k]));
+  return corners;
+}
+
+// The axis-aligned LPS box of the volume's voxel centres: [lowest, highest].
+export function volumeBox(ijkToLps: Mat4, dims: Vec3): [Vec3, Vec3] {
+  const corners = volumeCorners(ijkToLps, dims);
+  const along = (a: number) => corners.map((p) => p[a]);
+  return [
+    [0, 1, 2].map((a) => Math.min(...along(a))) as Vec3,
+    [0, 1, 2].map((a) => Math.max(...along(a))) as Vec3,
+  ];
+}
+
 // `point` moved along the unit `normal` as little as needed to lie between the volume's first
 // and last voxel centres along it: scrolling stops at the volume's edge.
 export function clampAlong(point: Vec3, normal: Vec3, ijkToLps: Mat4, dims: Vec3): Vec3 {
-  let lo = Infinity;
-  let hi = -Infinity;
-  for (const i of [0, dims[0] - 1])
-    for (const j of [0, dims[1] - 1])
-      for (const k of [0, dims[2] - 1]) {
-        const t = dot(transformPoint(ijkToLps, [i, j, k]), normal);
-        lo = Math.min(lo, t);
-        hi = Math.max(hi, t);
-      }
+  const along = volumeCorners(ijkToLps, dims).map((p) => dot(p, normal));
   const t = dot(point, normal);
-  return add(point, scale(normal, Math.min(hi, Math.max(lo, t)) - t));
+  return add(point, scale(normal, Math.min(Math.max(...along), Math.max(Math.min(...along), t)) - t));
 }
 
 // The pixel size at which a square image of size_px shows the volume's largest extent whole.

@@ -22,7 +22,7 @@ import vtkVolume from "@kitware/vtk.js/Rendering/Core/Volume";
 import vtkVolumeMapper from "@kitware/vtk.js/Rendering/Core/VolumeMapper";
 import vtkGenericRenderWindow from "@kitware/vtk.js/Rendering/Misc/GenericRenderWindow";
 
-import { invert, transformPoint } from "./geometry";
+import { invert, transformPoint, volumeBox } from "./geometry";
 import {
   type StandardView,
   decodeBase64,
@@ -37,6 +37,7 @@ import {
   windowTransfer,
 } from "./scene";
 import type { Answer, SceneMessage, SceneRequest, ServerState, TargetState, Vec3 } from "./state";
+import { seedMarkers } from "./verification";
 
 export type Selection = { kind: "target"; id: number } | { kind: "structure"; name: string } | null;
 
@@ -578,29 +579,26 @@ export class View3d {
     this.container.dataset.needle = String(needle.length);
   }
 
-  // The confirmation CT's seeds (rejected ones not) and its tips' needle centrelines, carried to
-  // the planning CT through its registration and the planning one's inverse (the robot frame is
-  // what both scans share), as the slices draw them (verification.ts).
+  // The confirmation CT's seeds on the planning CT as the slices draw them (seedMarkers), and the
+  // needle it found (a tip's centreline, on the confirmation CT) carried there through the
+  // confirmation CT's registration and the planning one's inverse (the robot frame is what both
+  // scans share).
   private seedsOnPlanningCt(): { points: Vec3[]; paths: Vec3[][] } {
     const s = this.input?.state;
     const v = s?.verification;
-    if (!v || (v.status !== "measured" && v.status !== "unmatched")) return { points: [], paths: [] };
-    let toPlanning: ((p: Vec3) => Vec3) | null = null;
+    const points = seedMarkers(v, s?.registration, s?.targets).map((marker) => marker.lps);
+    if (!v || (v.status !== "measured" && v.status !== "unmatched")) return { points, paths: [] };
+    let toPlanning = (p: Vec3): Vec3 => p;
     if (s?.registration?.status === "registered" && v.image_to_robot.length === 16) {
       try {
         const robotToImage = invert(s.registration.image_to_robot);
-        const confirmation = v.image_to_robot;
-        toPlanning = (p) => transformPoint(robotToImage, transformPoint(confirmation, p));
+        toPlanning = (p) => transformPoint(robotToImage, transformPoint(v.image_to_robot, p));
       } catch {
-        toPlanning = null;
+        // a singular registration: the confirmation CT's own LPS, as seedMarkers falls back to
       }
     }
-    const map = (p: Vec3) => (toPlanning ? toPlanning(p) : p);
-    const kept = v.seeds.filter((seed) => !seed.rejected);
-    return {
-      points: kept.filter((seed) => seed.kind !== "tip").map((seed) => map(seed.lps)),
-      paths: kept.filter((seed) => seed.kind === "tip").map((seed) => (seed.path_lps ?? []).map(map)),
-    };
+    const tips = v.seeds.filter((seed) => !seed.rejected && seed.kind === "tip");
+    return { points, paths: tips.map((seed) => (seed.path_lps ?? []).map(toPlanning)) };
   }
 
   // The three slice planes through the crosshair, across the CT, as outlines.
@@ -614,7 +612,7 @@ export class View3d {
     this.dirty = true;
     for (const actor of this.planeActors) this.renderer.removeActor(actor);
     this.planeActors = [];
-    const [lo, hi] = lpsBox(volume.ijk_to_lps, volume.dims);
+    const [lo, hi] = volumeBox(volume.ijk_to_lps, volume.dims);
     const c = input.centre_lps;
     const outlines: Array<[Vec3[], [number, number, number]]> = [
       // axial (z), sagittal (x), coronal (y): each in the colour Slicer gives its view
@@ -776,20 +774,4 @@ function cssRgb(css: string): [number, number, number] {
   const m = /^#([0-9a-f]{2})([0-9a-f]{2})([0-9a-f]{2})$/i.exec(css);
   if (!m) return [0.6, 0.6, 0.6];
   return [parseInt(m[1] ?? "99", 16) / 255, parseInt(m[2] ?? "99", 16) / 255, parseInt(m[3] ?? "99", 16) / 255];
-}
-
-// The LPS box of the CT's voxel centres.
-function lpsBox(ijkToLps: number[], dims: Vec3): [Vec3, Vec3] {
-  const lo: Vec3 = [Infinity, Infinity, Infinity];
-  const hi: Vec3 = [-Infinity, -Infinity, -Infinity];
-  for (const i of [0, dims[0] - 1])
-    for (const j of [0, dims[1] - 1])
-      for (const k of [0, dims[2] - 1]) {
-        const p = transformPoint(ijkToLps, [i, j, k]);
-        for (let a = 0; a < 3; ++a) {
-          lo[a] = Math.min(lo[a] ?? Infinity, p[a] ?? 0);
-          hi[a] = Math.max(hi[a] ?? -Infinity, p[a] ?? 0);
-        }
-      }
-  return [lo, hi];
 }
