@@ -1,6 +1,6 @@
 // The little linear algebra the viewer needs: row-major 4x4 matrices, the map between a slice's
 // PNG pixels and LPS millimetres, and the CSS scaling of a canvas. Pure functions, no DOM.
-import type { Vec3 } from "./state";
+import type { Vec3, VolumeState } from "./state";
 
 export type Mat4 = readonly number[]; // 16 numbers, row-major
 
@@ -123,6 +123,11 @@ export function spacingAlong(direction: Vec3, ijkToLps: Mat4, spacing_mm: Vec3):
     }
   }
   return spacing_mm[best];
+}
+
+// Which volume is loaded ("" none): what the views' pictures of it were made for.
+export function loadedVolumeKey(volume: VolumeState | undefined): string {
+  return volume?.status === "loaded" ? JSON.stringify([volume.source, volume.dims, volume.ijk_to_lps]) : "";
 }
 
 // The LPS point at the middle of the volume (voxel centres at integer indices).

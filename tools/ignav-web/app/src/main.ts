@@ -8,6 +8,7 @@ import {
   clampAlong,
   fittingPixelMm,
   formatLps,
+  loadedVolumeKey,
   parseLps,
   scale,
   spacingAlong,
@@ -138,7 +139,7 @@ function command(kind: string, args: { points?: Vec3[]; ids?: number[]; path?: s
 
 function volumeChanged(): void {
   const volume = state.volume;
-  const key = volume?.status === "loaded" ? JSON.stringify([volume.source, volume.dims, volume.ijk_to_lps]) : "";
+  const key = loadedVolumeKey(volume);
   if (key === loadedVolume) return;
   loadedVolume = key;
   // A new volume: look at all of it, from its middle.

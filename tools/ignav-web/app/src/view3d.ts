@@ -22,7 +22,7 @@ import vtkVolume from "@kitware/vtk.js/Rendering/Core/Volume";
 import vtkVolumeMapper from "@kitware/vtk.js/Rendering/Core/VolumeMapper";
 import vtkGenericRenderWindow from "@kitware/vtk.js/Rendering/Misc/GenericRenderWindow";
 
-import { invert, transformPoint, volumeBox } from "./geometry";
+import { invert, loadedVolumeKey, transformPoint, volumeBox } from "./geometry";
 import {
   type StandardView,
   decodeBase64,
@@ -61,7 +61,7 @@ export type CtMode = "volume" | "mip" | "off";
 export type Layer = "structures" | "feasible" | "isodose" | "paths" | "needle" | "planes";
 
 type Actor = ReturnType<typeof vtkActor.newInstance>;
-type Picked = { kind: "target"; id: number } | { kind: "structure"; name: string };
+type Picked = NonNullable<Selection>;
 
 const kPathRadius_mm = 0.45;
 const kSelectedPathRadius_mm = 0.9;
@@ -89,7 +89,6 @@ export class View3d {
   private volumeValues: { scale: number; offset: number } | null = null;
   // What is shown, each by the key of what it was made from: remade only when that changes.
   private volumeKey = ""; // the volume_id shown (or being fetched)
-  private volumeProblem = "";
   private surfacesKey = "";
   private surfaceActors: Array<{ actor: Actor; kind: string; name: string }> = [];
   private pathsKey = "";
@@ -220,9 +219,8 @@ export class View3d {
   update(input: View3dInput): void {
     this.input = input;
     const s = input.state;
-    const volume = s.volume;
-    const loaded = volume?.status === "loaded";
-    const volumeKey = loaded ? JSON.stringify([volume.source, volume.dims, volume.ijk_to_lps]) : "";
+    const volumeKey = loadedVolumeKey(s.volume);
+    const loaded = volumeKey !== "";
     if (volumeKey !== this.volumeKey && input.connected) {
       this.volumeKey = volumeKey;
       this.surfacesKey = "";
@@ -335,8 +333,7 @@ export class View3d {
       return;
     }
     if (!littleEndian()) {
-      this.volumeProblem = "this machine is big-endian: the CT's numbers cannot be read";
-      this.setStatus(this.volumeProblem);
+      this.setStatus("this machine is big-endian: the CT's numbers cannot be read");
       return;
     }
     const started = performance.now();
@@ -406,7 +403,6 @@ export class View3d {
     this.renderer.addVolume(this.volumeActor);
     if (!this.cameraSet) this.standardView("A");
     this.setStatus(`CT ${nx} × ${ny} × ${nz} in ${((performance.now() - started) / 1000).toFixed(2)} s`);
-    this.container.dataset.volume = "shown";
     this.awaitingDraw.add("volume");
     this.requestRender();
   }
@@ -442,7 +438,6 @@ export class View3d {
     }
     if (key !== this.surfacesKey) return;
     this.replaceSurfaces(made);
-    this.container.dataset.surfaces = String(made.length);
     if (made.length > 0) this.awaitingDraw.add("surfaces");
     if (!this.cameraSet && made.length > 0) this.standardView("A");
     this.requestRender();
@@ -548,7 +543,6 @@ export class View3d {
       actor.setVisibility(this.layers.has("paths"));
       this.renderer.addActor(actor);
     }
-    this.container.dataset.paths = String(targets.length);
   }
 
   // The needle at the reported joints (cannula and stylet), the confirmation CT's seeds and the
@@ -576,7 +570,6 @@ export class View3d {
       actor.setVisibility(this.layers.has("needle"));
       this.renderer.addActor(actor);
     }
-    this.container.dataset.needle = String(needle.length);
   }
 
   // The confirmation CT's seeds on the planning CT as the slices draw them (seedMarkers), and the
