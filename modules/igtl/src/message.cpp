@@ -19,72 +19,98 @@ constexpr std::size_t kTransformBody = 48;  // 12 float32
 constexpr std::size_t kStatusFixed = 30;    // code, subcode, error name
 constexpr std::size_t kStringFixed = 4;     // encoding, length
 constexpr std::size_t kPointElement = 136;  // name, group, rgba, xyz, radius, owner
-constexpr std::uint16_t kUsAscii = 3;       // IANA MIBenum of US-ASCII
 
-std::uint16_t readU16(const char* p) {
-  return static_cast<std::uint16_t>((static_cast<unsigned char>(p[0]) << 8) |
-                                    static_cast<unsigned char>(p[1]));
+std::uint64_t readBig(const char* p, int bytes) {
+  std::uint64_t v = 0;
+  for (int i = 0; i < bytes; ++i)
+    v = (v << 8) | static_cast<unsigned char>(p[i]);
+  return v;
 }
 
-std::string wire(::igtl::MessageBase* m) {
+void appendBig(std::string& out, std::uint64_t v, int bytes) {
+  for (int i = bytes - 1; i >= 0; --i)
+    out += static_cast<char>((v >> (8 * i)) & 0xff);
+}
+
+// What libOpenIGTLink packed, without its header: the content (our framing goes around it).
+std::string contentOf(::igtl::MessageBase* m) {
   m->Pack();
-  return std::string(static_cast<const char*>(m->GetPackPointer()),
-                     static_cast<std::size_t>(m->GetPackSize()));
+  return std::string(static_cast<const char*>(m->GetPackBodyPointer()),
+                     static_cast<std::size_t>(m->GetPackBodySize()));
 }
 
 Error bad(const std::string& what) {
   return makeError(ErrorCode::kInvalidArgument, what);
 }
 
-// Unpacks `body` into `m` (of the header's type), checking the CRC.
+// Unpacks `content` into an `M` through libOpenIGTLink (our Decoder has checked the CRC of the
+// whole body already).
 template <class M>
-Expected<typename M::Pointer> unpack(const ::igtl::MessageHeader::Pointer& header,
-                                     const std::string& body, const std::string& name) {
+Expected<typename M::Pointer> unpack(const Message& in, std::string_view content,
+                                     const std::string& name) {
+  Header h;
+  h.type = in.type;
+  h.device_name = in.device_name;
+  h.body_size = content.size();
+  const std::string header_bytes = writeHeader(h);
+  auto header = ::igtl::MessageHeader::New();
+  header->InitPack();
+  std::memcpy(header->GetPackPointer(), header_bytes.data(), kHeaderBytes);
+  header->Unpack();
   auto m = M::New();
   m->SetMessageHeader(header);
   m->AllocatePack();
-  if (!body.empty()) std::memcpy(m->GetPackBodyPointer(), body.data(), body.size());
-  if (!(m->Unpack(1) & ::igtl::MessageHeader::UNPACK_BODY)) {
-    return makeError(ErrorCode::kFormat, name + ": CRC mismatch or malformed body");
+  if (!content.empty()) std::memcpy(m->GetPackBodyPointer(), content.data(), content.size());
+  if (!(m->Unpack(0) & ::igtl::MessageHeader::UNPACK_BODY)) {
+    return makeError(ErrorCode::kFormat, name + ": malformed body");
   }
   return m;
 }
 
-Expected<Message> decodeBody(const ::igtl::MessageHeader::Pointer& header,
-                             const std::string& body) {
-  Message out;
-  out.type = header->GetDeviceType();
-  out.device_name = header->GetDeviceName();
+// The content of `out` (type, device name and framing filled in) from its bytes.
+Expected<Message> decodeContent(Message out, std::string_view body) {
   const std::string name = fmt::format("{} message '{}'", out.type, out.device_name);
   const auto format = [&](const std::string& what) {
     return makeError(ErrorCode::kFormat, name + ": " + what);
   };
   if (out.type == "STRING") {
     if (body.size() < kStringFixed) return format("body shorter than 4 bytes");
-    const std::size_t length = readU16(body.data() + 2);
+    const std::size_t length = readBig(body.data() + 2, 2);
     if (length > body.size() - kStringFixed) {
       return format(fmt::format("string length {} exceeds its body ({} bytes)", length,
                                 body.size() - kStringFixed));
     }
-    auto m = unpack<::igtl::StringMessage>(header, body, name);
-    if (!m) return m.error();
     out.text.assign(body.data() + kStringFixed, length);  // not NUL-terminated on the wire
   } else if (out.type == "STATUS") {
     if (body.size() < kStatusFixed + 1 || body.back() != '\0') {
       return format("body must hold code, subcode, error name and a NUL-terminated string");
     }
-    auto m = unpack<::igtl::StatusMessage>(header, body, name);
+    auto m = unpack<::igtl::StatusMessage>(out, body, name);
     if (!m) return m.error();
     out.status.code = static_cast<std::uint16_t>((*m)->GetCode());
     out.status.subcode = (*m)->GetSubCode();
     out.status.error_name.assign(body.data() + 10, strnlen(body.data() + 10, 20));
-    out.status.status_string = body.data() + kStatusFixed;
+    out.status.status_string = std::string(body.data() + kStatusFixed);
+  } else if (out.type == "COMMAND" || out.type == "RTS_COMMAND") {
+    if (body.size() < kCommandHeaderBytes) {
+      return format(fmt::format("body has {} bytes; a command's fixed part alone has {}",
+                                body.size(), kCommandHeaderBytes));
+    }
+    const std::uint64_t length = readBig(body.data() + 134, 4);
+    if (length > body.size() - kCommandHeaderBytes) {
+      return format(fmt::format("command length {} exceeds its body ({} bytes)", length,
+                                body.size() - kCommandHeaderBytes));
+    }
+    out.command.id = static_cast<std::uint32_t>(readBig(body.data(), 4));
+    out.command.name.assign(body.data() + 4, strnlen(body.data() + 4, kMaxCommandName + 1));
+    out.command.encoding = static_cast<std::uint16_t>(readBig(body.data() + 132, 2));
+    out.command.text.assign(body.data() + kCommandHeaderBytes, length);
   } else if (out.type == "TRANSFORM") {
     if (body.size() != kTransformBody) {
       return format(
           fmt::format("body has {} bytes; a transform has {}", body.size(), kTransformBody));
     }
-    auto m = unpack<::igtl::TransformMessage>(header, body, name);
+    auto m = unpack<::igtl::TransformMessage>(out, body, name);
     if (!m) return m.error();
     ::igtl::Matrix4x4 matrix;
     (*m)->GetMatrix(matrix);
@@ -98,7 +124,7 @@ Expected<Message> decodeBody(const ::igtl::MessageHeader::Pointer& header,
       return format(fmt::format("body has {} bytes; points come in {}-byte elements", body.size(),
                                 kPointElement));
     }
-    auto m = unpack<::igtl::PointMessage>(header, body, name);
+    auto m = unpack<::igtl::PointMessage>(out, body, name);
     if (!m) return m.error();
     for (int i = 0; i < (*m)->GetNumberOfPointElement(); ++i) {
       ::igtl::PointElement::Pointer e;
@@ -195,11 +221,28 @@ Message queryMessage(std::string type, std::string device) {
   return m;
 }
 
-Expected<std::string> encode(const Message& in) {
-  if (in.device_name.size() > kMaxDeviceName) {
-    return bad(fmt::format("device name '{}' has {} characters; OpenIGTLink allows {}",
-                           in.device_name, in.device_name.size(), kMaxDeviceName));
+Message commandMessage(std::string type, std::uint32_t id, std::string name, std::string text) {
+  Message m;
+  m.type = std::move(type);
+  m.device_name = "COMMAND";
+  m.header_version = 2;  // protocol 3's own messages
+  m.command.id = id;
+  m.command.name = std::move(name);
+  m.command.text = std::move(text);
+  return m;
+}
+
+const std::string* metaDataValue(const Message& m, const std::string& key) {
+  for (const auto& e : m.metadata) {
+    if (e.key == key) return &e.value;
   }
+  return nullptr;
+}
+
+namespace {
+
+// The content of a message of ours (the version-1 body, the version-2 body's middle).
+Expected<std::string> contentBytes(const Message& in) {
   if (in.type == "STRING") {
     if (in.text.size() > 0xffff) {
       return bad(
@@ -209,7 +252,7 @@ Expected<std::string> encode(const Message& in) {
     m->SetDeviceName(in.device_name.c_str());
     m->SetEncoding(kUsAscii);
     m->SetString(in.text.c_str());
-    return wire(m);
+    return contentOf(m);
   }
   if (in.type == "STATUS") {
     if (in.status.error_name.size() > kMaxErrorName) {
@@ -222,7 +265,7 @@ Expected<std::string> encode(const Message& in) {
     m->SetSubCode(in.status.subcode);
     m->SetErrorName(in.status.error_name.c_str());
     m->SetStatusString(in.status.status_string.c_str());
-    return wire(m);
+    return contentOf(m);
   }
   if (in.type == "TRANSFORM") {
     if (!in.matrix.allFinite()) {
@@ -235,7 +278,7 @@ Expected<std::string> encode(const Message& in) {
       for (int c = 0; c < 4; ++c)
         matrix[r][c] = static_cast<float>(in.matrix(r, c));
     m->SetMatrix(matrix);
-    return wire(m);
+    return contentOf(m);
   }
   if (in.type == "POINT") {
     auto m = ::igtl::PointMessage::New();
@@ -253,24 +296,80 @@ Expected<std::string> encode(const Message& in) {
       e->SetRadius(1.0f);
       m->AddPointElement(e);
     }
-    return wire(m);
+    return contentOf(m);
   }
   if (in.type == "GET_STATUS") {
     auto m = ::igtl::GetStatusMessage::New();
     m->SetDeviceName(in.device_name.c_str());
-    return wire(m);
+    return contentOf(m);
   }
   if (in.type == "GET_TRANS") {  // GET_TRANSFORM: type names have at most 12 characters
     auto m = ::igtl::GetTransformMessage::New();
     m->SetDeviceName(in.device_name.c_str());
-    return wire(m);
+    return contentOf(m);
+  }
+  if (in.type == "COMMAND" || in.type == "RTS_COMMAND") {
+    if (in.command.name.size() > kMaxCommandName) {
+      return bad(fmt::format("{} '{}': command name of {} characters; at most {}", in.type,
+                             in.device_name, in.command.name.size(), kMaxCommandName));
+    }
+    if (in.command.text.size() > 0xffffffffULL) {
+      return bad(fmt::format("{} '{}': command text too long", in.type, in.device_name));
+    }
+    std::string out;
+    out.reserve(kCommandHeaderBytes + in.command.text.size());
+    appendBig(out, in.command.id, 4);
+    std::string name = in.command.name;
+    name.resize(kMaxCommandName + 1, '\0');
+    out += name;
+    appendBig(out, in.command.encoding, 2);
+    appendBig(out, in.command.text.size(), 4);
+    out += in.command.text;
+    return out;
   }
   return bad("message type '" + in.type + "' is not one we send");
 }
 
+}  // namespace
+
+Expected<std::string> encode(const Message& in) {
+  if (in.device_name.size() > kMaxDeviceName) {
+    return bad(fmt::format("device name '{}' has {} characters; OpenIGTLink allows {}",
+                           in.device_name, in.device_name.size(), kMaxDeviceName));
+  }
+  if (in.type.size() > kMaxTypeName) {
+    return bad(fmt::format("type '{}' has {} characters; OpenIGTLink allows {}", in.type,
+                           in.type.size(), kMaxTypeName));
+  }
+  if (in.header_version != 1 && in.header_version != 2) {
+    return bad(fmt::format("{} '{}': header version {}; 1 or 2", in.type, in.device_name,
+                           in.header_version));
+  }
+  auto content = contentBytes(in);
+  if (!content) return content.error();
+  std::string body;
+  if (in.header_version == 2) {
+    auto joined = joinBody(*content, in.message_id, in.metadata);
+    if (!joined) {
+      return bad(fmt::format("{} '{}': {}", in.type, in.device_name, joined.error().message));
+    }
+    body = std::move(joined).value();
+  } else {
+    body = std::move(content).value();
+  }
+  Header h;
+  h.version = in.header_version;
+  h.type = in.type;
+  h.device_name = in.device_name;
+  h.timestamp = timestampOf(in.timestamp_s);
+  h.body_size = body.size();
+  h.crc = crc64(body);
+  return writeHeader(h) + body;
+}
+
 void Decoder::feed(const char* bytes, std::size_t count) {
   if (skip_ > 0) {
-    const std::size_t dropped = std::min(skip_, count);
+    const auto dropped = static_cast<std::size_t>(std::min<std::uint64_t>(skip_, count));
     skip_ -= dropped;
     bytes += dropped;
     count -= dropped;
@@ -280,39 +379,48 @@ void Decoder::feed(const char* bytes, std::size_t count) {
 
 std::optional<Expected<Message>> Decoder::next() {
   if (buffer_.size() < kHeaderBytes) return std::nullopt;
-  auto header = ::igtl::MessageHeader::New();
-  header->InitPack();
-  std::memcpy(header->GetPackPointer(), buffer_.data(), kHeaderBytes);
-  header->Unpack();
-  const std::uint16_t version = readU16(buffer_.data());
-  const std::uint64_t body = header->GetBodySizeToRead();
-  const std::string name =
-      fmt::format("{} message '{}'", header->GetDeviceType(), header->GetDeviceName());
+  const Header header = readHeader(buffer_.data());
+  const std::uint64_t body = header.body_size;
+  const std::string name = fmt::format("{} message '{}'", header.type, header.device_name);
   const auto refuse = [&](Error e) -> std::optional<Expected<Message>> {
     // Drop the header and as much of the body as is here; the rest is skipped as it arrives.
     const std::uint64_t here = std::min<std::uint64_t>(body, buffer_.size() - kHeaderBytes);
     buffer_.erase(0, kHeaderBytes + here);
-    skip_ = static_cast<std::size_t>(body - here);
+    skip_ = body - here;
     return Expected<Message>(std::move(e));
   };
-  if (version != 1) {
-    // Not a stream we can follow (another protocol, or OpenIGTLink 3's extended headers).
-    return refuse(
-        makeError(ErrorCode::kUnsupported,
-                  fmt::format("header version {}; this server speaks version 1 (OpenIGTLink "
-                              "protocol 1 and 2)",
-                              version),
-                  "header_version"));
+  if (header.version != 1 && header.version != 2) {
+    // Not a stream we can follow (another protocol, most likely: its "body size" means nothing).
+    return refuse(makeError(ErrorCode::kUnsupported,
+                            fmt::format("header version {}: OpenIGTLink has 1 (protocols 1 and 2) "
+                                        "and 2 (protocol 3)",
+                                        header.version),
+                            "header_version"));
   }
   if (body > max_body_bytes_) {
     return refuse(makeError(
         ErrorCode::kInvalidArgument,
         fmt::format("{}: body of {} bytes; at most {} accepted", name, body, max_body_bytes_)));
   }
-  if (buffer_.size() < kHeaderBytes + body) return std::nullopt;
+  if (buffer_.size() - kHeaderBytes < body) return std::nullopt;
   const std::string body_bytes = buffer_.substr(kHeaderBytes, body);
   buffer_.erase(0, kHeaderBytes + body);
-  return Expected<Message>(decodeBody(header, body_bytes));
+  if (crc64(body_bytes) != header.crc) {
+    return Expected<Message>(makeError(ErrorCode::kFormat, name + ": CRC mismatch"));
+  }
+  Message out;
+  out.type = header.type;
+  out.device_name = header.device_name;
+  out.header_version = header.version;
+  out.timestamp_s = header.timestamp == 0 ? 0.0 : secondsOf(header.timestamp);
+  if (header.version == 1) return Expected<Message>(decodeContent(std::move(out), body_bytes));
+  auto parts = splitBody(body_bytes);
+  if (!parts) {
+    return Expected<Message>(makeError(ErrorCode::kFormat, name + ": " + parts.error().message));
+  }
+  out.message_id = parts->message_id;
+  out.metadata = std::move(parts->metadata);
+  return Expected<Message>(decodeContent(std::move(out), parts->content));
 }
 
 }  // namespace ignav::igtl

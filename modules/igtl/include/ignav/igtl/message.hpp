@@ -1,6 +1,7 @@
-// OpenIGTLink messages as values, and their wire form (libOpenIGTLink does the packing and the
-// CRC). Only what the BRP workphase protocol uses: STRING, STATUS, TRANSFORM, POINT and the
-// GET_STATUS / GET_TRANSFORM queries. No sockets here.
+// OpenIGTLink messages as values, and their wire form in header version 1 (protocol 1 and 2) or 2
+// (protocol 3: a message id and metadata; framing.hpp). libOpenIGTLink packs and reads the
+// contents it knows (STRING, STATUS, TRANSFORM, POINT, the GET_ queries); COMMAND and RTS_COMMAND,
+// which it does not (Debian's is protocol 2), are ours. No sockets here.
 #pragma once
 
 #include <cstddef>
@@ -13,6 +14,7 @@
 #include <Eigen/Core>
 
 #include "ignav/core/expected.hpp"
+#include "ignav/igtl/framing.hpp"
 
 namespace ignav::igtl {
 
@@ -41,14 +43,30 @@ struct Point {
   Eigen::Vector3d position_mm = Eigen::Vector3d::Zero();  // float32 on the wire
 };
 
+// COMMAND and RTS_COMMAND (protocol 3): an id the answer repeats, a name, and a text (XML as
+// OpenIGTLinkIO writes it: <Command Name="..." .../>).
+struct Command {
+  std::uint32_t id = 0;
+  std::string name;  // at most 127 characters (kMaxCommandName)
+  std::uint16_t encoding = kUsAscii;
+  std::string text;
+};
+
 struct Message {
   std::string type;         // "STRING", "STATUS", "TRANSFORM", "POINT", "GET_STATUS", ...
   std::string device_name;  // at most 20 characters
-  std::string text;         // STRING (US-ASCII)
-  Status status;            // STATUS
+  // The header version it came in or goes out in: 1, or 2 with a message id and metadata (which
+  // version 1 has no room for: they are not sent then).
+  std::uint16_t header_version = 1;
+  std::uint32_t message_id = 0;
+  std::vector<MetaDataEntry> metadata;
+  double timestamp_s = 0;  // seconds since 1970 (the header's; 0: none)
+  std::string text;        // STRING (US-ASCII)
+  Status status;           // STATUS
   // TRANSFORM: a 4x4 homogeneous matrix; the wire holds its upper 3x4 as float32.
   Eigen::Matrix4d matrix = Eigen::Matrix4d::Identity();
   std::vector<Point> points;  // POINT
+  Command command;            // COMMAND, RTS_COMMAND
 };
 
 Message stringMessage(std::string device, std::string text);
@@ -62,15 +80,21 @@ std::string asciiText(const std::string& text);
 Message transformMessage(std::string device, const Eigen::Matrix4d& matrix);
 // GET_STATUS, GET_TRANS (OpenIGTLink's GET_TRANSFORM: type names have at most 12 characters).
 Message queryMessage(std::string type, std::string device);
+// COMMAND or RTS_COMMAND ("COMMAND" as device name, as OpenIGTLinkIO sends them).
+Message commandMessage(std::string type, std::uint32_t id, std::string name, std::string text);
+// The value of a metadata key, if the message has it.
+const std::string* metaDataValue(const Message& message, const std::string& key);
 
-// The message's wire bytes (header version 1, CRC). Errors (kInvalidArgument) name the field:
-// a device name over 20 characters, a non-finite matrix, an unsupported type.
+// The message's wire bytes in its header_version, with its CRC. Errors (kInvalidArgument) name
+// the field: a device name over 20 characters, a non-finite matrix, an unsupported type, a
+// command name over 127 characters.
 Expected<std::string> encode(const Message& message);
 
-// Reassembles messages from a byte stream. A message that is not one of ours, too large, or
-// fails its CRC becomes an error that names it; the stream stays usable after it (its body is
-// skipped), so one bad message never costs the connection; but a header of another version
-// (reason "header_version") means the stream cannot be followed.
+// Reassembles messages from a byte stream, in header version 1 or 2 alike. A message that is not
+// one of ours, too large, inconsistent in its sizes or failing its CRC becomes an error that names
+// it; the stream stays usable after it (its body is skipped: every header says how long its body
+// is), so one bad message never costs the connection; but a header of any other version (reason
+// "header_version") means this is no OpenIGTLink stream we can follow.
 class Decoder {
  public:
   explicit Decoder(std::size_t max_body_bytes = 64 * 1024) : max_body_bytes_(max_body_bytes) {}
@@ -82,12 +106,12 @@ class Decoder {
  private:
   std::size_t max_body_bytes_;
   std::string buffer_;
-  std::size_t skip_ = 0;  // bytes of a refused body still to discard
+  std::uint64_t skip_ = 0;  // bytes of a refused body still to discard
 };
 
-// Header size of every OpenIGTLink message (version 1 and 2).
-constexpr std::size_t kHeaderBytes = 58;
-constexpr std::size_t kMaxDeviceName = 20;
+// COMMAND's name field holds 128 bytes, NUL-terminated.
+constexpr std::size_t kCommandHeaderBytes = 138;
+constexpr std::size_t kMaxCommandName = 127;
 // The STATUS error name field holds 20 bytes, but libOpenIGTLink (and so 3D Slicer) reads it back
 // as a C string without a terminator of its own: a 20-character name would run into whatever
 // follows. So at most 19.
