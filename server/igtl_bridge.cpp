@@ -50,7 +50,7 @@ void IgtlBridge::serve(const workflow::Session& session, const actuation::Steps&
     ++handled;
     switch (ev.kind) {
       case IgtlEvent::Kind::kConnected:
-        send(bridge_.onConnected(ev.client, session));
+        send(bridge_.onConnected(ev.client, session), session);
         clients_changed();
         break;
       case IgtlEvent::Kind::kDisconnected:
@@ -58,19 +58,20 @@ void IgtlBridge::serve(const workflow::Session& session, const actuation::Steps&
         spdlog::warn("OpenIGTLink client {} ({}) gone: {}", ev.client, ev.peer, ev.error);
         clients_changed();
         break;
-      case IgtlEvent::Kind::kBadMessage:
+      case IgtlEvent::Kind::kBadMessage:  // answered by the listener already
         spdlog::warn("OpenIGTLink client {} ({}): {}", ev.client, ev.peer, ev.error);
-        listener_->send(ev.client,
-                        igtl::statusMessage("BAD_MESSAGE", igtl::StatusCode::kUnknownInstruction,
-                                            ev.error, "bad_message"));
         break;
       case IgtlEvent::Kind::kMessage:
         // Queries may come many times a second: logged only when debugging.
         spdlog::log(
             ev.message.type.rfind("GET_", 0) == 0 ? spdlog::level::debug : spdlog::level::info,
-            "OpenIGTLink client {}: {}({}){}", ev.client, ev.message.type, ev.message.device_name,
-            ev.message.text.empty() ? "" : " \"" + ev.message.text.substr(0, 64) + "\"");
-        send(bridge_.onMessage(ev.client, ev.message, session, position));
+            "OpenIGTLink client {}: {}({}, header v{}){}{}", ev.client, ev.message.type,
+            ev.message.device_name, ev.message.header_version,
+            ev.message.text.empty() ? "" : " \"" + ev.message.text.substr(0, 64) + "\"",
+            ev.message.command.name.empty()
+                ? ""
+                : fmt::format(" #{} {}", ev.message.command.id, ev.message.command.name));
+        send(bridge_.onMessage(ev.client, ev.message, session, position), session);
         break;
     }
     // The inputs of one message run before the next message is looked at.
@@ -83,11 +84,11 @@ void IgtlBridge::serve(const workflow::Session& session, const actuation::Steps&
 }
 
 void IgtlBridge::onState(const workflow::Session& session) {
-  send(bridge_.onState(session));
+  send(bridge_.onState(session), session);
 }
 
 void IgtlBridge::onPosition(const workflow::Session& session, const actuation::Steps& position) {
-  send(bridge_.onPosition(session, position));
+  send(bridge_.onPosition(session, position), session);
 }
 
 void IgtlBridge::onReading(const workflow::Session& session, const actuation::ControllerStatus& r,
@@ -98,23 +99,26 @@ void IgtlBridge::onReading(const workflow::Session& session, const actuation::Co
       (!moving || Clock::now() - last_position_ >= std::chrono::milliseconds(50))) {
     last_position_ = Clock::now();
     last_steps_ = r.position;
-    send(bridge_.onPosition(session, r.position));
+    send(bridge_.onPosition(session, r.position), session);
   }
 }
 
 bool IgtlBridge::reply(const workflow::Reply& r, const workflow::Session& session) {
   if (r.client_id != igtl::kBridgeClientId) return false;
   if (!r.accepted) spdlog::warn("rejected (OpenIGTLink): {}", r.message);
-  send(bridge_.onReply(r, session));
+  send(bridge_.onReply(r, session), session);
   return true;
 }
 
-void IgtlBridge::send(igtl::BrpOutput out) {
-  for (const auto& m : out.messages) {
+void IgtlBridge::send(igtl::BrpOutput out, const workflow::Session& session) {
+  const double now_s = wallS();  // the server's clock: what a protocol-3 client timestamps by
+  for (auto& m : out.messages) {
+    if (m.message.timestamp_s == 0) m.message.timestamp_s = now_s;
+    bridge_.annotate(m.message, session);
     if (m.client == 0) {
-      listener_->broadcast(m.message);
+      listener_->broadcast(std::move(m.message));
     } else {
-      listener_->send(m.client, m.message);
+      listener_->send(m.client, std::move(m.message));
     }
   }
   for (auto& in : out.inputs)

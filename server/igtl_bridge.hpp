@@ -51,7 +51,8 @@ class IgtlBridge {
 
  private:
   IgtlBridge(const OpenIgtlinkOptions& options, std::unique_ptr<IgtlListener> listener, int port);
-  void send(igtl::BrpOutput out);
+  // Stamps each message with the server's clock and the session's metadata, then queues it.
+  void send(igtl::BrpOutput out, const workflow::Session& session);
 
   igtl::BrpBridge bridge_;
   std::deque<workflow::Input> inputs_;  // the bridge's inputs, run in order after its message

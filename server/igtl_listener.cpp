@@ -25,9 +25,13 @@ struct IgtlListener::Impl {
     tcp::socket socket;
     igtl::Decoder decoder;
     std::array<char, 16 * 1024> read_buffer{};
-    std::deque<std::string> outbox;
+    std::deque<std::shared_ptr<const std::string>> outbox;
     std::size_t outbox_bytes = 0;
     bool writing = false;
+    // The header version it spoke: answered in the highest it used (1 until it sends a 2).
+    std::uint16_t header_version = 1;
+    std::string closing;  // why it is let go once what it was sent has gone out
+    Clock::time_point closing_since;
     Clock::time_point write_started;
     explicit Connection(tcp::socket s) : socket(std::move(s)) {}
   };
@@ -40,6 +44,7 @@ struct IgtlListener::Impl {
   asio::steady_timer watchdog{io};
   std::map<std::uint64_t, std::shared_ptr<Connection>> connections;
   std::uint64_t next_id = 1;
+  std::uint32_t next_message_id = 1;  // version-2 messages' ids, unique on this listener
   std::thread thread;
   std::mutex mutex;
   std::vector<IgtlEvent> events;
@@ -114,17 +119,31 @@ struct IgtlListener::Impl {
           c->decoder.feed(c->read_buffer.data(), n);
           while (auto next = c->decoder.next()) {
             if (next->ok()) {
+              c->header_version = std::max(c->header_version, next->value().header_version);
               push({IgtlEvent::Kind::kMessage, c->id, c->peer, std::move(next->value()), {}});
               continue;
             }
-            push({IgtlEvent::Kind::kBadMessage, c->id, c->peer, {}, next->error().message});
-            if (next->error().reason == "header_version") {
-              drop(c, "not an OpenIGTLink version 1 stream: " + next->error().message);
+            const Error& e = next->error();
+            push({IgtlEvent::Kind::kBadMessage, c->id, c->peer, {}, e.message});
+            // The client learns why, in its own header version, before anything else of it.
+            enqueue(c, igtl::statusMessage("BAD_MESSAGE", igtl::StatusCode::kUnknownInstruction,
+                                           e.message, "bad_message"));
+            if (e.reason == "header_version") {
+              // Nothing after it can be framed: let the client go once the reason has gone out.
+              closeAfterSending(c, "not an OpenIGTLink stream: " + e.message);
               return;
             }
           }
           read(c);
         });
+  }
+
+  void closeAfterSending(const std::shared_ptr<Connection>& c, const std::string& why) {
+    c->closing = why;
+    c->closing_since = Clock::now();
+    boost::system::error_code ec;
+    c->socket.shutdown(tcp::socket::shutdown_receive, ec);
+    if (c->outbox.empty()) drop(c, why);
   }
 
   void drop(const std::shared_ptr<Connection>& c, const std::string& why) {
@@ -138,29 +157,45 @@ struct IgtlListener::Impl {
     push({IgtlEvent::Kind::kDisconnected, c->id, c->peer, {}, why});
   }
 
+  // Encodes `m` in the client's header version and queues it.
+  void enqueue(const std::shared_ptr<Connection>& c, igtl::Message m) {
+    m.header_version = c->header_version;
+    if (m.header_version >= 2) m.message_id = next_message_id++;
+    auto bytes = igtl::encode(m);
+    if (!bytes) {
+      spdlog::error("OpenIGTLink: not sent to client {}: {}", c->id, bytes.error().message);
+      return;
+    }
+    enqueue(c, std::make_shared<const std::string>(std::move(bytes).value()));
+  }
+
   void enqueue(const std::shared_ptr<Connection>& c, std::shared_ptr<const std::string> bytes) {
     if (c->outbox_bytes + bytes->size() > options.max_outbox_bytes) {
       drop(c, fmt::format("not reading: {} bytes waiting to be sent", c->outbox_bytes));
       return;
     }
     c->outbox_bytes += bytes->size();
-    c->outbox.push_back(*bytes);
+    c->outbox.push_back(std::move(bytes));
     if (!c->writing) write(c);
   }
 
   void write(const std::shared_ptr<Connection>& c) {
     c->writing = true;
     c->write_started = Clock::now();
-    asio::async_write(c->socket, asio::buffer(c->outbox.front()),
+    asio::async_write(c->socket, asio::buffer(*c->outbox.front()),
                       [this, c](boost::system::error_code ec, std::size_t) {
                         c->writing = false;
                         if (ec) {
                           if (ec != asio::error::operation_aborted) drop(c, ec.message());
                           return;
                         }
-                        c->outbox_bytes -= c->outbox.front().size();
+                        c->outbox_bytes -= c->outbox.front()->size();
                         c->outbox.pop_front();
-                        if (!c->outbox.empty()) write(c);
+                        if (!c->outbox.empty()) {
+                          write(c);
+                        } else if (!c->closing.empty()) {
+                          drop(c, c->closing);
+                        }
                       });
   }
 
@@ -233,32 +268,37 @@ std::vector<IgtlEvent> IgtlListener::take() {
   return out;
 }
 
-void IgtlListener::send(std::uint64_t client, const igtl::Message& message) {
-  auto bytes = igtl::encode(message);
-  if (!bytes) {
-    spdlog::error("OpenIGTLink: not sent: {}", bytes.error().message);
-    return;
-  }
-  auto shared = std::make_shared<const std::string>(std::move(bytes).value());
-  asio::post(impl_->io, [this, client, shared] {
+void IgtlListener::send(std::uint64_t client, igtl::Message message) {
+  asio::post(impl_->io, [this, client, m = std::move(message)]() mutable {
     const auto it = impl_->connections.find(client);
-    if (it != impl_->connections.end()) impl_->enqueue(it->second, shared);
+    if (it != impl_->connections.end() && it->second->closing.empty()) {
+      impl_->enqueue(it->second, std::move(m));
+    }
   });
 }
 
-void IgtlListener::broadcast(const igtl::Message& message) {
-  auto bytes = igtl::encode(message);
-  if (!bytes) {
-    spdlog::error("OpenIGTLink: not sent: {}", bytes.error().message);
-    return;
-  }
-  auto shared = std::make_shared<const std::string>(std::move(bytes).value());
-  asio::post(impl_->io, [this, shared] {
+void IgtlListener::broadcast(igtl::Message message) {
+  asio::post(impl_->io, [this, m = std::move(message)]() mutable {
+    // Encoded once per header version, and the same bytes queued to each client of it.
+    std::shared_ptr<const std::string> encoded[3];
     std::vector<std::shared_ptr<Impl::Connection>> all;
-    for (auto& [id, c] : impl_->connections)
-      all.push_back(c);
-    for (auto& c : all)
-      impl_->enqueue(c, shared);
+    for (auto& [id, c] : impl_->connections) {
+      if (c->closing.empty()) all.push_back(c);
+    }
+    for (auto& c : all) {
+      auto& bytes = encoded[std::min<std::uint16_t>(c->header_version, 2)];
+      if (!bytes) {
+        m.header_version = c->header_version;
+        m.message_id = m.header_version >= 2 ? impl_->next_message_id++ : 0;
+        auto e = igtl::encode(m);
+        if (!e) {
+          spdlog::error("OpenIGTLink: not sent: {}", e.error().message);
+          return;
+        }
+        bytes = std::make_shared<const std::string>(std::move(e).value());
+      }
+      impl_->enqueue(c, bytes);
+    }
   });
 }
 

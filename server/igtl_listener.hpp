@@ -1,7 +1,9 @@
 // OpenIGTLink connections for the BRP bridge: an Asio thread accepts clients, reassembles their
 // messages and queues them for the server's event thread, which answers through send(). Transport
-// only: what the messages mean is modules/igtl's business (brp.hpp). A socket error costs that
-// one connection, never the server.
+// only: what the messages mean is modules/igtl's business (brp.hpp). A message that cannot be read
+// is answered STATUS(BAD_MESSAGE) naming why, and the connection goes on; a stream that is not
+// OpenIGTLink is let go once that answer has gone out. A socket error costs that one connection,
+// never the server.
 #pragma once
 
 #include <atomic>
@@ -32,7 +34,7 @@ struct IgtlEvent {
   std::uint64_t client = 0;
   std::string peer;       // "127.0.0.1:53122"
   igtl::Message message;  // kMessage
-  std::string error;      // kBadMessage: what was wrong; kDisconnected: why
+  std::string error;      // kBadMessage: what was wrong (already answered); kDisconnected: why
 };
 
 class IgtlListener {
@@ -46,9 +48,11 @@ class IgtlListener {
   // Binds and starts the thread; returns the port listened on. Errors name the address.
   Expected<int> start();
   std::vector<IgtlEvent> take();  // thread-safe
-  // Queues a message (thread-safe); unknown or gone clients are ignored.
-  void send(std::uint64_t client, const igtl::Message& message);
-  void broadcast(const igtl::Message& message);
+  // Queues a message (thread-safe), encoded on the listener's thread in the header version the
+  // client speaks (the highest it sent; version-2 messages get an id); unknown or gone clients
+  // are ignored.
+  void send(std::uint64_t client, igtl::Message message);
+  void broadcast(igtl::Message message);
   std::size_t clientCount() const { return client_count_.load(); }
 
  private:

@@ -255,7 +255,15 @@ int Server::run(const std::atomic<bool>& stop, const std::vector<std::string>& j
     // OpenIGTLink next: its EMERGENCY is an emergency stop too.
     if (igtl_) {
       igtl_->serve(
-          session_, last_reading_.position, [this](Input in) { step(std::move(in)); },
+          session_, last_reading_.position,
+          [this](Input in) {
+            // A file the server cannot read is refused before the core sees it, as over DDS.
+            if (auto refused = checkPath(in)) {
+              igtl_->reply(*refused, session_);
+              return;
+            }
+            step(std::move(in));
+          },
           [this] { publishHealth(); }, handled);
     }
     handled +=

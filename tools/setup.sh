@@ -20,8 +20,9 @@ packages=(
   libssl-dev
   # benchmarks: the reference DICOM converter and GNU time for peak memory
   dcm2niix time
-  # 3D Slicer as a live client: the OpenIGTLink bridge (docs/OPENIGTLINK.md)
-  libopenigtlink-dev
+  # 3D Slicer as a live client: the OpenIGTLink bridge (docs/OPENIGTLINK.md); expat reads
+  # protocol 3's COMMAND XML
+  libopenigtlink-dev libexpat1-dev
   # DDS
   cyclonedds-dev cyclonedds-tools
   # the service: sd_notify for the systemd unit, systemd-analyze and dpkg-shlibdeps for the

@@ -104,6 +104,7 @@ struct Frame {
   std::string type, device;
   std::uint64_t timestamp = 0, body_size = 0, crc = 0;
   std::string body;  // whole
+  std::string raw;   // the message's bytes, header and body
   bool crc_ok = false;
   // Version 2:
   std::uint16_t extended_header_size = 0, meta_header_size = 0;
@@ -145,6 +146,7 @@ inline std::optional<Frame> parseFrame(const std::string& bytes, std::size_t& us
   if (bytes.size() - 58 < f.body_size) return std::nullopt;
   f.body = bytes.substr(58, f.body_size);
   used = 58 + f.body_size;
+  f.raw = bytes.substr(0, used);
   f.crc_ok = referenceCrc(f.body) == f.crc;
   if (f.version != 2) {
     f.content = f.body;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <initializer_list>
+#include <sstream>
 
 #include <fmt/format.h>
 
@@ -204,47 +205,10 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
     Pending p;
     p.client = client;
     p.phase = *phase;
-    // Unlock and lock are sent only where the phase then calls for them (dispatch decides).
-    auto& r = p.remaining;
-    switch (*phase) {
-      case Workphase::kStartUp:
-        // START_UP takes the robot back from a stop or from manual control.
-        if (s.phase == Phase::kStopped || s.phase == Phase::kManual)
-          r.push_back(InputKind::kResume);
-        r.push_back(InputKind::kCheckReady);
-        break;
-      case Workphase::kPlanning:
-      case Workphase::kCalibration:
-      case Workphase::kTargeting:
-        if (s.phase == Phase::kStopped) r.push_back(InputKind::kResume);
-        // Editing targets again: the plan is unlocked (what was reached stays reached).
-        if (*phase != Workphase::kCalibration) r.push_back(InputKind::kUnlockPlan);
-        r.push_back(InputKind::kCheckReady);
-        break;
-      case Workphase::kMoveToTarget:
-        if (s.phase == Phase::kStopped) r.push_back(InputKind::kResume);
-        r.push_back(InputKind::kLockPlan);
-        r.push_back(options_.allow_motion_approval ? InputKind::kApprove
-                                                   : InputKind::kRequestApproval);
-        break;
-      case Workphase::kManual:
-        r.push_back(InputKind::kManual);
-        break;
-      case Workphase::kStop:
-        r.push_back(InputKind::kStop);
-        break;
-      case Workphase::kEmergency:
-        r.push_back(InputKind::kEmergencyStop);
-        break;
-    }
-    // A move this client halts is answered by the halt's own result, not as interrupted.
-    if ((*phase == Workphase::kStop || *phase == Workphase::kEmergency) &&
-        s.phase == Phase::kMoving) {
-      halt_asked_ = true;
-    }
-    dispatch(std::move(p), s, out);
+    startWorkphase(std::move(p), s, out);
     return out;
   }
+  if (m.type == "COMMAND") return onCommand(client, m, s);
   if (m.type == "TRANSFORM") {
     const auto clb = idAfter(m.device_name, "CLB_");
     const auto tgt = idAfter(m.device_name, "TGT_");
@@ -259,12 +223,13 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
       auto in = input(InputKind::kSetRegistration);
       // Slicer's matrix maps RAS to the robot: p_robot = M p_ras = (M F) p_lps.
       in.matrix = m.matrix * rasFromLps();
-      pending_[in.request_id] = {client, Purpose::kCalibration, Workphase::kCalibration, {}, {}};
+      pending_[in.request_id] = {client, Purpose::kCalibration, Workphase::kCalibration, {}, {},
+                                 {}};
       out.inputs.push_back(std::move(in));
     } else {
       auto in = input(InputKind::kAddTarget);
       in.points.push_back(rasFromLps().topLeftCorner<3, 3>() * m.matrix.topRightCorner<3, 1>());
-      pending_[in.request_id] = {client, Purpose::kTarget, Workphase::kTargeting, {}, {}};
+      pending_[in.request_id] = {client, Purpose::kTarget, Workphase::kTargeting, {}, {}, {}};
       out.inputs.push_back(std::move(in));
     }
     return out;
@@ -284,7 +249,7 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
     for (const auto& point : m.points) {
       auto in = input(InputKind::kAddTarget);
       in.points.push_back(rasFromLps().topLeftCorner<3, 3>() * point.position_mm);
-      pending_[in.request_id] = {client, Purpose::kTarget, Workphase::kTargeting, {}, {}};
+      pending_[in.request_id] = {client, Purpose::kTarget, Workphase::kTargeting, {}, {}, {}};
       out.inputs.push_back(std::move(in));
     }
     return out;
@@ -324,6 +289,173 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
   send(statusMessage(m.device_name, StatusCode::kUnknownInstruction,
                      fmt::format("{} is not part of the BRP protocol here", m.type),
                      "unknown_message"));
+  return out;
+}
+
+void BrpBridge::startWorkphase(Pending p, const workflow::Session& s, BrpOutput& out) {
+  // Unlock and lock are sent only where the phase then calls for them (dispatch decides).
+  auto& r = p.remaining;
+  switch (p.phase) {
+    case Workphase::kStartUp:
+      // START_UP takes the robot back from a stop or from manual control.
+      if (s.phase == Phase::kStopped || s.phase == Phase::kManual) r.push_back(InputKind::kResume);
+      r.push_back(InputKind::kCheckReady);
+      break;
+    case Workphase::kPlanning:
+    case Workphase::kCalibration:
+    case Workphase::kTargeting:
+      if (s.phase == Phase::kStopped) r.push_back(InputKind::kResume);
+      // Editing targets again: the plan is unlocked (what was reached stays reached).
+      if (p.phase != Workphase::kCalibration) r.push_back(InputKind::kUnlockPlan);
+      r.push_back(InputKind::kCheckReady);
+      break;
+    case Workphase::kMoveToTarget:
+      if (s.phase == Phase::kStopped) r.push_back(InputKind::kResume);
+      r.push_back(InputKind::kLockPlan);
+      r.push_back(options_.allow_motion_approval ? InputKind::kApprove
+                                                 : InputKind::kRequestApproval);
+      break;
+    case Workphase::kManual:
+      r.push_back(InputKind::kManual);
+      break;
+    case Workphase::kStop:
+      r.push_back(InputKind::kStop);
+      break;
+    case Workphase::kEmergency:
+      r.push_back(InputKind::kEmergencyStop);
+      break;
+  }
+  // A move this client halts is answered by the halt's own result, not as interrupted.
+  if ((p.phase == Workphase::kStop || p.phase == Workphase::kEmergency) &&
+      s.phase == Phase::kMoving) {
+    halt_asked_ = true;
+  }
+  dispatch(std::move(p), s, out);
+}
+
+namespace {
+
+// "x y z; x y z" (or commas): points of a COMMAND's Points attribute.
+std::optional<std::vector<Eigen::Vector3d>> pointsIn(const std::string& text) {
+  std::vector<Eigen::Vector3d> out;
+  std::string cleaned = text;
+  std::replace(cleaned.begin(), cleaned.end(), ',', ' ');
+  std::size_t start = 0;
+  while (start <= cleaned.size()) {
+    const std::size_t end = std::min(cleaned.find(';', start), cleaned.size());
+    std::istringstream in(cleaned.substr(start, end - start));
+    Eigen::Vector3d p;
+    std::string extra;
+    if (!(in >> p.x() >> p.y() >> p.z()) || (in >> extra) || !p.allFinite()) return std::nullopt;
+    out.push_back(p);
+    start = end + 1;
+  }
+  return out;
+}
+
+template <class T>
+std::optional<std::vector<T>> numbersIn(const std::string& text) {
+  std::string cleaned = text;
+  std::replace(cleaned.begin(), cleaned.end(), ',', ' ');
+  std::istringstream in(cleaned);
+  std::vector<T> out;
+  T v;
+  while (in >> v)
+    out.push_back(v);
+  if (!in.eof()) return std::nullopt;
+  return out;
+}
+
+}  // namespace
+
+BrpOutput BrpBridge::onCommand(std::uint64_t client, const Message& m, const workflow::Session& s) {
+  BrpOutput out;
+  const auto answer = [&](bool ok, const std::string& code, const std::string& text) {
+    out.messages.push_back({client, commandReply(m.command.id, m.command.name, ok, code, text)});
+  };
+  auto xml = parseCommandXml(m.command.text);
+  if (!xml) {
+    answer(false, "bad_command", xml.error().message);
+    return out;
+  }
+  const std::string* named = xml->attribute("Name");
+  std::string name = m.command.name.empty() && named ? *named : m.command.name;
+  if (named && *named != name) {
+    answer(false, "bad_command",
+           fmt::format("the XML's Name '{}' is not the command's name '{}'", *named, name));
+    return out;
+  }
+  if (const auto phase = parseWorkphase(name)) {
+    Pending p;
+    p.client = client;
+    p.phase = *phase;
+    p.command = std::make_pair(m.command.id, name);
+    startWorkphase(std::move(p), s, out);
+    return out;
+  }
+  const commands::InputSpec* spec = commands::commandNamed(name);
+  if (!spec) {
+    answer(false, "unknown_command",
+           fmt::format("'{}' is neither a BRP workphase nor one of ignav's commands "
+                       "(docs/PROTOCOL.md lists them)",
+                       name.substr(0, 64)));
+    return out;
+  }
+  if (spec->role == commands::ClientRole::kApprover) {
+    // OpenIGTLink has no authentication: what an approver may do is asked over DDS.
+    answer(false, "not_permitted",
+           fmt::format("{} is an approver's command: over OpenIGTLink (unauthenticated) only "
+                       "viewers' and planners' commands are taken; an approver gives it over DDS",
+                       spec->name));
+    return out;
+  }
+  auto in = input(spec->kind);
+  for (const auto& [key, value] : xml->attributes) {
+    if (key == "Name") continue;
+    if (key == "Path") {
+      in.path = value;
+    } else if (key == "Points") {  // RAS, as Slicer's
+      const auto points = pointsIn(value);
+      if (!points) {
+        answer(false, "bad_command", "Points: 'x y z; x y z ...' in mm (RAS), finite numbers");
+        return out;
+      }
+      for (const auto& p : *points)
+        in.points.push_back(rasFromLps().topLeftCorner<3, 3>() * p);
+    } else if (key == "Ids") {
+      const auto ids = numbersIn<std::uint32_t>(value);
+      if (!ids) {
+        answer(false, "bad_command", "Ids: whole numbers separated by spaces");
+        return out;
+      }
+      in.ids = *ids;
+    } else if (key == "Matrix") {  // row-major, mapping RAS as Slicer's CLB_ transform does
+      const auto numbers = numbersIn<double>(value);
+      if (!numbers || numbers->size() != 16) {
+        answer(false, "bad_command", "Matrix: 16 numbers, row by row");
+        return out;
+      }
+      Eigen::Matrix4d matrix;
+      for (int i = 0; i < 16; ++i)
+        matrix(i / 4, i % 4) = (*numbers)[static_cast<std::size_t>(i)];
+      if (!matrix.allFinite()) {
+        answer(false, "bad_command", "Matrix: a number is not finite");
+        return out;
+      }
+      in.matrix = matrix * rasFromLps();
+    } else {
+      answer(false, "bad_command",
+             fmt::format("attribute '{}': a command's arguments are Path, Points, Ids, Matrix",
+                         key.substr(0, 32)));
+      return out;
+    }
+  }
+  Pending p;
+  p.client = client;
+  p.purpose = Purpose::kOwnCommand;
+  p.command = std::make_pair(m.command.id, name);
+  pending_[in.request_id] = std::move(p);
+  out.inputs.push_back(std::move(in));
   return out;
 }
 
@@ -374,6 +506,21 @@ BrpOutput BrpBridge::onReply(const workflow::Reply& reply, const workflow::Sessi
       if (reply.accepted) last_accepted_ = p.phase;
       if (!brp2013()) reportCurrentStatus(p.client, s, out);
       const char* device = toString(p.phase);
+      if (p.command) {
+        // A COMMAND's answer is its RTS_COMMAND, whatever the revision.
+        const auto& [id, name] = *p.command;
+        if (!reply.accepted) {
+          const Message refused = refusal(device, reply, p.phase, s);
+          send(commandReply(id, name, false, reply.error_code, refused.status.status_string));
+        } else if (p.phase == Workphase::kMoveToTarget && !options_.allow_motion_approval) {
+          send(commandReply(id, name, true, "awaiting_approval",
+                            fmt::format("waiting for an approver over DDS: {}",
+                                        s.pending ? s.pending->summary : "no request")));
+        } else {
+          send(commandReply(id, name, true, "ok", reply.message));
+        }
+        return out;
+      }
       if (!reply.accepted) {
         send(refusal(device, reply, p.phase, s));
       } else if (p.phase == Workphase::kMoveToTarget && !options_.allow_motion_approval) {
@@ -414,13 +561,22 @@ BrpOutput BrpBridge::onReply(const workflow::Reply& reply, const workflow::Sessi
       auto in = input(InputKind::kRemoveTarget);
       in.ids.push_back(t->id);
       pending_[in.request_id] = {
-          p.client, Purpose::kTargetRemoval, Workphase::kTargeting, {}, t->message};
+          p.client, Purpose::kTargetRemoval, Workphase::kTargeting, {}, t->message, {}};
       out.inputs.push_back(std::move(in));
       return out;
     }
     case Purpose::kTargetRemoval:
       send(statusMessage("TARGET", StatusCode::kConfigurationError, p.why, "unreachable"));
       return out;
+    case Purpose::kOwnCommand: {
+      const auto& [id, name] = *p.command;
+      XmlAttributes more;
+      if (reply.target_id != 0) more.emplace_back("TargetId", std::to_string(reply.target_id));
+      if (reply.job != 0) more.emplace_back("Job", std::to_string(reply.job));
+      send(commandReply(id, name, reply.accepted, reply.accepted ? "ok" : reply.error_code,
+                        reply.message, more));
+      return out;
+    }
   }
   return out;
 }
@@ -481,6 +637,29 @@ BrpOutput BrpBridge::onPosition(const workflow::Session& s, const actuation::Ste
     if (!brp2013()) out.messages.push_back({0, transformMessage("NeedleTipToImage", *pose)});
   }
   return out;
+}
+
+void BrpBridge::annotate(Message& m, const workflow::Session& s) const {
+  const auto set = [&](const char* key, std::string value) {
+    for (auto& e : m.metadata) {
+      if (e.key == key) return;  // what the message said for itself stands
+    }
+    m.metadata.push_back({key, kUsAscii, std::move(value)});
+  };
+  if (!s.robot_id.empty()) set("RobotId", s.robot_id);
+  set("Workphase", toString(workphase(s)));
+  if (m.type == "TRANSFORM" || m.type == "POINT") set("Units", "mm");
+}
+
+Message commandReply(std::uint32_t id, const std::string& name, bool success,
+                     const std::string& code, const std::string& message,
+                     const XmlAttributes& more) {
+  XmlAttributes attributes{{"Name", name},
+                           {"Status", success ? "SUCCESS" : "FAIL"},
+                           {"Code", code},
+                           {"Message", message}};
+  attributes.insert(attributes.end(), more.begin(), more.end());
+  return commandMessage("RTS_COMMAND", id, name, writeCommandXml("Command", attributes));
 }
 
 }  // namespace ignav::igtl

@@ -392,9 +392,9 @@ std::optional<Expected<Message>> Decoder::next() {
   if (header.version != 1 && header.version != 2) {
     // Not a stream we can follow (another protocol, most likely: its "body size" means nothing).
     return refuse(makeError(ErrorCode::kUnsupported,
-                            fmt::format("header version {}: OpenIGTLink has 1 (protocols 1 and 2) "
-                                        "and 2 (protocol 3)",
-                                        header.version),
+                            fmt::format("{}: header version {}: OpenIGTLink has 1 (protocols 1 "
+                                        "and 2) and 2 (protocol 3)",
+                                        name, header.version),
                             "header_version"));
   }
   if (body > max_body_bytes_) {

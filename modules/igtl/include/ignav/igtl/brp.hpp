@@ -15,6 +15,7 @@
 
 #include <Eigen/Core>
 
+#include "ignav/igtl/command_xml.hpp"
 #include "ignav/igtl/message.hpp"
 #include "ignav/workflow/session.hpp"
 
@@ -94,19 +95,30 @@ class BrpBridge {
 
   // The workphase a client would be told now.
   Workphase workphase(const workflow::Session& s) const;
+  // What a protocol-3 client is told with every message, as metadata (version 1 has no room for
+  // it): RobotId, Workphase, and Units "mm" on what carries coordinates. TargetId is set where a
+  // message is about one target.
+  void annotate(Message& m, const workflow::Session& s) const;
   bool waiting() const { return !pending_.empty(); }
 
  private:
-  enum class Purpose { kCommand, kCalibration, kTarget, kTargetRemoval };
+  // kCommand: a workphase (STRING CMD_ or COMMAND); kOwnCommand: one of ignav's commands by its
+  // name in the command table (COMMAND only).
+  enum class Purpose { kCommand, kCalibration, kTarget, kTargetRemoval, kOwnCommand };
   struct Pending {
     std::uint64_t client = 0;
     Purpose purpose = Purpose::kCommand;
     Workphase phase = Workphase::kStartUp;  // kCommand
     std::deque<workflow::InputKind> remaining;
     std::string why;  // kTargetRemoval: the core's reason the target cannot be reached
+    // A COMMAND's id and name: answered with RTS_COMMAND (a STRING CMD_ with STATUS).
+    std::optional<std::pair<std::uint32_t, std::string>> command;
   };
 
   workflow::Input input(workflow::InputKind kind);
+  // The inputs a workphase asks for, dispatched (STRING CMD_ and COMMAND alike).
+  void startWorkphase(Pending p, const workflow::Session& s, BrpOutput& out);
+  BrpOutput onCommand(std::uint64_t client, const Message& m, const workflow::Session& s);
   // The next input of a command (an approval is filled in from the session's pending request).
   void dispatch(Pending p, const workflow::Session& s, BrpOutput& out);
   Message currentStatus(const workflow::Session& s) const;
@@ -136,6 +148,12 @@ std::optional<Eigen::Matrix4d> tipToImageRas(const workflow::Session& s,
 // robots): configuration error for bad values, not ready for everything else.
 StatusCode statusCodeFor(const std::string& error_code, workflow::Phase phase,
                          Revision revision = Revision::kSlicer);
+// RTS_COMMAND answering COMMAND `id` named `name`: <Command Name=".." Status="SUCCESS|FAIL"
+// Code="ok|<reply code>" Message=".." /> (Slicer's OpenIGTLinkRemote reads Status and Message).
+Message commandReply(std::uint32_t id, const std::string& name, bool success,
+                     const std::string& code, const std::string& message,
+                     const XmlAttributes& more = {});
+
 // The error-name field for a reply code of the core (docs/PROTOCOL.md): the code itself, or a
 // short form of it where it is longer than the field's 19 characters (docs/OPENIGTLINK.md lists
 // them).

@@ -1,0 +1,236 @@
+// OpenIGTLink protocol 3 against a real ignav-server on loopback, from the tests' own version-3
+// peer (v3_peer.hpp: written from the protocol's description, libOpenIGTLink's CRC). What the
+// upstream OpenIGTLink 3.1 client was cut off for (issue 44) — a STRING command, a CLB_ transform
+// and a COMMAND with version-2 headers and metadata — is answered in version 2, and every answer
+// is checked byte by byte: header, extended header, metadata, CRC. DDS domains 177-179.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+
+#include "e2e/server_process.hpp"
+#include "v3_peer.hpp"
+
+namespace ignav::igtl3_test {
+namespace {
+
+using e2e::ServerProcess;
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+double nowS() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+// Every version-2 frame the server sends: its parts add up, its CRC is right, its extended header
+// is the 12 bytes of the description, and rebuilt by the peer's own code from the fields read it
+// is the very bytes received.
+void expectWellFramed(const Frame& f) {
+  ASSERT_EQ(f.version, 2) << f.type << " " << f.device;
+  EXPECT_TRUE(f.crc_ok) << f.type << " " << f.device;
+  EXPECT_TRUE(f.sizes_ok) << f.type << " " << f.device;
+  EXPECT_EQ(f.extended_header_size, 12);
+  EXPECT_EQ(frame(2, f.type, f.device, f.timestamp, body2(f.content, f.message_id, f.meta)), f.raw)
+      << f.type << " " << f.device;
+  // Stamped with the server's clock (the same machine's): within a few seconds of ours.
+  const double stamped = static_cast<double>(f.timestamp >> 32) +
+                         static_cast<double>(f.timestamp & 0xffffffffULL) / 4294967296.0;
+  EXPECT_LT(std::abs(stamped - nowS()), 30.0) << f.type << " " << f.device;
+}
+
+std::string attribute(const std::string& xml, const std::string& name) {
+  const auto at = xml.find(" " + name + "=\"");
+  if (at == std::string::npos) return "<none>";
+  const auto from = at + name.size() + 3;
+  return xml.substr(from, xml.find('"', from) - from);
+}
+
+const Frame* findFrame(const std::vector<Frame>& frames, const std::string& type,
+                       const std::string& device) {
+  for (const auto& f : frames)
+    if (f.type == type && f.device == device) return &f;
+  return nullptr;
+}
+
+// Slicer's calibration as the BRP tests give it: RAS -> robot, 30° about S and a shift.
+void calibrationPose(float m[3][4]) {
+  const float c = std::cos(static_cast<float>(M_PI / 6)),
+              s = std::sin(static_cast<float>(M_PI / 6));
+  const float pose[3][4] = {{c, -s, 0, 12.5f}, {s, c, 0, -20.0f}, {0, 0, 1, -40.0f}};
+  std::memcpy(m, pose, sizeof pose);
+}
+
+TEST(Igtl3E2E, Version2MessagesAndCommandsAreAnsweredInVersion2ByteForByte) {
+  ServerProcess server(177, {"--igtl-allow-approval"});
+  Peer peer(server.igtlPort());
+  ASSERT_TRUE(peer.connected());
+  // Before it has spoken, a client is greeted in version 1 (every OpenIGTLink reader reads it).
+  auto greeting = peer.next();
+  ASSERT_TRUE(greeting.has_value());
+  EXPECT_EQ(greeting->version, 1);
+  EXPECT_TRUE(greeting->crc_ok);
+  EXPECT_EQ(greeting->device, "CURRENT_STATUS");
+
+  // 1. STRING CMD_0001 START_UP with a version-2 header and metadata, as OpenIGTLink 3.1 sends.
+  peer.send(frame(2, "STRING", "CMD_0001", 0,
+                  body2(stringContent("START_UP"), 1, {{"Sender", 3, "Slicer 5.6"}})));
+  std::vector<Frame> seen;
+  ASSERT_TRUE(peer.until([](const Frame& f) { return f.device == "START_UP"; }, &seen))
+      << "no result of START_UP";
+  ASSERT_GE(seen.size(), 3u);
+  EXPECT_EQ(seen[0].type, "STRING");
+  EXPECT_EQ(seen[0].device, "ACK_0001");
+  std::uint32_t last_id = 0;
+  for (const auto& f : seen) {
+    ASSERT_NO_FATAL_FAILURE(expectWellFramed(f));
+    EXPECT_GT(f.message_id, last_id) << "message ids increase";
+    last_id = f.message_id;
+    ASSERT_NE(f.metaValue("RobotId"), nullptr) << f.device;
+    EXPECT_EQ(*f.metaValue("RobotId"), server.robotId());
+    ASSERT_NE(f.metaValue("Workphase"), nullptr) << f.device;
+  }
+  EXPECT_EQ(seen[0].stringText(), "START_UP");
+  EXPECT_EQ(seen.back().statusCode(), 1);
+  EXPECT_EQ(*seen.back().metaValue("Workphase"), "START_UP");
+
+  // 2. COMMAND CALIBRATION (the workphase as protocol 3's command), answered by RTS_COMMAND with
+  // its id and Slicer's Status attribute.
+  peer.send(
+      frame(2, "COMMAND", "COMMAND", 0,
+            body2(commandContent(3, "CALIBRATION", "<Command Name=\"CALIBRATION\" />"), 2, {})));
+  seen.clear();
+  auto calibration = peer.until([](const Frame& f) { return f.type == "RTS_COMMAND"; }, &seen);
+  ASSERT_TRUE(calibration.has_value());
+  ASSERT_NO_FATAL_FAILURE(expectWellFramed(*calibration));
+  EXPECT_EQ(calibration->device, "COMMAND");
+  EXPECT_EQ(calibration->commandId(), 3u);
+  EXPECT_EQ(calibration->commandName(), "CALIBRATION");
+  EXPECT_EQ(attribute(calibration->commandText(), "Status"), "SUCCESS")
+      << calibration->commandText();
+  EXPECT_EQ(calibration->commandText().rfind("<Command ", 0), 0u) << calibration->commandText();
+  const Frame* current = findFrame(seen, "STATUS", "CURRENT_STATUS");
+  ASSERT_NE(current, nullptr);
+  EXPECT_EQ(current->statusString(), "CALIBRATION");
+
+  // 3. TRANSFORM CLB_0004 with a version-2 header and metadata: the echo, the result, the
+  // registration Slicer shows, each with Units.
+  float pose[3][4];
+  calibrationPose(pose);
+  peer.send(
+      frame(2, "TRANSFORM", "CLB_0004", 0, body2(transformContent(pose), 3, {{"Units", 3, "mm"}})));
+  seen.clear();
+  ASSERT_TRUE(peer.until([](const Frame& f) { return f.device == "ImageToRobot"; }, &seen));
+  const Frame* echo = findFrame(seen, "TRANSFORM", "ACK_0004");
+  ASSERT_NE(echo, nullptr);
+  ASSERT_NO_FATAL_FAILURE(expectWellFramed(*echo));
+  EXPECT_EQ(echo->content, transformContent(pose)) << "the echo carries the float32s received";
+  ASSERT_NE(echo->metaValue("Units"), nullptr);
+  EXPECT_EQ(*echo->metaValue("Units"), "mm");
+  const Frame* result = findFrame(seen, "STATUS", "CALIBRATION");
+  ASSERT_NE(result, nullptr);
+  EXPECT_EQ(result->statusCode(), 1) << result->statusString();
+
+  // 4. One of ignav's own commands by its name in the command table: a target (RAS).
+  const float c = pose[0][0], s = pose[1][0];
+  // The robot-frame point (-10, 15, -190) in Slicer's RAS: p_ras = M^-1 (p - t).
+  const double x = -10 - 12.5, y = 15 + 20.0, z = -190 + 40.0;
+  const std::string points = std::to_string(c * x + s * y) + " " + std::to_string(-s * x + c * y) +
+                             " " + std::to_string(z);
+  peer.send(frame(2, "COMMAND", "COMMAND", 0,
+                  body2(commandContent(5, "add_target",
+                                       "<Command Name=\"add_target\" Points=\"" + points + "\" />"),
+                        4, {})));
+  auto added = peer.until([](const Frame& f) { return f.type == "RTS_COMMAND"; });
+  ASSERT_TRUE(added.has_value());
+  ASSERT_NO_FATAL_FAILURE(expectWellFramed(*added));
+  EXPECT_EQ(added->commandId(), 5u);
+  EXPECT_EQ(attribute(added->commandText(), "Status"), "SUCCESS") << added->commandText();
+  EXPECT_EQ(attribute(added->commandText(), "TargetId"), "1") << added->commandText();
+  auto viewer = server.client("viewer");
+  const auto one_target = [](const json& st) {
+    return st.contains("targets") && st["targets"].size() == 1u;
+  };
+  viewer->waitFor(one_target, 10s);
+
+  // 5. Refused by name, nothing changed: an approver's command, an unknown one, bad XML, a bad
+  // argument; each with its id.
+  const struct {
+    std::uint32_t id;
+    const char* name;
+    std::string xml;
+    const char* code;
+    const char* says;
+  } refused[] = {
+      {6, "home", "<Command Name=\"home\" />", "not_permitted", "approver"},
+      {7, "no_such", "<Command />", "unknown_command", "no_such"},
+      {8, "add_target", "<Command Name=\"add_target\" Points=\"1 2", "bad_command", "line 1"},
+      {9, "add_target", "<Command Points=\"1 2 nan\" />", "bad_command", "Points"},
+      {10, "add_target", "<Command Colour=\"red\" />", "bad_command", "Colour"},
+      {11, "add_target", "<!DOCTYPE x [<!ENTITY a \"b\">]><Command />", "bad_command",
+       "document type"},
+  };
+  for (const auto& r : refused) {
+    peer.send(frame(2, "COMMAND", "COMMAND", 0, body2(commandContent(r.id, r.name, r.xml), 9, {})));
+    auto answer = peer.until([](const Frame& f) { return f.type == "RTS_COMMAND"; });
+    ASSERT_TRUE(answer.has_value()) << r.name;
+    EXPECT_EQ(answer->commandId(), r.id);
+    EXPECT_EQ(attribute(answer->commandText(), "Status"), "FAIL") << answer->commandText();
+    EXPECT_EQ(attribute(answer->commandText(), "Code"), r.code) << answer->commandText();
+    EXPECT_NE(attribute(answer->commandText(), "Message").find(r.says), std::string::npos)
+        << answer->commandText();
+  }
+  EXPECT_TRUE(one_target(viewer->state()));
+
+  // 6. Keep-alive: GET_STATUS in version 2 is answered by STATUS in version 2.
+  peer.send(frame(2, "GET_STATUS", "CURRENT_STATUS", 0, body2("", 12, {})));
+  auto status = peer.until([](const Frame& f) { return f.type == "STATUS"; });
+  ASSERT_TRUE(status.has_value());
+  ASSERT_NO_FATAL_FAILURE(expectWellFramed(*status));
+
+  // 7. A late joiner is told the state at once: the workphase, the registration, the tip.
+  Peer late(server.igtlPort());
+  std::vector<Frame> told;
+  ASSERT_TRUE(late.until([](const Frame& f) { return f.device == "NeedleTipToImage"; }, &told, 5s));
+  ASSERT_EQ(told.size(), 3u);
+  EXPECT_EQ(told[0].device, "CURRENT_STATUS");
+  EXPECT_EQ(told[1].device, "ImageToRobot");
+  for (const auto& f : told) {
+    EXPECT_EQ(f.version, 1) << "not yet spoken: version 1";
+    EXPECT_TRUE(f.crc_ok);
+  }
+}
+
+TEST(Igtl3E2E, AStreamThatIsNotOpenIGTLinkLearnsWhyBeforeItIsLetGo) {
+  ServerProcess server(178);
+  Peer stranger(server.igtlPort());
+  ASSERT_TRUE(stranger.next().has_value());  // the greeting
+  // Header version 9: nothing after it can be framed.
+  stranger.send(frame(9, "STRING", "CMD_0001", 0, stringContent("EMERGENCY")));
+  auto why = stranger.until([](const Frame& f) { return f.device == "BAD_MESSAGE"; });
+  ASSERT_TRUE(why.has_value()) << "the client was cut off without a word";
+  EXPECT_TRUE(why->crc_ok);
+  EXPECT_EQ(why->statusCode(), 12);
+  EXPECT_NE(why->statusString().find("header version 9"), std::string::npos) << why->statusString();
+  EXPECT_NE(why->statusString().find("CMD_0001"), std::string::npos) << why->statusString();
+  EXPECT_FALSE(stranger.next(5s).has_value());
+  EXPECT_TRUE(stranger.closed()) << "let go after the answer";
+  // Inconsistent version-2 framing costs one message, not the connection; nothing changed.
+  Peer client(server.igtlPort());
+  ASSERT_TRUE(client.next().has_value());
+  client.send(frame(2, "STRING", "CMD_0002", 0,
+                    be(12, 2) + be(2, 2) + be(0, 4) + be(1, 4) + stringContent("EMERGENCY") +
+                        be(5, 2)));  // five metadata entries in a two-byte metadata header
+  auto bad = client.until([](const Frame& f) { return f.device == "BAD_MESSAGE"; });
+  ASSERT_TRUE(bad.has_value());
+  EXPECT_NE(bad->statusString().find("metadata header size 2"), std::string::npos)
+      << bad->statusString();
+  auto viewer = server.client("viewer");
+  EXPECT_EQ(e2e::stateText(viewer->state(), "workflow", "phase"), "imaging");
+  client.send(frame(2, "STRING", "CMD_0003", 0, body2(stringContent("START_UP"), 1, {})));
+  auto ack = client.until([](const Frame& f) { return f.device == "ACK_0003"; });
+  ASSERT_TRUE(ack.has_value());
+  EXPECT_EQ(ack->version, 2);
+}
+
+}  // namespace
+}  // namespace ignav::igtl3_test
