@@ -1,10 +1,12 @@
 // What an OpenIGTLink client can send: a byte stream (well-formed BRP messages with fuzzed
-// fields, corrupted ones, raw garbage) split at fuzzed points, through the Decoder and the BRP
-// bridge, with the bridge's inputs through the real reducer as the server runs them, from a
-// registered planning session. Checked on every message: the decoder holds no more than a body
-// limit and a chunk; every STRING(CMD_<id>) is receipted first with ACK_<id>; everything the
-// bridge answers can be encoded; nothing moves except by an approval of the pending plan
-// (DESIGN.md safety invariants 1 and 5).
+// fields in header version 1 or 2 with fuzzed metadata, COMMANDs with fuzzed XML, version-2
+// frames whose extended header, metadata header and metadata sizes lie but whose CRC is right,
+// headers announcing enormous bodies, corrupted messages, raw garbage) split at fuzzed points,
+// through the Decoder and the BRP bridge, with the bridge's inputs through the real reducer as the
+// server runs them, from a registered planning session. Checked on every message: the decoder holds
+// no more than a body limit and a chunk; every STRING(CMD_<id>) is receipted first with ACK_<id>;
+// everything the bridge answers can be encoded; nothing moves except by an approval of the pending
+// plan (DESIGN.md safety invariants 1 and 5).
 #include <fuzzer/FuzzedDataProvider.h>
 
 #include <cmath>
@@ -54,7 +56,7 @@ std::string fuzzedMessage(FuzzedDataProvider& in) {
                                   "MOVE_TO_TARGET", "MANUAL",   "STOP",        "EMERGENCY"};
   static const char* kPrefixes[] = {"CMD_", "CLB_", "TGT_", "ACK_", ""};
   igtl::Message m;
-  const int kind = in.ConsumeIntegralInRange<int>(0, 5);
+  const int kind = in.ConsumeIntegralInRange<int>(0, 7);
   m.device_name = std::string(kPrefixes[in.ConsumeIntegralInRange<int>(0, 4)]) +
                   in.ConsumeRandomLengthString(8);
   if (m.device_name.size() > igtl::kMaxDeviceName) m.device_name.resize(igtl::kMaxDeviceName);
@@ -81,9 +83,37 @@ std::string fuzzedMessage(FuzzedDataProvider& in) {
     case 4:
       m.type = "GET_STATUS";
       break;
+    case 5:
+    case 6: {
+      static const char* kNames[] = {
+          "START_UP",    "MOVE_TO_TARGET", "EMERGENCY",        "add_target", "home", "approve",
+          "load_volume", "remove_target",  "set_registration", "query",      ""};
+      static const char* kAttributes[] = {"Name", "Points", "Ids", "Path", "Matrix", "X"};
+      m = igtl::commandMessage("COMMAND", in.ConsumeIntegral<std::uint32_t>(),
+                               kNames[in.ConsumeIntegralInRange<int>(0, 10)], "");
+      if (in.ConsumeBool()) {
+        std::string xml = "<Command";
+        for (std::size_t i = in.ConsumeIntegralInRange<std::size_t>(0, 3); i > 0; --i) {
+          xml += std::string(" ") + kAttributes[in.ConsumeIntegralInRange<int>(0, 5)] + "=\"" +
+                 in.ConsumeRandomLengthString(40) + "\"";
+        }
+        m.command.text = xml + (in.ConsumeBool() ? " />" : in.ConsumeRandomLengthString(16));
+      } else {
+        m.command.text = in.ConsumeRandomLengthString(120);
+      }
+      break;
+    }
     default:
       m.type = "GET_TRANS";
       break;
+  }
+  if (in.ConsumeBool()) {
+    m.header_version = 2;
+    m.message_id = in.ConsumeIntegral<std::uint32_t>();
+    for (std::size_t i = in.ConsumeIntegralInRange<std::size_t>(0, 3); i > 0; --i) {
+      m.metadata.push_back({in.ConsumeRandomLengthString(12), in.ConsumeIntegral<std::uint16_t>(),
+                            in.ConsumeRandomLengthString(24)});
+    }
   }
   auto bytes = igtl::encode(m);
   std::string wire = bytes ? *bytes : in.ConsumeRandomLengthString(100);
@@ -92,6 +122,40 @@ std::string fuzzedMessage(FuzzedDataProvider& in) {
         static_cast<char>(1 + in.ConsumeIntegralInRange<int>(0, 254));
   }
   return wire;
+}
+
+// A version-2 frame whose body's sizes are fuzzed (its CRC right, so that the sizes are what is
+// judged), or a bare header announcing a body of any size, up to 2^64 - 1.
+std::string fuzzedFraming(FuzzedDataProvider& in) {
+  igtl::Header h;
+  h.version = in.ConsumeBool() ? 2 : in.ConsumeIntegral<std::uint16_t>();
+  h.type = in.ConsumeBool() ? "STRING" : "COMMAND";
+  h.device_name = "CMD_1";
+  if (in.ConsumeIntegralInRange<int>(0, 5) == 0) {
+    h.body_size = in.ConsumeBool() ? ~0ULL : in.ConsumeIntegral<std::uint64_t>();
+    return igtl::writeHeader(h);
+  }
+  const auto be = [](std::uint64_t v, int n) {
+    std::string out;
+    for (int i = n - 1; i >= 0; --i)
+      out += static_cast<char>((v >> (8 * i)) & 0xff);
+    return out;
+  };
+  std::string body = be(in.ConsumeBool() ? 12 : in.ConsumeIntegral<std::uint16_t>(), 2);
+  const std::size_t count = in.ConsumeIntegralInRange<std::size_t>(0, 4);
+  body += be(in.ConsumeBool() ? 2 + 8 * count : in.ConsumeIntegral<std::uint16_t>(), 2);
+  body += be(in.ConsumeIntegralInRange<std::uint32_t>(0, in.ConsumeBool() ? 64 : 0xffffffffu), 4);
+  body += be(in.ConsumeIntegral<std::uint32_t>(), 4);
+  body += in.ConsumeRandomLengthString(60);  // content
+  body += be(count, 2);
+  for (std::size_t i = 0; i < count; ++i) {
+    body += be(in.ConsumeIntegralInRange<std::uint16_t>(0, 16), 2) + be(3, 2) +
+            be(in.ConsumeIntegralInRange<std::uint32_t>(0, in.ConsumeBool() ? 16 : 0xffffffffu), 4);
+  }
+  body += in.ConsumeRandomLengthString(64);  // keys and values
+  h.body_size = body.size();
+  h.crc = igtl::crc64(body);
+  return igtl::writeHeader(h) + body;
 }
 
 }  // namespace
@@ -140,8 +204,19 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   };
 
   for (int n = 0; n < 24 && in.remaining_bytes() > 0; ++n) {
-    const std::string wire =
-        in.ConsumeBool() ? fuzzedMessage(in) : in.ConsumeRandomLengthString(80);
+    std::string wire;
+    switch (in.ConsumeIntegralInRange<int>(0, 3)) {
+      case 0:
+      case 1:
+        wire = fuzzedMessage(in);
+        break;
+      case 2:
+        wire = fuzzedFraming(in);
+        break;
+      default:
+        wire = in.ConsumeRandomLengthString(80);
+        break;
+    }
     // Split anywhere.
     for (std::size_t at = 0; at < wire.size();) {
       const std::size_t chunk =
@@ -163,8 +238,26 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           std::abort();  // the receipt comes first, always
         }
         run();
-        for (const auto& out : sent) {
-          if (!igtl::encode(out.message)) std::abort();  // everything we answer can be sent
+        for (auto out : sent) {
+          // Everything we answer can be sent, in either header version, with its metadata.
+          if (!igtl::encode(out.message)) std::abort();
+          bridge.annotate(out.message, session);
+          out.message.header_version = 2;
+          if (!igtl::encode(out.message)) std::abort();
+        }
+        if (m.header_version == 2) {
+          // What was read is written back and read again as it was (the codec is its own inverse).
+          auto again = igtl::encode(m);
+          if (!again) continue;  // fields only a reader accepts (an over-long command text)
+          igtl::Decoder echo(kBodyLimit + 1024);
+          echo.feed(again->data(), again->size());
+          auto back = echo.next();
+          if (!back || !back->ok() || back->value().metadata != m.metadata ||
+              back->value().message_id != m.message_id ||
+              back->value().command.text != m.command.text ||
+              back->value().command.name != m.command.name) {
+            std::abort();
+          }
         }
       }
       if (decoder.buffered() > kBodyLimit + igtl::kHeaderBytes + 200) std::abort();

@@ -101,8 +101,13 @@ Expected<Message> decodeContent(Message out, std::string_view body) {
       return format(fmt::format("command length {} exceeds its body ({} bytes)", length,
                                 body.size() - kCommandHeaderBytes));
     }
+    const std::size_t name_length = strnlen(body.data() + 4, kMaxCommandName + 1);
+    if (name_length > kMaxCommandName) {
+      return format(fmt::format("the command name is not NUL-terminated within its {} bytes",
+                                kMaxCommandName + 1));
+    }
     out.command.id = static_cast<std::uint32_t>(readBig(body.data(), 4));
-    out.command.name.assign(body.data() + 4, strnlen(body.data() + 4, kMaxCommandName + 1));
+    out.command.name.assign(body.data() + 4, name_length);
     out.command.encoding = static_cast<std::uint16_t>(readBig(body.data() + 132, 2));
     out.command.text.assign(body.data() + kCommandHeaderBytes, length);
   } else if (out.type == "TRANSFORM") {
