@@ -10,6 +10,7 @@
 #include <igtlStatusMessage.h>
 #include <igtlStringMessage.h>
 #include <igtlTransformMessage.h>
+#include <Eigen/LU>
 
 namespace ignav::igtl {
 namespace {
@@ -91,6 +92,74 @@ Expected<Message> decodeContent(Message out, std::string_view body) {
     out.status.subcode = (*m)->GetSubCode();
     out.status.error_name.assign(body.data() + 10, strnlen(body.data() + 10, 20));
     out.status.status_string = std::string(body.data() + kStatusFixed);
+  } else if (out.type == "IMAGE") {
+    if (body.size() < kImageHeaderBytes) {
+      return format(fmt::format("body has {} bytes; an image header alone has {}", body.size(),
+                                kImageHeaderBytes));
+    }
+    const char* h = body.data();
+    Image& image = out.image;
+    const auto version = readBig(h, 2);
+    image.components = static_cast<std::uint8_t>(h[2]);
+    image.scalar_type = static_cast<ScalarType>(static_cast<unsigned char>(h[3]));
+    const int endian = static_cast<unsigned char>(h[4]);
+    const int coordinates = static_cast<unsigned char>(h[5]);
+    const std::size_t bytes = scalarBytes(image.scalar_type);
+    if (version != 1 && version != 2) {
+      return format(fmt::format("image header version {}; 1 or 2", version));
+    }
+    if (bytes == 0) {
+      return format(fmt::format("scalar type {} is none of OpenIGTLink's",
+                                static_cast<int>(static_cast<unsigned char>(h[3]))));
+    }
+    if (image.components == 0) return format("an image of 0 components");
+    if ((endian != 1 && endian != 2) || (coordinates != 1 && coordinates != 2)) {
+      return format(fmt::format("endian {} / coordinates {}: 1 or 2 each", endian, coordinates));
+    }
+    image.ras = coordinates == 1;
+    std::uint64_t voxels = 1;
+    for (int a = 0; a < 3; ++a) {
+      image.size[a] = static_cast<int>(readBig(h + 6 + 2 * a, 2));
+      const auto offset = readBig(h + 60 + 2 * a, 2);
+      const auto extent = readBig(h + 66 + 2 * a, 2);
+      if (image.size[a] == 0) return format("an image with no voxels along an axis");
+      if (offset != 0 || extent != static_cast<std::uint64_t>(image.size[a])) {
+        return format("a partial image (a sub-volume) is not taken: send the whole volume");
+      }
+      voxels *= static_cast<std::uint64_t>(image.size[a]);
+    }
+    const std::uint64_t expected = voxels * image.components * bytes;
+    if (expected != body.size() - kImageHeaderBytes) {
+      return format(fmt::format("{} bytes of voxels; {} x {} x {} voxels of {} x {} bytes are {}",
+                                body.size() - kImageHeaderBytes, image.size[0], image.size[1],
+                                image.size[2], image.components, bytes, expected));
+    }
+    float f[12];
+    for (int i = 0; i < 12; ++i) {
+      const auto bits = static_cast<std::uint32_t>(readBig(h + 12 + 4 * i, 4));
+      std::memcpy(&f[i], &bits, 4);
+    }
+    Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+    for (int c = 0; c < 3; ++c)
+      for (int r = 0; r < 3; ++r)
+        m(r, c) = f[3 * c + r];
+    const Eigen::Vector3d centre(f[9], f[10], f[11]);
+    if (!m.allFinite() || !centre.allFinite() ||
+        std::abs(m.topLeftCorner<3, 3>().determinant()) < 1e-12) {
+      return format("the image's axes are not finite, or do not span a volume");
+    }
+    const Eigen::Vector3d half((image.size[0] - 1) / 2.0, (image.size[1] - 1) / 2.0,
+                               (image.size[2] - 1) / 2.0);
+    m.topRightCorner<3, 1>() = centre - m.topLeftCorner<3, 3>() * half;
+    image.ijk_to_mm = m;
+    auto data = std::make_shared<std::string>(body.substr(kImageHeaderBytes));
+    if (endian == 1 && bytes > 1) {  // big-endian voxels: ours are little-endian
+      for (std::size_t at = 0; at < data->size(); at += bytes)
+        std::reverse(data->begin() + static_cast<std::ptrdiff_t>(at),
+                     data->begin() + static_cast<std::ptrdiff_t>(at + bytes));
+    }
+    image.data_bytes = data->size();
+    image.data = std::shared_ptr<const char>(data, data->data());
   } else if (out.type == "COMMAND" || out.type == "RTS_COMMAND") {
     if (body.size() < kCommandHeaderBytes) {
       return format(fmt::format("body has {} bytes; a command's fixed part alone has {}",
@@ -237,6 +306,32 @@ Message commandMessage(std::string type, std::uint32_t id, std::string name, std
   return m;
 }
 
+std::size_t scalarBytes(ScalarType type) {
+  switch (type) {
+    case ScalarType::kInt8:
+    case ScalarType::kUint8:
+      return 1;
+    case ScalarType::kInt16:
+    case ScalarType::kUint16:
+      return 2;
+    case ScalarType::kInt32:
+    case ScalarType::kUint32:
+    case ScalarType::kFloat32:
+      return 4;
+    case ScalarType::kFloat64:
+      return 8;
+  }
+  return 0;
+}
+
+Message imageMessage(std::string device, Image image) {
+  Message m;
+  m.type = "IMAGE";
+  m.device_name = std::move(device);
+  m.image = std::move(image);
+  return m;
+}
+
 const std::string* metaDataValue(const Message& m, const std::string& key) {
   for (const auto& e : m.metadata) {
     if (e.key == key) return &e.value;
@@ -246,7 +341,8 @@ const std::string* metaDataValue(const Message& m, const std::string& key) {
 
 namespace {
 
-// The content of a message of ours (the version-1 body, the version-2 body's middle).
+// The content of a message libOpenIGTLink packs, or a COMMAND's (the version-1 body, the
+// version-2 body's middle).
 Expected<std::string> contentBytes(const Message& in) {
   if (in.type == "STRING") {
     if (in.text.size() > 0xffff) {
@@ -335,6 +431,65 @@ Expected<std::string> contentBytes(const Message& in) {
   return bad("message type '" + in.type + "' is not one we send");
 }
 
+// An IMAGE's content: its 72-byte header (big-endian) and its voxels (little-endian, as ours).
+ignav::Status appendImage(const Message& in, std::string& out) {
+  const Image& image = in.image;
+  const std::size_t bytes = scalarBytes(image.scalar_type);
+  std::uint64_t voxels = 1;
+  for (const int n : image.size) {
+    if (n < 1 || n > 0xffff) {
+      return bad(fmt::format("IMAGE '{}': size {} along an axis; 1..65535", in.device_name, n));
+    }
+    voxels *= static_cast<std::uint64_t>(n);
+  }
+  if (bytes == 0 || image.components == 0) {
+    return bad(fmt::format("IMAGE '{}': no scalar type or no components", in.device_name));
+  }
+  if (voxels * image.components * bytes != image.data_bytes || !image.data) {
+    return bad(fmt::format("IMAGE '{}': {} bytes of voxels for {} voxels of {} x {} bytes",
+                           in.device_name, image.data_bytes, voxels, image.components, bytes));
+  }
+  const Eigen::Matrix4d& m = image.ijk_to_mm;
+  if (!m.allFinite()) return bad(fmt::format("IMAGE '{}': non-finite geometry", in.device_name));
+  appendBig(out, 1, 2);  // the image header's version
+  out += static_cast<char>(image.components);
+  out += static_cast<char>(image.scalar_type);
+  out += static_cast<char>(2);  // little-endian voxels
+  out += static_cast<char>(image.ras ? 1 : 2);
+  for (const int n : image.size)
+    appendBig(out, static_cast<std::uint64_t>(n), 2);
+  // The axes (direction x spacing), then the centre of the volume.
+  const Eigen::Vector3d half((image.size[0] - 1) / 2.0, (image.size[1] - 1) / 2.0,
+                             (image.size[2] - 1) / 2.0);
+  const Eigen::Vector3d centre = m.topLeftCorner<3, 3>() * half + m.topRightCorner<3, 1>();
+  const auto appendFloat = [&](double v) {
+    const auto f = static_cast<float>(v);
+    std::uint32_t bits;
+    std::memcpy(&bits, &f, 4);
+    appendBig(out, bits, 4);
+  };
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r)
+      appendFloat(m(r, c));
+  for (int r = 0; r < 3; ++r)
+    appendFloat(centre[r]);
+  for (int i = 0; i < 3; ++i)
+    appendBig(out, 0, 2);  // the sub-volume is the whole volume
+  for (const int n : image.size)
+    appendBig(out, static_cast<std::uint64_t>(n), 2);
+  out.append(image.data.get(), image.data_bytes);
+  return Ok{};
+}
+
+// The content of a message of ours (the version-1 body, the version-2 body's middle), appended.
+ignav::Status appendContent(const Message& in, std::string& out) {
+  if (in.type == "IMAGE") return appendImage(in, out);
+  auto content = contentBytes(in);
+  if (!content) return content.error();
+  out += *content;
+  return Ok{};
+}
+
 }  // namespace
 
 Expected<std::string> encode(const Message& in) {
@@ -350,18 +505,21 @@ Expected<std::string> encode(const Message& in) {
     return bad(fmt::format("{} '{}': header version {}; 1 or 2", in.type, in.device_name,
                            in.header_version));
   }
-  auto content = contentBytes(in);
-  if (!content) return content.error();
-  std::string body;
+  // Assembled in one buffer (an image's voxels are copied once): header, body, then the header's
+  // body size and CRC filled in.
+  std::string out;
+  out.reserve(kHeaderBytes + kExtendedHeaderBytes + kImageHeaderBytes + in.image.data_bytes + 256);
+  out.resize(kHeaderBytes);
   if (in.header_version == 2) {
-    auto joined = joinBody(*content, in.message_id, in.metadata);
-    if (!joined) {
-      return bad(fmt::format("{} '{}': {}", in.type, in.device_name, joined.error().message));
+    auto extended = extendedHeader(in.message_id, in.metadata);
+    if (!extended) {
+      return bad(fmt::format("{} '{}': {}", in.type, in.device_name, extended.error().message));
     }
-    body = std::move(joined).value();
-  } else {
-    body = std::move(content).value();
+    out += *extended;
   }
+  if (auto appended = appendContent(in, out); !appended) return appended.error();
+  if (in.header_version == 2) appendMetaData(out, in.metadata);
+  const std::string_view body = std::string_view(out).substr(kHeaderBytes);
   Header h;
   h.version = in.header_version;
   h.type = in.type;
@@ -369,7 +527,9 @@ Expected<std::string> encode(const Message& in) {
   h.timestamp = timestampOf(in.timestamp_s);
   h.body_size = body.size();
   h.crc = crc64(body);
-  return writeHeader(h) + body;
+  const std::string header = writeHeader(h);
+  std::copy(header.begin(), header.end(), out.begin());
+  return out;
 }
 
 void Decoder::feed(const char* bytes, std::size_t count) {
@@ -402,10 +562,13 @@ std::optional<Expected<Message>> Decoder::next() {
                                         name, header.version),
                             "header_version"));
   }
-  if (body > max_body_bytes_) {
-    return refuse(makeError(
-        ErrorCode::kInvalidArgument,
-        fmt::format("{}: body of {} bytes; at most {} accepted", name, body, max_body_bytes_)));
+  const std::uint64_t limit = header.type == "IMAGE"
+                                  ? std::max<std::uint64_t>(max_body_bytes_, max_image_bytes_)
+                                  : max_body_bytes_;
+  if (body > limit) {
+    return refuse(
+        makeError(ErrorCode::kInvalidArgument,
+                  fmt::format("{}: body of {} bytes; at most {} accepted", name, body, limit)));
   }
   if (buffer_.size() - kHeaderBytes < body) return std::nullopt;
   const std::string body_bytes = buffer_.substr(kHeaderBytes, body);

@@ -74,5 +74,10 @@ Expected<BodyParts> splitBody(std::string_view body);
 // field, or too many entries.
 Expected<std::string> joinBody(std::string_view content, std::uint32_t message_id,
                                const std::vector<MetaDataEntry>& metadata);
+// The same in parts, for a body assembled in place: the 12-byte extended header (checking what
+// joinBody checks), and the metadata header and metadata appended after the content.
+Expected<std::string> extendedHeader(std::uint32_t message_id,
+                                     const std::vector<MetaDataEntry>& metadata);
+void appendMetaData(std::string& out, const std::vector<MetaDataEntry>& metadata);
 
 }  // namespace ignav::igtl

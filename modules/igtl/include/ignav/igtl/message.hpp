@@ -4,9 +4,11 @@
 // which it does not (Debian's is protocol 2), are ours. No sockets here.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -52,6 +54,34 @@ struct Command {
   std::string text;
 };
 
+// IMAGE's scalar types, numbered as OpenIGTLink numbers them.
+enum class ScalarType : std::uint8_t {
+  kInt8 = 2,
+  kUint8 = 3,
+  kInt16 = 4,
+  kUint16 = 5,
+  kInt32 = 6,
+  kUint32 = 7,
+  kFloat32 = 10,
+  kFloat64 = 11,
+};
+std::size_t scalarBytes(ScalarType type);  // 0 for a number that is none of them
+
+// IMAGE: a volume with its geometry (the whole volume: sub-volumes are neither sent nor taken).
+struct Image {
+  std::array<int, 3> size{0, 0, 0};  // voxels along i, j, k (each 1..65535)
+  ScalarType scalar_type = ScalarType::kInt16;
+  std::uint8_t components = 1;
+  // Voxel index (i, j, k, 1) -> position in mm, in RAS (`ras`) or LPS. Its columns' lengths are
+  // the spacing. (On the wire OpenIGTLink gives the volume's centre, (size - 1) / 2 from voxel 0.)
+  Eigen::Matrix4d ijk_to_mm = Eigen::Matrix4d::Identity();
+  bool ras = true;
+  // The voxels, i fastest, little-endian, `data_bytes` of them: shared with their owner (a loaded
+  // CT's buffer) and not copied until encoded.
+  std::shared_ptr<const char> data;
+  std::size_t data_bytes = 0;
+};
+
 struct Message {
   std::string type;         // "STRING", "STATUS", "TRANSFORM", "POINT", "GET_STATUS", ...
   std::string device_name;  // at most 20 characters
@@ -67,6 +97,7 @@ struct Message {
   Eigen::Matrix4d matrix = Eigen::Matrix4d::Identity();
   std::vector<Point> points;  // POINT
   Command command;            // COMMAND, RTS_COMMAND
+  Image image;                // IMAGE
 };
 
 Message stringMessage(std::string device, std::string text);
@@ -80,6 +111,8 @@ std::string asciiText(const std::string& text);
 Message transformMessage(std::string device, const Eigen::Matrix4d& matrix);
 // GET_STATUS, GET_TRANS (OpenIGTLink's GET_TRANSFORM: type names have at most 12 characters).
 Message queryMessage(std::string type, std::string device);
+// IMAGE named `device`.
+Message imageMessage(std::string device, Image image);
 // COMMAND or RTS_COMMAND ("COMMAND" as device name, as OpenIGTLinkIO sends them).
 Message commandMessage(std::string type, std::uint32_t id, std::string name, std::string text);
 // The value of a metadata key, if the message has it.
@@ -97,7 +130,10 @@ Expected<std::string> encode(const Message& message);
 // "header_version") means this is no OpenIGTLink stream we can follow.
 class Decoder {
  public:
-  explicit Decoder(std::size_t max_body_bytes = 64 * 1024) : max_body_bytes_(max_body_bytes) {}
+  // Bodies up to `max_body_bytes`; an IMAGE's up to `max_image_bytes` (a CT a scanner bridge
+  // sends).
+  explicit Decoder(std::size_t max_body_bytes = 64 * 1024, std::uint64_t max_image_bytes = 0)
+      : max_body_bytes_(max_body_bytes), max_image_bytes_(max_image_bytes) {}
   void feed(const char* bytes, std::size_t count);
   // The next whole message, an error for the next bad one, or nothing until more bytes come.
   std::optional<Expected<Message>> next();
@@ -105,10 +141,12 @@ class Decoder {
 
  private:
   std::size_t max_body_bytes_;
+  std::uint64_t max_image_bytes_;
   std::string buffer_;
   std::uint64_t skip_ = 0;  // bytes of a refused body still to discard
 };
 
+constexpr std::size_t kImageHeaderBytes = 72;
 // COMMAND's name field holds 128 bytes, NUL-terminated.
 constexpr std::size_t kCommandHeaderBytes = 138;
 constexpr std::size_t kMaxCommandName = 127;
