@@ -4,9 +4,11 @@
 #include <netinet/tcp.h>
 
 #include <chrono>
+#include <condition_variable>
 #include <deque>
 #include <map>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include <fmt/format.h>
@@ -26,13 +28,16 @@ struct IgtlListener::Impl {
     igtl::Decoder decoder;
     std::array<char, 16 * 1024> read_buffer{};
     std::deque<std::shared_ptr<const std::string>> outbox;
-    std::size_t outbox_bytes = 0;
+    std::size_t outbox_bytes = 0;   // of ordinary messages (bulk ones are counted by number)
+    std::size_t front_written = 0;  // bytes of outbox.front() already written
+    std::size_t bulk = 0;           // images and surfaces being encoded for it or waiting
+    std::set<const std::string*> bulk_bytes;  // which outbox entries are bulk
     bool writing = false;
     // The header version it spoke: answered in the highest it used (1 until it sends a 2).
     std::uint16_t header_version = 1;
     std::string closing;  // why it is let go once what it was sent has gone out
     Clock::time_point closing_since;
-    Clock::time_point write_started;
+    Clock::time_point write_started;  // of the chunk being written: progress, not the message
     explicit Connection(tcp::socket s) : socket(std::move(s)) {}
   };
 
@@ -48,6 +53,14 @@ struct IgtlListener::Impl {
   std::thread thread;
   std::mutex mutex;
   std::vector<IgtlEvent> events;
+  // The encoder thread's queue: (client, message in its header version).
+  std::thread encoder;
+  std::mutex encoder_mutex;
+  std::condition_variable encoder_wake;
+  std::deque<std::pair<std::uint64_t, igtl::Message>> encoder_queue;
+  bool encoder_stop = false;
+  static constexpr std::size_t kWriteChunkBytes = 1 << 20;
+  static constexpr std::size_t kMaxBulkPerClient = 2;
 
   Impl(IgtlListenerOptions o, std::function<void()> w, std::atomic<std::size_t>& count)
       : options(std::move(o)), wake(std::move(w)), client_count(count) {}
@@ -98,6 +111,7 @@ struct IgtlListener::Impl {
     ::setsockopt(fd, SOL_SOCKET, SO_SNDBUF, &send_buffer_bytes, sizeof send_buffer_bytes);
     socket.set_option(tcp::no_delay(true), ec);
     auto c = std::make_shared<Connection>(std::move(socket));
+    c->decoder = igtl::Decoder(64 * 1024, options.max_image_bytes);
     c->id = next_id++;
     c->peer = peer;
     connections[c->id] = c;
@@ -169,34 +183,96 @@ struct IgtlListener::Impl {
     enqueue(c, std::make_shared<const std::string>(std::move(bytes).value()));
   }
 
-  void enqueue(const std::shared_ptr<Connection>& c, std::shared_ptr<const std::string> bytes) {
-    if (c->outbox_bytes + bytes->size() > options.max_outbox_bytes) {
+  void enqueue(const std::shared_ptr<Connection>& c, std::shared_ptr<const std::string> bytes,
+               bool bulk = false) {
+    if (bulk) {
+      c->bulk_bytes.insert(bytes.get());
+    } else if (c->outbox_bytes + bytes->size() > options.max_outbox_bytes) {
       drop(c, fmt::format("not reading: {} bytes waiting to be sent", c->outbox_bytes));
       return;
+    } else {
+      c->outbox_bytes += bytes->size();
     }
-    c->outbox_bytes += bytes->size();
     c->outbox.push_back(std::move(bytes));
     if (!c->writing) write(c);
   }
 
+  // A chunk at a time: the watchdog sees progress, and a large image does not count as stalled
+  // for as long as it keeps moving.
   void write(const std::shared_ptr<Connection>& c) {
     c->writing = true;
     c->write_started = Clock::now();
-    asio::async_write(c->socket, asio::buffer(*c->outbox.front()),
-                      [this, c](boost::system::error_code ec, std::size_t) {
+    const std::string& front = *c->outbox.front();
+    const std::size_t chunk =
+        std::min<std::size_t>(kWriteChunkBytes, front.size() - c->front_written);
+    asio::async_write(c->socket, asio::buffer(front.data() + c->front_written, chunk),
+                      [this, c](boost::system::error_code ec, std::size_t written) {
                         c->writing = false;
                         if (ec) {
                           if (ec != asio::error::operation_aborted) drop(c, ec.message());
                           return;
                         }
-                        c->outbox_bytes -= c->outbox.front()->size();
-                        c->outbox.pop_front();
+                        c->front_written += written;
+                        const std::string* done = c->outbox.front().get();
+                        if (c->front_written == done->size()) {
+                          if (c->bulk_bytes.erase(done) > 0) {
+                            --c->bulk;
+                          } else {
+                            c->outbox_bytes -= done->size();
+                          }
+                          c->outbox.pop_front();
+                          c->front_written = 0;
+                        }
                         if (!c->outbox.empty()) {
                           write(c);
                         } else if (!c->closing.empty()) {
                           drop(c, c->closing);
                         }
                       });
+  }
+
+  // Images and surfaces are encoded (copied, their CRC computed: ~0.1 s for a CT) on the encoder
+  // thread, never here, where an EMERGENCY from a client is read. At most kMaxBulk per client.
+  bool sendBulk(const std::shared_ptr<Connection>& c, igtl::Message m) {
+    if (c->bulk >= kMaxBulkPerClient) return false;
+    ++c->bulk;
+    m.header_version = c->header_version;
+    if (m.header_version >= 2) m.message_id = next_message_id++;
+    {
+      std::lock_guard<std::mutex> lock(encoder_mutex);
+      encoder_queue.push_back({c->id, std::move(m)});
+    }
+    encoder_wake.notify_one();
+    return true;
+  }
+
+  void encodeLoop() {
+    for (;;) {
+      std::pair<std::uint64_t, igtl::Message> job;
+      {
+        std::unique_lock<std::mutex> lock(encoder_mutex);
+        encoder_wake.wait(lock, [&] { return encoder_stop || !encoder_queue.empty(); });
+        if (encoder_stop) return;
+        job = std::move(encoder_queue.front());
+        encoder_queue.pop_front();
+      }
+      auto bytes = igtl::encode(job.second);
+      std::shared_ptr<const std::string> shared;
+      if (bytes) {
+        shared = std::make_shared<const std::string>(std::move(bytes).value());
+      } else {
+        spdlog::error("OpenIGTLink: not sent to client {}: {}", job.first, bytes.error().message);
+      }
+      asio::post(io, [this, client = job.first, shared] {
+        const auto it = connections.find(client);
+        if (it == connections.end()) return;
+        if (!shared) {
+          --it->second->bulk;
+          return;
+        }
+        enqueue(it->second, shared, true);
+      });
+    }
   }
 
   // A write that does not finish within the timeout: the client stopped reading (or vanished
@@ -234,6 +310,14 @@ IgtlListener::~IgtlListener() {
     impl_->io.stop();
     impl_->thread.join();
   }
+  if (impl_->encoder.joinable()) {
+    {
+      std::lock_guard<std::mutex> lock(impl_->encoder_mutex);
+      impl_->encoder_stop = true;
+    }
+    impl_->encoder_wake.notify_one();
+    impl_->encoder.join();
+  }
 }
 
 Expected<int> IgtlListener::start() {
@@ -258,6 +342,7 @@ Expected<int> IgtlListener::start() {
   impl_->accept();
   impl_->watch();
   impl_->thread = std::thread([this] { impl_->io.run(); });
+  impl_->encoder = std::thread([this] { impl_->encodeLoop(); });
   return port;
 }
 
@@ -271,10 +356,25 @@ std::vector<IgtlEvent> IgtlListener::take() {
 void IgtlListener::send(std::uint64_t client, igtl::Message message) {
   asio::post(impl_->io, [this, client, m = std::move(message)]() mutable {
     const auto it = impl_->connections.find(client);
-    if (it != impl_->connections.end() && it->second->closing.empty()) {
+    if (it == impl_->connections.end() || !it->second->closing.empty()) return;
+    if (!isBulk(m)) {
       impl_->enqueue(it->second, std::move(m));
+      return;
+    }
+    const std::string device = m.device_name;
+    if (!impl_->sendBulk(it->second, std::move(m))) {
+      // Asked again before the last ones left: this one is not made at all.
+      impl_->enqueue(it->second,
+                     igtl::statusMessage(device, igtl::StatusCode::kBusy,
+                                         "images or surfaces still on their way to you; ask again "
+                                         "once they have come",
+                                         "busy"));
     }
   });
+}
+
+bool IgtlListener::isBulk(const igtl::Message& m) {
+  return m.type == "IMAGE" || m.type == "POLYDATA";
 }
 
 void IgtlListener::broadcast(igtl::Message message) {

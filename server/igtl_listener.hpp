@@ -25,7 +25,9 @@ struct IgtlListenerOptions {
   // something we send it stays unread for this long (a client that stopped reading).
   double timeout_s = 5.0;
   std::size_t max_clients = 16;
-  std::size_t max_outbox_bytes = 4 * 1024 * 1024;
+  std::size_t max_outbox_bytes = 4 * 1024 * 1024;  // of ordinary messages waiting
+  // The largest IMAGE a client may send (a confirmation CT from a scanner bridge).
+  std::uint64_t max_image_bytes = 512ULL * 1024 * 1024;
 };
 
 struct IgtlEvent {
@@ -52,7 +54,11 @@ class IgtlListener {
   // client speaks (the highest it sent; version-2 messages get an id); unknown or gone clients
   // are ignored.
   void send(std::uint64_t client, igtl::Message message);
+  // IMAGE and POLYDATA are bulk: encoded on the listener's encoder thread, at most two at a
+  // time per client (a third is answered STATUS busy), written a megabyte at a time. Not for
+  // broadcast.
   void broadcast(igtl::Message message);
+  static bool isBulk(const igtl::Message& message);
   std::size_t clientCount() const { return client_count_.load(); }
 
  private:

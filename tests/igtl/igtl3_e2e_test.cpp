@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "e2e/server_process.hpp"
+#include "ignav/volume/dicom.hpp"
 #include "v3_peer.hpp"
 
 namespace ignav::igtl3_test {
@@ -230,6 +231,72 @@ TEST(Igtl3E2E, AStreamThatIsNotOpenIGTLinkLearnsWhyBeforeItIsLetGo) {
   auto ack = client.until([](const Frame& f) { return f.device == "ACK_0003"; });
   ASSERT_TRUE(ack.has_value());
   EXPECT_EQ(ack->version, 2);
+}
+
+float floatAt(const std::string& bytes, std::size_t at) {
+  const auto bits = static_cast<std::uint32_t>(fromBe(bytes, at, 4));
+  float f;
+  std::memcpy(&f, &bits, 4);
+  return f;
+}
+
+TEST(Igtl3E2E, ThePlanningCtReachesAProtocol3ClientAsTheSeriesWithItsGeometry) {
+  ServerProcess server(179);
+  auto op = server.client("operator");
+  Peer peer(server.igtlPort());
+  ASSERT_TRUE(peer.next().has_value());  // the greeting
+  const std::string ask = frame(2, "GET_IMAGE", "PlanningCT", 0, body2("", 1, {}));
+  peer.send(ask);
+  auto none = peer.until([](const Frame& f) { return f.device == "PlanningCT"; });
+  ASSERT_TRUE(none.has_value());
+  EXPECT_EQ(none->type, "STATUS");
+  EXPECT_EQ(none->statusCode(), 13);
+  EXPECT_EQ(none->statusErrorName(), "no_volume");
+
+  e2e::registeredPhantom(*op);
+  peer.send(ask);
+  auto image = peer.until([](const Frame& f) { return f.type == "IMAGE"; }, nullptr, 60s);
+  ASSERT_TRUE(image.has_value());
+  ASSERT_NO_FATAL_FAILURE(expectWellFramed(*image));
+  EXPECT_EQ(image->device, "PlanningCT");
+  ASSERT_NE(image->metaValue("ValueUnits"), nullptr);
+  EXPECT_EQ(*image->metaValue("ValueUnits"), "HU");
+
+  // The series the server wrote for its phantom, read here.
+  auto series = volume::readDicomSeries({(server.sessionDir() / "phantom_ct").string()});
+  ASSERT_TRUE(series.ok()) << series.error().message;
+  const volume::Volume& ct = series->volume;
+  ASSERT_EQ(ct.value_scale, 1.0);  // stored as HU: sent as int16 as they are
+  ASSERT_EQ(ct.value_offset, 0.0);
+  const std::string& c = image->content;
+  ASSERT_GE(c.size(), 72u);
+  EXPECT_EQ(fromBe(c, 0, 2), 1u);  // image header version
+  EXPECT_EQ(fromBe(c, 2, 1), 1u);  // one component
+  EXPECT_EQ(fromBe(c, 3, 1), 4u);  // int16
+  EXPECT_EQ(fromBe(c, 4, 1), 2u);  // little-endian
+  EXPECT_EQ(fromBe(c, 5, 1), 1u);  // RAS
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_EQ(fromBe(c, 6 + 2 * a, 2), static_cast<std::uint64_t>(ct.geometry.dims[a]));
+    EXPECT_EQ(fromBe(c, 60 + 2 * a, 2), 0u);
+    EXPECT_EQ(fromBe(c, 66 + 2 * a, 2), static_cast<std::uint64_t>(ct.geometry.dims[a]));
+  }
+  // The axes and the centre, in RAS (x and y of LPS negated).
+  const Eigen::Matrix4d ijk_lps = ct.geometry.ijkToLps();
+  const Eigen::Vector3d ras(-1, -1, 1);
+  for (int axis = 0; axis < 3; ++axis) {
+    for (int r = 0; r < 3; ++r) {
+      EXPECT_NEAR(floatAt(c, 12 + 12 * axis + 4 * r), ras[r] * ijk_lps(r, axis), 1e-5)
+          << "axis " << axis << " row " << r;
+    }
+  }
+  const Eigen::Vector4d middle((ct.geometry.dims[0] - 1) / 2.0, (ct.geometry.dims[1] - 1) / 2.0,
+                               (ct.geometry.dims[2] - 1) / 2.0, 1.0);
+  const Eigen::Vector3d centre_lps = (ijk_lps * middle).head<3>();
+  for (int r = 0; r < 3; ++r)
+    EXPECT_NEAR(floatAt(c, 48 + 4 * r), ras[r] * centre_lps[r], 1e-3);
+  // Every voxel, as the series has it.
+  ASSERT_EQ(c.size() - 72, ct.voxels.size() * 2);
+  EXPECT_EQ(std::memcmp(c.data() + 72, ct.voxels.data(), ct.voxels.size() * 2), 0);
 }
 
 }  // namespace

@@ -285,6 +285,10 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
                        "unknown_transform"));
     return out;
   }
+  if (m.type == "GET_IMAGE") {
+    send(imageFor(m.device_name.empty() ? std::string("PlanningCT") : m.device_name, s));
+    return out;
+  }
   // Stream controls and other queries: nothing of ours streams on request.
   send(statusMessage(m.device_name, StatusCode::kUnknownInstruction,
                      fmt::format("{} is not part of the BRP protocol here", m.type),
@@ -649,6 +653,49 @@ void BrpBridge::annotate(Message& m, const workflow::Session& s) const {
   if (!s.robot_id.empty()) set("RobotId", s.robot_id);
   set("Workphase", toString(workphase(s)));
   if (m.type == "TRANSFORM" || m.type == "POINT") set("Units", "mm");
+}
+
+Message imageFor(const std::string& name, const workflow::Session& s) {
+  if (name == "PlanningCT") {
+    const auto& volume = s.ct.volume;
+    if (!volume) {
+      return statusMessage(name, StatusCode::kNotReady, "no CT is loaded", "no_volume");
+    }
+    Image image;
+    image.size = volume->geometry.dims;
+    image.scalar_type = ScalarType::kInt16;
+    image.ijk_to_mm = rasFromLps() * volume->geometry.ijkToLps();
+    // The CT's own voxels, shared: nothing is copied here (the listener's encoder copies once).
+    image.data =
+        std::shared_ptr<const char>(volume, reinterpret_cast<const char*>(volume->voxels.data()));
+    image.data_bytes = volume->voxels.size() * sizeof(std::int16_t);
+    image.value_scale = volume->value_scale;
+    image.value_offset = volume->value_offset;
+    Message m = imageMessage(name, std::move(image));
+    m.metadata.push_back({"ValueUnits", kUsAscii, "HU"});
+    m.metadata.push_back({"Source", kUsAscii, s.ct.source});
+    return m;
+  }
+  if (name == "Dose") {
+    const auto* dose = s.dose.computed ? s.dose.computed->latest() : nullptr;
+    if (!dose || !dose->dose_Gy) {
+      return statusMessage(name, StatusCode::kNotReady, "no dose has been computed", "no_dose");
+    }
+    const auto& grid = s.dose.computed->grid;
+    Image image;
+    image.size = grid.dims;
+    image.scalar_type = ScalarType::kFloat32;
+    image.ijk_to_mm = rasFromLps() * grid.ijkToLps();
+    image.data = std::shared_ptr<const char>(dose->dose_Gy,
+                                             reinterpret_cast<const char*>(dose->dose_Gy->data()));
+    image.data_bytes = dose->dose_Gy->size() * sizeof(float);
+    Message m = imageMessage(name, std::move(image));
+    m.metadata.push_back({"ValueUnits", kUsAscii, "Gy"});
+    m.metadata.push_back({"Dose", kUsAscii, dose->what});
+    return m;
+  }
+  return statusMessage(name, StatusCode::kNotFound, "images here: PlanningCT, Dose",
+                       "unknown_image");
 }
 
 Message commandReply(std::uint32_t id, const std::string& name, bool success,

@@ -451,9 +451,13 @@ ignav::Status appendImage(const Message& in, std::string& out) {
   }
   const Eigen::Matrix4d& m = image.ijk_to_mm;
   if (!m.allFinite()) return bad(fmt::format("IMAGE '{}': non-finite geometry", in.device_name));
+  const bool rescaled = image.value_scale != 1.0 || image.value_offset != 0.0;
+  if (rescaled && image.scalar_type != ScalarType::kInt16) {
+    return bad(fmt::format("IMAGE '{}': only int16 voxels are rescaled", in.device_name));
+  }
   appendBig(out, 1, 2);  // the image header's version
   out += static_cast<char>(image.components);
-  out += static_cast<char>(image.scalar_type);
+  out += static_cast<char>(rescaled ? ScalarType::kFloat32 : image.scalar_type);
   out += static_cast<char>(2);  // little-endian voxels
   out += static_cast<char>(image.ras ? 1 : 2);
   for (const int n : image.size)
@@ -477,7 +481,19 @@ ignav::Status appendImage(const Message& in, std::string& out) {
     appendBig(out, 0, 2);  // the sub-volume is the whole volume
   for (const int n : image.size)
     appendBig(out, static_cast<std::uint64_t>(n), 2);
-  out.append(image.data.get(), image.data_bytes);
+  if (!rescaled) {
+    out.append(image.data.get(), image.data_bytes);
+    return Ok{};
+  }
+  const std::size_t count = image.data_bytes / 2;
+  const std::size_t at = out.size();
+  out.resize(at + 4 * count);
+  for (std::size_t n = 0; n < count; ++n) {
+    std::int16_t stored;
+    std::memcpy(&stored, image.data.get() + 2 * n, 2);
+    const auto value = static_cast<float>(stored * image.value_scale + image.value_offset);
+    std::memcpy(&out[at + 4 * n], &value, 4);
+  }
   return Ok{};
 }
 

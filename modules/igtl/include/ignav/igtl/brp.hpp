@@ -148,6 +148,11 @@ std::optional<Eigen::Matrix4d> tipToImageRas(const workflow::Session& s,
 // robots): configuration error for bad values, not ready for everything else.
 StatusCode statusCodeFor(const std::string& error_code, workflow::Phase phase,
                          Revision revision = Revision::kSlicer);
+// GET_IMAGE's answer: "PlanningCT" (HU; float32 when the CT's stored values are rescaled) or
+// "Dose" (the latest computed, Gy, float32), in RAS with their geometry; a STATUS when there is
+// none. The voxels are shared with the session, not copied.
+Message imageFor(const std::string& name, const workflow::Session& s);
+
 // RTS_COMMAND answering COMMAND `id` named `name`: <Command Name=".." Status="SUCCESS|FAIL"
 // Code="ok|<reply code>" Message=".." /> (Slicer's OpenIGTLinkRemote reads Status and Message).
 Message commandReply(std::uint32_t id, const std::string& name, bool success,

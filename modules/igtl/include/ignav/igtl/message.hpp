@@ -25,6 +25,7 @@ enum class StatusCode : std::uint16_t {
   kOk = 1,
   kPanic = 3,  // emergency
   kNotFound = 4,
+  kBusy = 6,
   kConfigurationError = 10,
   kUnknownInstruction = 12,
   kNotReady = 13,
@@ -80,6 +81,10 @@ struct Image {
   // CT's buffer) and not copied until encoded.
   std::shared_ptr<const char> data;
   std::size_t data_bytes = 0;
+  // int16 stored values and the physical values they stand for (value * scale + offset): when
+  // not 1 and 0, the voxels go out as float32 physical values (converted when encoded).
+  double value_scale = 1.0;
+  double value_offset = 0.0;
 };
 
 struct Message {
