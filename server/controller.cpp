@@ -135,7 +135,15 @@ void Server::onReading(const ControllerReading& reading) {
                        r.fault != before.fault || reading.lifecycle != lifecycle_;
   lifecycle_ = reading.lifecycle;
   if (changed) publishMotion();
-  if (igtl_) igtl_->onReading(session_, r, before);
+  if (igtl_) {
+    // When the reading was taken, on the server's wall clock (what OpenIGTLink stamps).
+    const double age_s =
+        reading.taken == std::chrono::steady_clock::time_point{}
+            ? 0.0
+            : std::chrono::duration<double>(std::chrono::steady_clock::now() - reading.taken)
+                  .count();
+    igtl_->onReading(session_, r, before, wallS() - age_s);
+  }
   const bool moving = r.state == actuation::ControllerState::kMoving;
   const bool bad = r.state == actuation::ControllerState::kDisconnected ||
                    r.state == actuation::ControllerState::kFault;

@@ -15,6 +15,7 @@ std::unique_ptr<IgtlBridge> IgtlBridge::start(const OpenIgtlinkOptions& g,
   lo.address = g.address;
   lo.port = g.port;
   lo.timeout_s = g.timeout_s;
+  lo.tip_rate_hz = g.tip_rate_hz;
   auto listener = std::make_unique<IgtlListener>(lo, std::move(wake));
   auto port = listener->start();
   if (!port) {
@@ -30,6 +31,8 @@ IgtlBridge::IgtlBridge(const OpenIgtlinkOptions& g, std::unique_ptr<IgtlListener
     : bridge_(igtl::BrpOptions{g.allow_motion_approval,
                                igtl::parseRevision(g.protocol).value_or(igtl::Revision::kSlicer)},
               static_cast<std::uint64_t>(wallS() * 1e6)),
+      tip_period_(std::chrono::duration_cast<Clock::duration>(
+          std::chrono::duration<double>(1.0 / g.tip_rate_hz))),
       port_(port),
       listener_(std::move(listener)) {
   spdlog::info("OpenIGTLink (BRP workphase protocol, revision {}) listening on {}:{}", g.protocol,
@@ -92,11 +95,15 @@ void IgtlBridge::onPosition(const workflow::Session& session, const actuation::S
 }
 
 void IgtlBridge::onReading(const workflow::Session& session, const actuation::ControllerStatus& r,
-                           const actuation::ControllerStatus& before) {
+                           const actuation::ControllerStatus& before, double measured_s) {
   const bool moving = r.state == actuation::ControllerState::kMoving;
-  if (listener_->clientCount() > 0 && r.position != last_steps_ &&
-      (moving || before.state == actuation::ControllerState::kMoving) &&
-      (!moving || Clock::now() - last_position_ >= std::chrono::milliseconds(50))) {
+  const bool was_moving = before.state == actuation::ControllerState::kMoving;
+  if (listener_->clientCount() == 0 || !(moving || was_moving)) return;
+  if (auto pose = igtl::tipToImageRas(session, r.position)) {
+    listener_->publishTip(*pose, measured_s, moving);
+  }
+  if (r.position != last_steps_ &&
+      (!moving || Clock::now() - last_position_ >= tip_period_ - tip_period_ / 10)) {
     last_position_ = Clock::now();
     last_steps_ = r.position;
     send(bridge_.onPosition(session, r.position), session);

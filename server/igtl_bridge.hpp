@@ -43,9 +43,10 @@ class IgtlBridge {
   void onState(const workflow::Session& session);
   // The motors' position, told as it is (a replayed record).
   void onPosition(const workflow::Session& session, const actuation::Steps& position);
-  // A new reading: Slicer sees the tip move (at most every 50 ms, and where it comes to rest).
+  // A new reading, taken at `measured_s` (Unix s): Slicer sees the tip move (TRANSFORM at most at
+  // the tip rate, and where it comes to rest); the listener streams it as TDATA to those asking.
   void onReading(const workflow::Session& session, const actuation::ControllerStatus& now,
-                 const actuation::ControllerStatus& before);
+                 const actuation::ControllerStatus& before, double measured_s);
   // The core's reply to one of the bridge's inputs, told to its client; false for anyone else's.
   bool reply(const workflow::Reply& reply, const workflow::Session& session);
 
@@ -58,6 +59,7 @@ class IgtlBridge {
   std::deque<workflow::Input> inputs_;  // the bridge's inputs, run in order after its message
   std::string safety_notice_;
   Clock::time_point last_position_;
+  Clock::duration tip_period_;
   actuation::Steps last_steps_;
   int port_ = 0;
   std::unique_ptr<IgtlListener> listener_;  // last: its thread stops first

@@ -8,6 +8,7 @@
 #include <deque>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <thread>
 
@@ -33,6 +34,9 @@ struct IgtlListener::Impl {
     std::size_t bulk = 0;           // images and surfaces being encoded for it or waiting
     std::set<const std::string*> bulk_bytes;  // which outbox entries are bulk
     bool writing = false;
+    // STT_TDATA asked for the tip: at least this long between two frames (STP_TDATA: none).
+    std::optional<std::chrono::milliseconds> tdata_interval;
+    Clock::time_point tdata_last;
     // The header version it spoke: answered in the highest it used (1 until it sends a 2).
     std::uint16_t header_version = 1;
     std::string closing;  // why it is let go once what it was sent has gone out
@@ -59,6 +63,18 @@ struct IgtlListener::Impl {
   std::condition_variable encoder_wake;
   std::deque<std::pair<std::uint64_t, igtl::Message>> encoder_queue;
   bool encoder_stop = false;
+  // The tip stream: the latest pose the event thread published, and the timer that sends it.
+  struct Tip {
+    Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
+    double measured_s = 0;
+    bool moving = false;
+    std::uint64_t seq = 0;  // 0: none yet
+  };
+  std::mutex tip_mutex;
+  Tip tip;
+  std::uint64_t tip_sent = 0;  // the seq last streamed
+  asio::steady_timer tip_timer{io};
+  Clock::time_point tip_deadline;
   static constexpr std::size_t kWriteChunkBytes = 1 << 20;
   static constexpr std::size_t kMaxBulkPerClient = 2;
 
@@ -134,6 +150,7 @@ struct IgtlListener::Impl {
           while (auto next = c->decoder.next()) {
             if (next->ok()) {
               c->header_version = std::max(c->header_version, next->value().header_version);
+              streamControl(c, next->value());
               push({IgtlEvent::Kind::kMessage, c->id, c->peer, std::move(next->value()), {}});
               continue;
             }
@@ -150,6 +167,67 @@ struct IgtlListener::Impl {
           }
           read(c);
         });
+  }
+
+  // STT_TDATA / STP_TDATA: the tip stream is the listener's to pace (the bridge ignores them).
+  void streamControl(const std::shared_ptr<Connection>& c, const igtl::Message& m) {
+    if (m.type == "STT_TDATA") {
+      c->tdata_interval = std::chrono::milliseconds(m.stream_interval_ms);
+      c->tdata_last = {};
+      spdlog::info("OpenIGTLink: client {} streams the tip (at least {} ms apart; at most {} Hz)",
+                   c->id, m.stream_interval_ms, options.tip_rate_hz);
+    } else if (m.type == "STP_TDATA") {
+      c->tdata_interval.reset();
+    }
+  }
+
+  // Every tip period: the latest tip to every client streaming it, while the robot moves and
+  // once when it has come to rest. The next deadline is this one plus the period (not "now plus":
+  // a late tick does not delay the ones after it); after a stall it starts again from now.
+  void tick() {
+    const auto period = std::chrono::duration_cast<Clock::duration>(
+        std::chrono::duration<double>(1.0 / options.tip_rate_hz));
+    tip_deadline += period;
+    const auto now = Clock::now();
+    if (tip_deadline < now) tip_deadline = now + period;
+    tip_timer.expires_at(tip_deadline);
+    tip_timer.async_wait([this](boost::system::error_code ec) {
+      if (!ec) tick();
+    });
+    Tip latest;
+    {
+      std::lock_guard<std::mutex> lock(tip_mutex);
+      latest = tip;
+    }
+    if (latest.seq == 0 || (!latest.moving && latest.seq == tip_sent)) return;
+    tip_sent = latest.seq;
+    igtl::Message m = igtl::trackingMessage("NeedleTip", latest.pose);
+    m.timestamp_s = latest.measured_s;
+    m.metadata.push_back({"Units", igtl::kUsAscii, "mm"});
+    std::shared_ptr<const std::string> encoded[3];
+    std::vector<std::shared_ptr<Connection>> due;
+    for (const auto& [id, c] : connections) {
+      // Half a period of slack: a client asking for the full rate gets every tick.
+      if (c->tdata_interval && c->closing.empty() &&
+          now - c->tdata_last + period / 2 >= *c->tdata_interval) {
+        due.push_back(c);
+      }
+    }
+    for (const auto& c : due) {
+      auto& bytes = encoded[std::min<std::uint16_t>(c->header_version, 2)];
+      if (!bytes) {
+        m.header_version = c->header_version;
+        m.message_id = m.header_version >= 2 ? next_message_id++ : 0;
+        auto e = igtl::encode(m);
+        if (!e) {
+          spdlog::error("OpenIGTLink: tip not sent: {}", e.error().message);
+          return;
+        }
+        bytes = std::make_shared<const std::string>(std::move(e).value());
+      }
+      c->tdata_last = now;
+      enqueue(c, bytes);
+    }
   }
 
   void closeAfterSending(const std::shared_ptr<Connection>& c, const std::string& why) {
@@ -303,6 +381,7 @@ IgtlListener::~IgtlListener() {
       boost::system::error_code ec;
       impl_->acceptor.close(ec);
       impl_->watchdog.cancel();
+      impl_->tip_timer.cancel();
       for (auto& [id, c] : impl_->connections)
         c->socket.close(ec);
       impl_->connections.clear();
@@ -341,6 +420,8 @@ Expected<int> IgtlListener::start() {
   const int port = a.local_endpoint().port();
   impl_->accept();
   impl_->watch();
+  impl_->tip_deadline = Clock::now();
+  impl_->tick();
   impl_->thread = std::thread([this] { impl_->io.run(); });
   impl_->encoder = std::thread([this] { impl_->encodeLoop(); });
   return port;
@@ -371,6 +452,14 @@ void IgtlListener::send(std::uint64_t client, igtl::Message message) {
                                          "busy"));
     }
   });
+}
+
+void IgtlListener::publishTip(const Eigen::Matrix4d& pose_ras, double measured_s, bool moving) {
+  std::lock_guard<std::mutex> lock(impl_->tip_mutex);
+  impl_->tip.pose = pose_ras;
+  impl_->tip.measured_s = measured_s;
+  impl_->tip.moving = moving;
+  ++impl_->tip.seq;
 }
 
 bool IgtlListener::isBulk(const igtl::Message& m) {

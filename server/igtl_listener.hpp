@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "ignav/core/expected.hpp"
 #include "ignav/igtl/message.hpp"
 
@@ -26,6 +28,7 @@ struct IgtlListenerOptions {
   double timeout_s = 5.0;
   std::size_t max_clients = 16;
   std::size_t max_outbox_bytes = 4 * 1024 * 1024;  // of ordinary messages waiting
+  double tip_rate_hz = 20.0;  // the TDATA stream's rate (STT_TDATA asks for at most this)
   // The largest IMAGE a client may send (a confirmation CT from a scanner bridge).
   std::uint64_t max_image_bytes = 512ULL * 1024 * 1024;
 };
@@ -59,6 +62,11 @@ class IgtlListener {
   // broadcast.
   void broadcast(igtl::Message message);
   static bool isBulk(const igtl::Message& message);
+  // The needle tip now (RAS, its pose), read at `measured_s` (Unix s), the robot `moving` or not:
+  // clients that sent STT_TDATA get it as TDATA ("NeedleTip") at the tip rate from the listener's
+  // own timer (deadline by deadline, so the stream keeps time whatever the event thread does),
+  // while it moves and once more when it comes to rest. Thread-safe.
+  void publishTip(const Eigen::Matrix4d& pose_ras, double measured_s, bool moving);
   std::size_t clientCount() const { return client_count_.load(); }
 
  private:

@@ -88,6 +88,10 @@ int main(int argc, char** argv) {
   app.add_option("--igtl-protocol", igtl_protocol,
                  "the BRP revision OpenIGTLink clients speak: slicer or brp2013 (overrides the "
                  "config)");
+  std::optional<double> igtl_tip_rate;
+  app.add_option("--igtl-tip-rate", igtl_tip_rate,
+                 "the needle tip told to OpenIGTLink clients this many times a second during "
+                 "motion (TRANSFORM; TDATA to those that ask; overrides the config)");
   bool igtl_off = false, igtl_approval = false;
   app.add_flag("--no-igtl", igtl_off, "no OpenIGTLink bridge whatever the config says");
   app.add_flag("--igtl-allow-approval", igtl_approval,
@@ -134,6 +138,7 @@ int main(int argc, char** argv) {
     }
     if (igtl_approval) options.openigtlink.allow_motion_approval = true;
     if (igtl_timeout) options.openigtlink.timeout_s = *igtl_timeout;
+    if (igtl_tip_rate) options.openigtlink.tip_rate_hz = *igtl_tip_rate;
     if (!igtl_protocol.empty()) options.openigtlink.protocol = igtl_protocol;
     if (igtl_off) options.openigtlink.enabled = false;
     if (controller == "simulated") {

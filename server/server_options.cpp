@@ -125,6 +125,9 @@ std::optional<std::string> checkServerOptions(const ServerOptions& o) {
   if (!(g.timeout_s >= 0.5) || g.timeout_s > 3600.0) {
     return fmt::format("openigtlink.timeout_s: {} s; must be within 0.5..3600", g.timeout_s);
   }
+  if (!(g.tip_rate_hz >= 1.0) || g.tip_rate_hz > 1000.0) {
+    return fmt::format("openigtlink.tip_rate_hz: {} Hz; must be within 1..1000", g.tip_rate_hz);
+  }
   if (!igtl::parseRevision(g.protocol)) {
     return fmt::format(
         "openigtlink.protocol: '{}' is not a BRP revision: slicer (the current 3D "
@@ -277,10 +280,12 @@ ServerOptions loadServerOptions(const std::string& path) {
           go.allow_motion_approval = valueOf<bool>(kv.second, path, "openigtlink." + key);
         } else if (key == "protocol") {
           go.protocol = valueOf<std::string>(kv.second, path, "openigtlink." + key);
+        } else if (key == "tip_rate_hz") {
+          go.tip_rate_hz = valueOf<double>(kv.second, path, "openigtlink." + key);
         } else {
           throw ConfigError(path + ": server.openigtlink." + key +
                             ": unknown key; expected enabled, address, port, timeout_s, "
-                            "allow_motion_approval, protocol");
+                            "allow_motion_approval, protocol, tip_rate_hz");
         }
       }
     }

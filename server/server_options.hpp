@@ -49,6 +49,9 @@ struct OpenIgtlinkOptions {
   // The BRP revision its clients speak (docs/OPENIGTLINK.md): "slicer" (the current 3D Slicer
   // module) or "brp2013" (the 2013 revision as its reference robots write it).
   std::string protocol = "slicer";
+  // The needle tip told during motion this many times a second: TRANSFORM to every client, TDATA
+  // to those that asked for it (STT_TDATA), each stamped with when the position was read.
+  double tip_rate_hz = 20.0;
 };
 
 // The largest DDS domain id: RTPS's default port mapping (7400 + 250 x id + 11) stays a UDP port.

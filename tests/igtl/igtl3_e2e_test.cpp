@@ -299,5 +299,54 @@ TEST(Igtl3E2E, ThePlanningCtReachesAProtocol3ClientAsTheSeriesWithItsGeometry) {
   EXPECT_EQ(std::memcmp(c.data() + 72, ct.voxels.data(), ct.voxels.size() * 2), 0);
 }
 
+// The translation of a TDATA frame's first element (name at 0, type at 20, 12 floats from 22).
+Eigen::Vector3d tdataTip(const Frame& f) {
+  return {floatAt(f.content, 22 + 36), floatAt(f.content, 22 + 40), floatAt(f.content, 22 + 44)};
+}
+
+TEST(Igtl3E2E, TheTipStreamsAsTdataWhileTheRobotMovesStampedWhenItWasRead) {
+  ServerProcess server(186, {"--igtl-tip-rate", "50", "--controller-speed", "20000"});
+  auto op = server.client("operator");
+  const std::uint32_t target = e2e::lockedPlanTo(*op, {-10, 15, -190});
+  Peer peer(server.igtlPort());
+  ASSERT_TRUE(peer.next().has_value());  // the greeting
+  // STT_TDATA in version 2: resolution 0 ms (as fast as the server streams), no coordinate name.
+  peer.send(frame(2, "STT_TDATA", "NeedleTip", 0, body2(be(0, 4) + std::string(32, '\0'), 1, {})));
+  const double before_s = nowS();
+  ASSERT_TRUE(e2e::approveShown(*op).accepted);
+  std::vector<Frame> seen;
+  // Until the tip has come to rest: the arrival's STATUS follows the last moving frame.
+  ASSERT_TRUE(
+      peer.until([](const Frame& f) { return f.type == "STATUS" && f.device == "MOVE_TO_TARGET"; },
+                 &seen, 60s));
+  // The at-rest frame comes from the listener's next tick.
+  (void)peer.until([](const Frame& f) { return f.type == "TDATA"; }, &seen, 2s);
+  std::vector<const Frame*> tdata;
+  for (const auto& f : seen)
+    if (f.type == "TDATA") tdata.push_back(&f);
+  ASSERT_GE(tdata.size(), 3u) << "the tip streamed while it moved";
+  double last_s = before_s - 1.0;
+  for (const Frame* f : tdata) {
+    ASSERT_NO_FATAL_FAILURE(expectWellFramed(*f));
+    EXPECT_EQ(f->device, "NeedleTip");
+    ASSERT_EQ(f->content.size(), 70u);
+    EXPECT_EQ(nameField(f->content, 0, 20), "NeedleTip");
+    EXPECT_EQ(fromBe(f->content, 20, 1), 2u);  // a 6D instrument
+    const double stamped = static_cast<double>(f->timestamp >> 32) +
+                           static_cast<double>(f->timestamp & 0xffffffffULL) / 4294967296.0;
+    EXPECT_GE(stamped, last_s) << "stamps never go back";
+    EXPECT_GE(stamped, before_s - 0.5);
+    last_s = stamped;
+  }
+  // It comes to rest on the target: the target's LPS position in RAS.
+  const json state = op->state();
+  const Eigen::Vector3d target_lps = e2e::vec(e2e::targetState(state, target)["lps"]);
+  const Eigen::Vector3d target_ras(-target_lps.x(), -target_lps.y(), target_lps.z());
+  EXPECT_LT((tdataTip(*tdata.back()) - target_ras).norm(), 0.05)
+      << tdataTip(*tdata.back()).transpose() << " vs " << target_ras.transpose();
+  // STP_TDATA: no more.
+  peer.send(frame(2, "STP_TDATA", "NeedleTip", 0, body2("", 2, {})));
+}
+
 }  // namespace
 }  // namespace ignav::igtl3_test

@@ -285,6 +285,8 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
                        "unknown_transform"));
     return out;
   }
+  // The tip stream is the listener's to pace (server/igtl_listener.cpp): nothing to answer here.
+  if (m.type == "STT_TDATA" || m.type == "STP_TDATA") return out;
   if (m.type == "GET_IMAGE") {
     send(imageFor(m.device_name.empty() ? std::string("PlanningCT") : m.device_name, s));
     return out;

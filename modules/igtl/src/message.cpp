@@ -160,6 +160,30 @@ Expected<Message> decodeContent(Message out, std::string_view body) {
     }
     image.data_bytes = data->size();
     image.data = std::shared_ptr<const char>(data, data->data());
+  } else if (out.type == "TDATA") {
+    if (body.size() % kTrackingElementBytes != 0) {
+      return format(fmt::format("body has {} bytes; tracking data come in {}-byte elements",
+                                body.size(), kTrackingElementBytes));
+    }
+    for (std::size_t at = 0; at < body.size(); at += kTrackingElementBytes) {
+      TrackingElement e;
+      e.name.assign(body.data() + at, strnlen(body.data() + at, kMaxDeviceName));
+      e.kind = static_cast<std::uint8_t>(body[at + 20]);
+      for (int i = 0; i < 12; ++i) {
+        const auto bits = static_cast<std::uint32_t>(readBig(body.data() + at + 22 + 4 * i, 4));
+        float f;
+        std::memcpy(&f, &bits, 4);
+        e.matrix(i % 3, i / 3) = f;
+      }
+      if (!e.matrix.allFinite()) {
+        return format(fmt::format("element '{}' has a non-finite matrix", e.name));
+      }
+      out.tracking.push_back(std::move(e));
+    }
+  } else if (out.type == "STT_TDATA") {
+    // The least time between frames (the coordinate system's name after it is not used here).
+    if (body.size() >= 4)
+      out.stream_interval_ms = static_cast<std::uint32_t>(readBig(body.data(), 4));
   } else if (out.type == "COMMAND" || out.type == "RTS_COMMAND") {
     if (body.size() < kCommandHeaderBytes) {
       return format(fmt::format("body has {} bytes; a command's fixed part alone has {}",
@@ -324,6 +348,14 @@ std::size_t scalarBytes(ScalarType type) {
   return 0;
 }
 
+Message trackingMessage(std::string device, const Eigen::Matrix4d& matrix) {
+  Message m;
+  m.type = "TDATA";
+  m.tracking.push_back({device, 2, matrix});
+  m.device_name = std::move(device);
+  return m;
+}
+
 Message imageMessage(std::string device, Image image) {
   Message m;
   m.type = "IMAGE";
@@ -408,6 +440,31 @@ Expected<std::string> contentBytes(const Message& in) {
     auto m = ::igtl::GetTransformMessage::New();
     m->SetDeviceName(in.device_name.c_str());
     return contentOf(m);
+  }
+  if (in.type == "TDATA") {
+    std::string out;
+    for (const auto& e : in.tracking) {
+      if (e.name.size() > kMaxDeviceName || !e.matrix.allFinite()) {
+        return bad(
+            fmt::format("TDATA '{}': element '{}': a name over 20 characters or a "
+                        "non-finite matrix",
+                        in.device_name, e.name.substr(0, 32)));
+      }
+      std::string name = e.name;
+      name.resize(kMaxDeviceName, '\0');
+      out += name;
+      out += static_cast<char>(e.kind);
+      out += '\0';
+      for (int c = 0; c < 4; ++c) {
+        for (int r = 0; r < 3; ++r) {
+          const auto f = static_cast<float>(e.matrix(r, c));
+          std::uint32_t bits;
+          std::memcpy(&bits, &f, 4);
+          appendBig(out, bits, 4);
+        }
+      }
+    }
+    return out;
   }
   if (in.type == "COMMAND" || in.type == "RTS_COMMAND") {
     if (in.command.name.size() > kMaxCommandName) {

@@ -87,6 +87,13 @@ struct Image {
   double value_offset = 0.0;
 };
 
+// TDATA's element: a tool's pose (a 6D instrument unless said otherwise).
+struct TrackingElement {
+  std::string name;                                      // up to 20 characters
+  std::uint8_t kind = 2;                                 // 1 tracker, 2 6D instrument, 3 3D, 4 5D
+  Eigen::Matrix4d matrix = Eigen::Matrix4d::Identity();  // float32 upper 3x4 on the wire
+};
+
 struct Message {
   std::string type;         // "STRING", "STATUS", "TRANSFORM", "POINT", "GET_STATUS", ...
   std::string device_name;  // at most 20 characters
@@ -100,9 +107,11 @@ struct Message {
   Status status;           // STATUS
   // TRANSFORM: a 4x4 homogeneous matrix; the wire holds its upper 3x4 as float32.
   Eigen::Matrix4d matrix = Eigen::Matrix4d::Identity();
-  std::vector<Point> points;  // POINT
-  Command command;            // COMMAND, RTS_COMMAND
-  Image image;                // IMAGE
+  std::vector<Point> points;              // POINT
+  Command command;                        // COMMAND, RTS_COMMAND
+  Image image;                            // IMAGE
+  std::vector<TrackingElement> tracking;  // TDATA
+  std::uint32_t stream_interval_ms = 0;   // STT_TDATA: the least time between two frames
 };
 
 Message stringMessage(std::string device, std::string text);
@@ -118,6 +127,8 @@ Message transformMessage(std::string device, const Eigen::Matrix4d& matrix);
 Message queryMessage(std::string type, std::string device);
 // IMAGE named `device`.
 Message imageMessage(std::string device, Image image);
+// TDATA of one tool named `device`, its pose `matrix`.
+Message trackingMessage(std::string device, const Eigen::Matrix4d& matrix);
 // COMMAND or RTS_COMMAND ("COMMAND" as device name, as OpenIGTLinkIO sends them).
 Message commandMessage(std::string type, std::uint32_t id, std::string name, std::string text);
 // The value of a metadata key, if the message has it.
@@ -152,6 +163,7 @@ class Decoder {
 };
 
 constexpr std::size_t kImageHeaderBytes = 72;
+constexpr std::size_t kTrackingElementBytes = 70;  // name, type, reserved, 12 float32
 // COMMAND's name field holds 128 bytes, NUL-terminated.
 constexpr std::size_t kCommandHeaderBytes = 138;
 constexpr std::size_t kMaxCommandName = 127;
