@@ -56,7 +56,7 @@ std::string fuzzedMessage(FuzzedDataProvider& in) {
                                   "MOVE_TO_TARGET", "MANUAL",   "STOP",        "EMERGENCY"};
   static const char* kPrefixes[] = {"CMD_", "CLB_", "TGT_", "ACK_", ""};
   igtl::Message m;
-  const int kind = in.ConsumeIntegralInRange<int>(0, 7);
+  const int kind = in.ConsumeIntegralInRange<int>(0, 8);
   m.device_name = std::string(kPrefixes[in.ConsumeIntegralInRange<int>(0, 4)]) +
                   in.ConsumeRandomLengthString(8);
   if (m.device_name.size() > igtl::kMaxDeviceName) m.device_name.resize(igtl::kMaxDeviceName);
@@ -101,6 +101,29 @@ std::string fuzzedMessage(FuzzedDataProvider& in) {
       } else {
         m.command.text = in.ConsumeRandomLengthString(120);
       }
+      break;
+    }
+    case 7: {
+      if (in.ConsumeBool()) {
+        Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 4; ++c)
+            pose(r, c) = in.ConsumeBool() ? pose(r, c) : fuzzedNumber(in);
+        m = igtl::trackingMessage(in.ConsumeRandomLengthString(24), pose);
+        break;
+      }
+      // A small IMAGE (a scanner bridge's confirmation CT, in miniature), fuzzed geometry.
+      igtl::Image image;
+      image.size = {in.ConsumeIntegralInRange<int>(0, 6), in.ConsumeIntegralInRange<int>(0, 6),
+                    in.ConsumeIntegralInRange<int>(0, 4)};
+      image.scalar_type = in.ConsumeBool() ? igtl::ScalarType::kInt16 : igtl::ScalarType::kFloat32;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c)
+          image.ijk_to_mm(r, c) = in.ConsumeBool() ? image.ijk_to_mm(r, c) : fuzzedNumber(in);
+      auto voxels = std::make_shared<std::string>(in.ConsumeRandomLengthString(600));
+      image.data = std::shared_ptr<const char>(voxels, voxels->data());
+      image.data_bytes = voxels->size();
+      m = igtl::imageMessage("ConfirmationCT", std::move(image));
       break;
     }
     default:
@@ -164,7 +187,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   FuzzedDataProvider in(data, size);
   Session session = planningSession();
   igtl::BrpBridge bridge({true}, 1);
-  igtl::Decoder decoder(kBodyLimit);
+  igtl::Decoder decoder(kBodyLimit, kBodyLimit * 4);
   std::vector<igtl::BrpOutgoing> sent;
   std::vector<Input> queue;
 
@@ -260,7 +283,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           }
         }
       }
-      if (decoder.buffered() > kBodyLimit + igtl::kHeaderBytes + 200) std::abort();
+      if (decoder.buffered() > 4 * kBodyLimit + igtl::kHeaderBytes + 200) std::abort();
     }
   }
   return 0;

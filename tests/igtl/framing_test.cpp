@@ -43,9 +43,11 @@ TEST(IgtlFraming, Crc64IsEcma182AsLibOpenIGTLinkComputesIt) {
     for (auto& c : bytes)
       c = static_cast<char>(random());
     EXPECT_EQ(crc64(bytes), igtl3_test::referenceCrc(bytes)) << size << " bytes";
-    // In two parts, continued.
-    const std::size_t half = size / 2;
+    // In two parts, continued, and combined from the parts' own CRCs.
+    const std::size_t half = size / 3;
     EXPECT_EQ(crc64(bytes.substr(half), crc64(bytes.substr(0, half))), crc64(bytes));
+    EXPECT_EQ(crc64Combine(crc64(bytes.substr(0, half)), crc64(bytes.substr(half)), size - half),
+              crc64(bytes));
   }
 }
 

@@ -30,6 +30,7 @@
 #include <CLI/CLI.hpp>
 #include <Eigen/LU>
 
+#include "child_process.hpp"
 #include "ignav/protocol/client.hpp"
 #include "support/delay_proxy.hpp"
 
@@ -37,6 +38,7 @@ extern char** environ;
 
 namespace {
 
+using ignav::bench::Child;
 using ignav::protocol::Client;
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
@@ -45,56 +47,6 @@ using namespace std::chrono_literals;
 double ms(Clock::duration d) {
   return std::chrono::duration<double, std::milli>(d).count();
 }
-
-// A child process whose stdout is read up to a line containing `ready`; killed at the end.
-class Child {
- public:
-  Child(std::vector<std::string> args, const std::string& ready, const std::string& log) {
-    int out[2];
-    if (::pipe(out) != 0) throw std::runtime_error("pipe");
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_adddup2(&actions, out[1], STDOUT_FILENO);
-    posix_spawn_file_actions_addclose(&actions, out[0]);
-    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, log.c_str(),
-                                     O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    args.insert(args.begin(), {"/usr/bin/setpriv", "--pdeathsig", "KILL", "--"});
-    std::vector<char*> argv;
-    for (auto& a : args)
-      argv.push_back(a.data());
-    argv.push_back(nullptr);
-    if (posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ) != 0) {
-      throw std::runtime_error("cannot start " + args[4]);
-    }
-    posix_spawn_file_actions_destroy(&actions);
-    ::close(out[1]);
-    pollfd p{out[0], POLLIN, 0};
-    const auto end = Clock::now() + 30s;
-    while (line_.find(ready) == std::string::npos && Clock::now() < end) {
-      if (::poll(&p, 1, 100) > 0) {
-        char buf[256];
-        const ssize_t n = ::read(out[0], buf, sizeof buf);
-        if (n <= 0) break;
-        line_.append(buf, static_cast<std::size_t>(n));
-      }
-    }
-    out_ = out[0];
-    if (line_.find(ready) == std::string::npos) {
-      throw std::runtime_error(args[4] + " did not start: " + line_ + " (log: " + log + ")");
-    }
-  }
-  ~Child() {
-    ::kill(pid_, SIGTERM);
-    ::waitpid(pid_, nullptr, 0);
-    ::close(out_);
-  }
-  const std::string& line() const { return line_; }
-
- private:
-  pid_t pid_ = -1;
-  int out_ = -1;
-  std::string line_;
-};
 
 struct Stats {
   std::vector<double> v;

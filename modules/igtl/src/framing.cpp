@@ -59,9 +59,9 @@ std::uint64_t crc64(std::string_view bytes, std::uint64_t crc) {
   const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
   std::size_t n = bytes.size();
   for (; n >= 8; n -= 8, p += 8) {
-    std::uint64_t x = crc;
-    for (int i = 0; i < 8; ++i)
-      x ^= static_cast<std::uint64_t>(p[i]) << (56 - 8 * i);
+    std::uint64_t word;
+    std::memcpy(&word, p, 8);
+    const std::uint64_t x = crc ^ __builtin_bswap64(word);  // the eight bytes, first one highest
     crc = kCrc[7][x >> 56] ^ kCrc[6][(x >> 48) & 0xff] ^ kCrc[5][(x >> 40) & 0xff] ^
           kCrc[4][(x >> 32) & 0xff] ^ kCrc[3][(x >> 24) & 0xff] ^ kCrc[2][(x >> 16) & 0xff] ^
           kCrc[1][(x >> 8) & 0xff] ^ kCrc[0][x & 0xff];
@@ -69,6 +69,32 @@ std::uint64_t crc64(std::string_view bytes, std::uint64_t crc) {
   for (; n > 0; --n, ++p)
     crc = kCrc[0][((crc >> 56) ^ *p) & 0xff] ^ (crc << 8);
   return crc;
+}
+
+namespace {
+
+// a * b mod the polynomial, both of degree < 64 (bit i the coefficient of x^i, as in the CRC
+// register: a zero byte fed in multiplies it by x^8).
+std::uint64_t multiplyModulo(std::uint64_t a, std::uint64_t b) {
+  std::uint64_t product = 0;
+  for (int bit = 63; bit >= 0; --bit) {
+    product = (product & (1ULL << 63)) ? (product << 1) ^ kPolynomial : product << 1;
+    if (b & (1ULL << bit)) product ^= a;
+  }
+  return product;
+}
+
+}  // namespace
+
+std::uint64_t crc64Combine(std::uint64_t crc_a, std::uint64_t crc_b, std::uint64_t length_b) {
+  // crc(A || B) = crc(A) x^(8 |B|) + crc(B) (initial value 0, no final XOR: the CRC is linear).
+  std::uint64_t power = 1ULL << 8;  // x^8
+  std::uint64_t shift = 1;          // x^0
+  for (std::uint64_t n = length_b; n > 0; n >>= 1) {
+    if (n & 1) shift = multiplyModulo(shift, power);
+    power = multiplyModulo(power, power);
+  }
+  return multiplyModulo(crc_a, shift) ^ crc_b;
 }
 
 Header readHeader(const char* p) {

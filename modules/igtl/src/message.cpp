@@ -69,7 +69,9 @@ Expected<typename M::Pointer> unpack(const Message& in, std::string_view content
 }
 
 // The content of `out` (type, device name and framing filled in) from its bytes.
-Expected<Message> decodeContent(Message out, std::string_view body) {
+// `owner` holds the bytes `body` views: an image's voxels are kept in it, not copied.
+Expected<Message> decodeContent(Message out, std::string_view body,
+                                const std::shared_ptr<const std::string>& owner = nullptr) {
   const std::string name = fmt::format("{} message '{}'", out.type, out.device_name);
   const auto format = [&](const std::string& what) {
     return makeError(ErrorCode::kFormat, name + ": " + what);
@@ -152,14 +154,19 @@ Expected<Message> decodeContent(Message out, std::string_view body) {
                                (image.size[2] - 1) / 2.0);
     m.topRightCorner<3, 1>() = centre - m.topLeftCorner<3, 3>() * half;
     image.ijk_to_mm = m;
-    auto data = std::make_shared<std::string>(body.substr(kImageHeaderBytes));
-    if (endian == 1 && bytes > 1) {  // big-endian voxels: ours are little-endian
-      for (std::size_t at = 0; at < data->size(); at += bytes)
-        std::reverse(data->begin() + static_cast<std::ptrdiff_t>(at),
-                     data->begin() + static_cast<std::ptrdiff_t>(at + bytes));
+    const std::string_view values = body.substr(kImageHeaderBytes);
+    image.data_bytes = values.size();
+    if (owner && (endian == 2 || bytes == 1)) {
+      image.data = std::shared_ptr<const char>(owner, values.data());  // where they were read
+    } else {
+      auto data = std::make_shared<std::string>(values);
+      if (endian == 1 && bytes > 1) {  // big-endian voxels: ours are little-endian
+        for (std::size_t at = 0; at < data->size(); at += bytes)
+          std::reverse(data->begin() + static_cast<std::ptrdiff_t>(at),
+                       data->begin() + static_cast<std::ptrdiff_t>(at + bytes));
+      }
+      image.data = std::shared_ptr<const char>(data, data->data());
     }
-    image.data_bytes = data->size();
-    image.data = std::shared_ptr<const char>(data, data->data());
   } else if (out.type == "TDATA") {
     if (body.size() % kTrackingElementBytes != 0) {
       return format(fmt::format("body has {} bytes; tracking data come in {}-byte elements",
@@ -431,15 +438,17 @@ Expected<std::string> contentBytes(const Message& in) {
     }
     return contentOf(m);
   }
-  if (in.type == "GET_STATUS") {
-    auto m = ::igtl::GetStatusMessage::New();
-    m->SetDeviceName(in.device_name.c_str());
-    return contentOf(m);
+  if (in.type == "STT_TDATA") {  // the least interval, then a coordinate system's name (none)
+    std::string out;
+    appendBig(out, in.stream_interval_ms, 4);
+    out.append(32, '\0');
+    return out;
   }
-  if (in.type == "GET_TRANS") {  // GET_TRANSFORM: type names have at most 12 characters
-    auto m = ::igtl::GetTransformMessage::New();
-    m->SetDeviceName(in.device_name.c_str());
-    return contentOf(m);
+  // Queries (GET_STATUS, GET_TRANS for GET_TRANSFORM, GET_IMAGE, ...) and stream controls carry
+  // no content.
+  if (in.type.rfind("GET_", 0) == 0 || in.type.rfind("STT_", 0) == 0 ||
+      in.type.rfind("STP_", 0) == 0) {
+    return std::string();
   }
   if (in.type == "TDATA") {
     std::string out;
@@ -489,7 +498,7 @@ Expected<std::string> contentBytes(const Message& in) {
 }
 
 // An IMAGE's content: its 72-byte header (big-endian) and its voxels (little-endian, as ours).
-ignav::Status appendImage(const Message& in, std::string& out) {
+ignav::Status appendImage(const Message& in, std::string& out, WireSegment& voxel_part) {
   const Image& image = in.image;
   const std::size_t bytes = scalarBytes(image.scalar_type);
   std::uint64_t voxels = 1;
@@ -508,7 +517,7 @@ ignav::Status appendImage(const Message& in, std::string& out) {
   }
   const Eigen::Matrix4d& m = image.ijk_to_mm;
   if (!m.allFinite()) return bad(fmt::format("IMAGE '{}': non-finite geometry", in.device_name));
-  const bool rescaled = image.value_scale != 1.0 || image.value_offset != 0.0;
+  const bool rescaled = image.rescaled();
   if (rescaled && image.scalar_type != ScalarType::kInt16) {
     return bad(fmt::format("IMAGE '{}': only int16 voxels are rescaled", in.device_name));
   }
@@ -539,24 +548,25 @@ ignav::Status appendImage(const Message& in, std::string& out) {
   for (const int n : image.size)
     appendBig(out, static_cast<std::uint64_t>(n), 2);
   if (!rescaled) {
-    out.append(image.data.get(), image.data_bytes);
+    voxel_part = {image.data, image.data_bytes};  // sent from where they lie
     return Ok{};
   }
   const std::size_t count = image.data_bytes / 2;
-  const std::size_t at = out.size();
-  out.resize(at + 4 * count);
+  auto converted = std::make_shared<std::vector<float>>(count);
   for (std::size_t n = 0; n < count; ++n) {
     std::int16_t stored;
     std::memcpy(&stored, image.data.get() + 2 * n, 2);
-    const auto value = static_cast<float>(stored * image.value_scale + image.value_offset);
-    std::memcpy(&out[at + 4 * n], &value, 4);
+    (*converted)[n] = static_cast<float>(stored * image.value_scale + image.value_offset);
   }
+  voxel_part = {
+      std::shared_ptr<const char>(converted, reinterpret_cast<const char*>(converted->data())),
+      4 * count};
   return Ok{};
 }
 
 // The content of a message of ours (the version-1 body, the version-2 body's middle), appended.
-ignav::Status appendContent(const Message& in, std::string& out) {
-  if (in.type == "IMAGE") return appendImage(in, out);
+ignav::Status appendContent(const Message& in, std::string& out, WireSegment& voxels) {
+  if (in.type == "IMAGE") return appendImage(in, out, voxels);
   auto content = contentBytes(in);
   if (!content) return content.error();
   out += *content;
@@ -565,7 +575,22 @@ ignav::Status appendContent(const Message& in, std::string& out) {
 
 }  // namespace
 
-Expected<std::string> encode(const Message& in) {
+std::size_t Wire::size() const {
+  std::size_t n = 0;
+  for (const auto& s : segments)
+    n += s.size;
+  return n;
+}
+
+std::string Wire::joined() const {
+  std::string out;
+  out.reserve(size());
+  for (const auto& s : segments)
+    out.append(s.data.get(), s.size);
+  return out;
+}
+
+Expected<Wire> encodeWire(const Message& in, const std::uint64_t* known_voxel_crc) {
   if (in.device_name.size() > kMaxDeviceName) {
     return bad(fmt::format("device name '{}' has {} characters; OpenIGTLink allows {}",
                            in.device_name, in.device_name.size(), kMaxDeviceName));
@@ -578,31 +603,56 @@ Expected<std::string> encode(const Message& in) {
     return bad(fmt::format("{} '{}': header version {}; 1 or 2", in.type, in.device_name,
                            in.header_version));
   }
-  // Assembled in one buffer (an image's voxels are copied once): header, body, then the header's
-  // body size and CRC filled in.
-  std::string out;
-  out.reserve(kHeaderBytes + kExtendedHeaderBytes + kImageHeaderBytes + in.image.data_bytes + 256);
-  out.resize(kHeaderBytes);
+  // Three parts: the header and everything before an image's voxels, the voxels (sent from
+  // where they lie, never copied), and the metadata after them. The CRC runs over the body's
+  // parts in turn (the voxels' own CRC combined in when it is known already).
+  auto head = std::make_shared<std::string>(kHeaderBytes, '\0');
   if (in.header_version == 2) {
     auto extended = extendedHeader(in.message_id, in.metadata);
     if (!extended) {
       return bad(fmt::format("{} '{}': {}", in.type, in.device_name, extended.error().message));
     }
-    out += *extended;
+    *head += *extended;
   }
-  if (auto appended = appendContent(in, out); !appended) return appended.error();
-  if (in.header_version == 2) appendMetaData(out, in.metadata);
-  const std::string_view body = std::string_view(out).substr(kHeaderBytes);
+  WireSegment voxels;
+  if (auto appended = appendContent(in, *head, voxels); !appended) return appended.error();
+  auto tail = std::make_shared<std::string>();
+  if (in.header_version == 2) appendMetaData(*tail, in.metadata);
+  Wire wire;
+  std::uint64_t crc = crc64(std::string_view(*head).substr(kHeaderBytes));
+  if (voxels.size > 0) {
+    const bool known = known_voxel_crc != nullptr && !in.image.rescaled();
+    wire.voxel_crc =
+        known ? *known_voxel_crc : crc64(std::string_view(voxels.data.get(), voxels.size));
+    crc = crc64Combine(crc, *wire.voxel_crc, voxels.size);
+  }
+  crc = crc64(*tail, crc);
   Header h;
   h.version = in.header_version;
   h.type = in.type;
   h.device_name = in.device_name;
   h.timestamp = timestampOf(in.timestamp_s);
-  h.body_size = body.size();
-  h.crc = crc64(body);
+  h.body_size = head->size() - kHeaderBytes + voxels.size + tail->size();
+  h.crc = crc;
   const std::string header = writeHeader(h);
-  std::copy(header.begin(), header.end(), out.begin());
-  return out;
+  std::copy(header.begin(), header.end(), head->begin());
+  wire.segments.push_back({std::shared_ptr<const char>(head, head->data()), head->size()});
+  if (voxels.size > 0) wire.segments.push_back(std::move(voxels));
+  if (!tail->empty()) {
+    wire.segments.push_back({std::shared_ptr<const char>(tail, tail->data()), tail->size()});
+  }
+  return wire;
+}
+
+Expected<std::string> encode(const Message& in) {
+  auto wire = encodeWire(in);
+  if (!wire) return wire.error();
+  return wire->joined();
+}
+
+std::uint64_t Decoder::limitFor(std::string_view type) const {
+  return type == "IMAGE" ? std::max<std::uint64_t>(max_body_bytes_, max_image_bytes_)
+                         : max_body_bytes_;
 }
 
 void Decoder::feed(const char* bytes, std::size_t count) {
@@ -611,6 +661,15 @@ void Decoder::feed(const char* bytes, std::size_t count) {
     skip_ -= dropped;
     bytes += dropped;
     count -= dropped;
+  }
+  // A large message within its limit: its whole length is reserved once, not grown into.
+  if (buffer_.size() < kHeaderBytes && buffer_.size() + count >= kHeaderBytes) {
+    std::string header(buffer_);
+    header.append(bytes, kHeaderBytes - buffer_.size());
+    const Header h = readHeader(header.data());
+    if (h.body_size <= limitFor(h.type) && h.body_size > (1u << 20)) {
+      buffer_.reserve(kHeaderBytes + h.body_size);
+    }
   }
   buffer_.append(bytes, count);
 }
@@ -635,17 +694,24 @@ std::optional<Expected<Message>> Decoder::next() {
                                         name, header.version),
                             "header_version"));
   }
-  const std::uint64_t limit = header.type == "IMAGE"
-                                  ? std::max<std::uint64_t>(max_body_bytes_, max_image_bytes_)
-                                  : max_body_bytes_;
+  const std::uint64_t limit = limitFor(header.type);
   if (body > limit) {
     return refuse(
         makeError(ErrorCode::kInvalidArgument,
                   fmt::format("{}: body of {} bytes; at most {} accepted", name, body, limit)));
   }
   if (buffer_.size() - kHeaderBytes < body) return std::nullopt;
-  const std::string body_bytes = buffer_.substr(kHeaderBytes, body);
-  buffer_.erase(0, kHeaderBytes + body);
+  // The message's bytes, kept whole (an image's voxels stay where they were read): the buffer
+  // itself when it holds this message alone, as a large one does.
+  std::shared_ptr<std::string> whole;
+  if (buffer_.size() == kHeaderBytes + body) {
+    whole = std::make_shared<std::string>(std::move(buffer_));
+    buffer_ = std::string();
+  } else {
+    whole = std::make_shared<std::string>(buffer_, 0, kHeaderBytes + body);
+    buffer_.erase(0, kHeaderBytes + body);
+  }
+  const std::string_view body_bytes = std::string_view(*whole).substr(kHeaderBytes);
   if (crc64(body_bytes) != header.crc) {
     return Expected<Message>(makeError(ErrorCode::kFormat, name + ": CRC mismatch"));
   }
@@ -654,14 +720,16 @@ std::optional<Expected<Message>> Decoder::next() {
   out.device_name = header.device_name;
   out.header_version = header.version;
   out.timestamp_s = header.timestamp == 0 ? 0.0 : secondsOf(header.timestamp);
-  if (header.version == 1) return Expected<Message>(decodeContent(std::move(out), body_bytes));
+  if (header.version == 1) {
+    return Expected<Message>(decodeContent(std::move(out), body_bytes, whole));
+  }
   auto parts = splitBody(body_bytes);
   if (!parts) {
     return Expected<Message>(makeError(ErrorCode::kFormat, name + ": " + parts.error().message));
   }
   out.message_id = parts->message_id;
   out.metadata = std::move(parts->metadata);
-  return Expected<Message>(decodeContent(std::move(out), parts->content));
+  return Expected<Message>(decodeContent(std::move(out), parts->content, whole));
 }
 
 }  // namespace ignav::igtl

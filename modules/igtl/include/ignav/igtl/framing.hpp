@@ -30,6 +30,9 @@ constexpr std::uint16_t kUtf8 = 106;
 // CRC-64 as OpenIGTLink computes it: ECMA-182's polynomial 0x42F0E1EBA9EA3693, MSB first, initial
 // value 0, no final XOR. `crc` continues an earlier part.
 std::uint64_t crc64(std::string_view bytes, std::uint64_t crc = 0);
+// The CRC of A followed by B from the CRCs of each (B's computed from 0) and B's length, in
+// O(log length): a large part's CRC is computed once and kept (an image sent again).
+std::uint64_t crc64Combine(std::uint64_t crc_a, std::uint64_t crc_b, std::uint64_t length_b);
 
 struct Header {
   std::uint16_t version = 1;

@@ -85,6 +85,7 @@ struct Image {
   // not 1 and 0, the voxels go out as float32 physical values (converted when encoded).
   double value_scale = 1.0;
   double value_offset = 0.0;
+  bool rescaled() const { return value_scale != 1.0 || value_offset != 0.0; }
 };
 
 // TDATA's element: a tool's pose (a 6D instrument unless said otherwise).
@@ -123,7 +124,8 @@ Message statusMessage(std::string device, StatusCode code, std::string status_st
 // "+/-", → -> "->" and the like; any other non-ASCII character -> '?'; control characters -> ' '.
 std::string asciiText(const std::string& text);
 Message transformMessage(std::string device, const Eigen::Matrix4d& matrix);
-// GET_STATUS, GET_TRANS (OpenIGTLink's GET_TRANSFORM: type names have at most 12 characters).
+// A query or stream control: GET_STATUS, GET_TRANS (OpenIGTLink's GET_TRANSFORM: type names
+// have at most 12 characters), GET_IMAGE, STT_TDATA (its stream_interval_ms), STP_TDATA, ...
 Message queryMessage(std::string type, std::string device);
 // IMAGE named `device`.
 Message imageMessage(std::string device, Image image);
@@ -138,6 +140,23 @@ const std::string* metaDataValue(const Message& message, const std::string& key)
 // the field: a device name over 20 characters, a non-finite matrix, an unsupported type, a
 // command name over 127 characters.
 Expected<std::string> encode(const Message& message);
+
+// A message's bytes in parts, so that a large part (an image's voxels) is written to the socket
+// from where it lies instead of being copied into one buffer first.
+struct WireSegment {
+  std::shared_ptr<const char> data;
+  std::size_t size = 0;
+};
+struct Wire {
+  std::vector<WireSegment> segments;
+  // An IMAGE's voxels' own CRC (from 0): kept by a sender that sends the same voxels again.
+  std::optional<std::uint64_t> voxel_crc;
+  std::size_t size() const;
+  std::string joined() const;
+};
+// encode() in parts. `known_voxel_crc`: the CRC of these very voxels, computed before (it is then
+// not computed again; the body's CRC combines it in).
+Expected<Wire> encodeWire(const Message& message, const std::uint64_t* known_voxel_crc = nullptr);
 
 // Reassembles messages from a byte stream, in header version 1 or 2 alike. A message that is not
 // one of ours, too large, inconsistent in its sizes or failing its CRC becomes an error that names
@@ -156,6 +175,7 @@ class Decoder {
   std::size_t buffered() const { return buffer_.size(); }
 
  private:
+  std::uint64_t limitFor(std::string_view type) const;
   std::size_t max_body_bytes_;
   std::uint64_t max_image_bytes_;
   std::string buffer_;
