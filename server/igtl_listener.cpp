@@ -363,10 +363,12 @@ struct IgtlListener::Impl {
       // An image's voxels' CRC is kept while they live: the same CT asked for again costs
       // nothing but the writing.
       const igtl::Image& image = job.second.image;
+      for (auto it = voxel_crcs.begin(); it != voxel_crcs.end();) {  // volumes that are gone
+        it = it->second.owner.expired() ? voxel_crcs.erase(it) : std::next(it);
+      }
       const std::uint64_t* known = nullptr;
       auto cached = voxel_crcs.find(image.data.get());
-      if (cached != voxel_crcs.end() &&
-          (cached->second.owner.expired() || cached->second.bytes != image.data_bytes)) {
+      if (cached != voxel_crcs.end() && cached->second.bytes != image.data_bytes) {
         voxel_crcs.erase(cached);
         cached = voxel_crcs.end();
       }

@@ -29,8 +29,9 @@ struct IgtlListenerOptions {
   std::size_t max_clients = 16;
   std::size_t max_outbox_bytes = 4 * 1024 * 1024;  // of ordinary messages waiting
   double tip_rate_hz = 20.0;  // the TDATA stream's rate (STT_TDATA asks for at most this)
-  // The largest IMAGE a client may send (a confirmation CT from a scanner bridge).
-  std::uint64_t max_image_bytes = 512ULL * 1024 * 1024;
+  // The largest IMAGE a client may send (0: as any other message). Until an IMAGE is taken as a
+  // confirmation CT (issue 44's next step) none is held beyond the ordinary limit.
+  std::uint64_t max_image_bytes = 0;
 };
 
 struct IgtlEvent {
