@@ -41,8 +41,7 @@ struct IgtlListener::Impl {
     Clock::time_point tdata_last;
     // The header version it spoke: answered in the highest it used (1 until it sends a 2).
     std::uint16_t header_version = 1;
-    std::string closing;  // why it is let go once what it was sent has gone out
-    Clock::time_point closing_since;
+    std::string closing;              // why it is let go once what it was sent has gone out
     Clock::time_point write_started;  // of the chunk being written: progress, not the message
     explicit Connection(tcp::socket s) : socket(std::move(s)) {}
   };
@@ -240,7 +239,6 @@ struct IgtlListener::Impl {
 
   void closeAfterSending(const std::shared_ptr<Connection>& c, const std::string& why) {
     c->closing = why;
-    c->closing_since = Clock::now();
     boost::system::error_code ec;
     c->socket.shutdown(tcp::socket::shutdown_receive, ec);
     if (c->outbox.empty()) drop(c, why);
@@ -335,8 +333,9 @@ struct IgtlListener::Impl {
                       });
   }
 
-  // Images and surfaces are encoded (copied, their CRC computed: ~0.1 s for a CT) on the encoder
-  // thread, never here, where an EMERGENCY from a client is read. At most kMaxBulk per client.
+  // Images and surfaces are encoded (their voxels' CRC: ~0.1 s for a CT, then kept) on the
+  // encoder thread, never here, where an EMERGENCY from a client is read. At most
+  // kMaxBulkPerClient per client.
   bool sendBulk(const std::shared_ptr<Connection>& c, igtl::Message m) {
     if (c->bulk >= kMaxBulkPerClient) return false;
     ++c->bulk;
