@@ -11,6 +11,7 @@
 #include <Eigen/Geometry>
 
 #include "ignav/igtl/message.hpp"
+#include "igtl_readback.hpp"
 #include "v3_peer.hpp"
 
 namespace ignav::igtl {
@@ -44,16 +45,7 @@ TEST(IgtlImage, WhatWeEncodeLibOpenIGTLinkReads) {
   const Image image = int16Image({5, 4, 3});
   auto bytes = encode(imageMessage("PlanningCT", image));
   ASSERT_TRUE(bytes.ok()) << bytes.error().message;
-  auto header = ::igtl::MessageHeader::New();
-  header->InitPack();
-  std::memcpy(header->GetPackPointer(), bytes->data(), kHeaderBytes);
-  header->Unpack();
-  auto m = ::igtl::ImageMessage::New();
-  m->SetMessageHeader(header);
-  m->AllocatePack();
-  ASSERT_EQ(bytes->size(), kHeaderBytes + static_cast<std::size_t>(m->GetPackBodySize()));
-  std::memcpy(m->GetPackBodyPointer(), bytes->data() + kHeaderBytes, m->GetPackBodySize());
-  ASSERT_TRUE(m->Unpack(1) & ::igtl::MessageHeader::UNPACK_BODY) << "CRC";
+  auto m = igtl_test::readBack<::igtl::ImageMessage>(*bytes);
   int size[3];
   m->GetDimensions(size);
   EXPECT_EQ(size[0], 5);

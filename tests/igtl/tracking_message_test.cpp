@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 
 #include "ignav/igtl/message.hpp"
+#include "igtl_readback.hpp"
 
 namespace ignav::igtl {
 namespace {
@@ -25,17 +26,8 @@ Eigen::Matrix4d pose() {
 TEST(IgtlTracking, WhatWeSendLibOpenIGTLinkReads) {
   auto bytes = encode(trackingMessage("NeedleTip", pose()));
   ASSERT_TRUE(bytes.ok()) << bytes.error().message;
-  auto header = ::igtl::MessageHeader::New();
-  header->InitPack();
-  std::memcpy(header->GetPackPointer(), bytes->data(), kHeaderBytes);
-  header->Unpack();
-  EXPECT_STREQ(header->GetDeviceType(), "TDATA");
-  auto m = ::igtl::TrackingDataMessage::New();
-  m->SetMessageHeader(header);
-  m->AllocatePack();
-  ASSERT_EQ(bytes->size(), kHeaderBytes + static_cast<std::size_t>(m->GetPackBodySize()));
-  std::memcpy(m->GetPackBodyPointer(), bytes->data() + kHeaderBytes, m->GetPackBodySize());
-  ASSERT_TRUE(m->Unpack(1) & ::igtl::MessageHeader::UNPACK_BODY) << "CRC";
+  auto m = igtl_test::readBack<::igtl::TrackingDataMessage>(*bytes);
+  EXPECT_STREQ(m->GetDeviceType(), "TDATA");
   ASSERT_EQ(m->GetNumberOfTrackingDataElements(), 1);
   ::igtl::TrackingDataElement::Pointer e;
   m->GetTrackingDataElement(0, e);
@@ -65,15 +57,11 @@ TEST(IgtlTracking, WhatLibOpenIGTLinkPacksWeDecode) {
     e->SetMatrix(matrix);
     m->AddTrackingDataElement(e);
   }
-  m->Pack();
   auto start = ::igtl::StartTrackingDataMessage::New();
   start->SetDeviceName("Tracker");
   start->SetResolution(10);
   start->SetCoordinateName("RAS");
-  start->Pack();
-  const std::string stream =
-      std::string(static_cast<const char*>(m->GetPackPointer()), m->GetPackSize()) +
-      std::string(static_cast<const char*>(start->GetPackPointer()), start->GetPackSize());
+  const std::string stream = igtl_test::packed(m) + igtl_test::packed(start);
   Decoder d;
   d.feed(stream.data(), stream.size());
   auto tdata = d.next();

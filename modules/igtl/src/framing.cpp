@@ -31,18 +31,6 @@ CrcTables crcTables() {
 }
 const CrcTables kCrc = crcTables();
 
-std::uint64_t readBig(const char* p, int bytes) {
-  std::uint64_t v = 0;
-  for (int i = 0; i < bytes; ++i)
-    v = (v << 8) | static_cast<unsigned char>(p[i]);
-  return v;
-}
-
-void appendBig(std::string& out, std::uint64_t v, int bytes) {
-  for (int i = bytes - 1; i >= 0; --i)
-    out += static_cast<char>((v >> (8 * i)) & 0xff);
-}
-
 std::string fixedField(const std::string& text, std::size_t size) {
   std::string field = text.substr(0, size);
   field.resize(size, '\0');
@@ -54,6 +42,18 @@ std::string nameIn(const char* p, std::size_t size) {
 }
 
 }  // namespace
+
+std::uint64_t readBigEndian(const char* p, int bytes) {
+  std::uint64_t v = 0;
+  for (int i = 0; i < bytes; ++i)
+    v = (v << 8) | static_cast<unsigned char>(p[i]);
+  return v;
+}
+
+void appendBigEndian(std::string& out, std::uint64_t v, int bytes) {
+  for (int i = bytes - 1; i >= 0; --i)
+    out += static_cast<char>((v >> (8 * i)) & 0xff);
+}
 
 std::uint64_t crc64(std::string_view bytes, std::uint64_t crc) {
   const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
@@ -99,24 +99,24 @@ std::uint64_t crc64Combine(std::uint64_t crc_a, std::uint64_t crc_b, std::uint64
 
 Header readHeader(const char* p) {
   Header h;
-  h.version = static_cast<std::uint16_t>(readBig(p, 2));
+  h.version = static_cast<std::uint16_t>(readBigEndian(p, 2));
   h.type = nameIn(p + 2, kMaxTypeName);
   h.device_name = nameIn(p + 14, kMaxDeviceName);
-  h.timestamp = readBig(p + 34, 8);
-  h.body_size = readBig(p + 42, 8);
-  h.crc = readBig(p + 50, 8);
+  h.timestamp = readBigEndian(p + 34, 8);
+  h.body_size = readBigEndian(p + 42, 8);
+  h.crc = readBigEndian(p + 50, 8);
   return h;
 }
 
 std::string writeHeader(const Header& h) {
   std::string out;
   out.reserve(kHeaderBytes);
-  appendBig(out, h.version, 2);
+  appendBigEndian(out, h.version, 2);
   out += fixedField(h.type, kMaxTypeName);
   out += fixedField(h.device_name, kMaxDeviceName);
-  appendBig(out, h.timestamp, 8);
-  appendBig(out, h.body_size, 8);
-  appendBig(out, h.crc, 8);
+  appendBigEndian(out, h.timestamp, 8);
+  appendBigEndian(out, h.body_size, 8);
+  appendBigEndian(out, h.crc, 8);
   return out;
 }
 
@@ -144,10 +144,10 @@ Expected<BodyParts> splitBody(std::string_view body) {
                     body.size(), kExtendedHeaderBytes));
   }
   BodyParts parts;
-  parts.extended_header_size = static_cast<std::uint16_t>(readBig(body.data(), 2));
-  const std::uint64_t metadata_header_size = readBig(body.data() + 2, 2);
-  const std::uint64_t metadata_size = readBig(body.data() + 4, 4);
-  parts.message_id = static_cast<std::uint32_t>(readBig(body.data() + 8, 4));
+  parts.extended_header_size = static_cast<std::uint16_t>(readBigEndian(body.data(), 2));
+  const std::uint64_t metadata_header_size = readBigEndian(body.data() + 2, 2);
+  const std::uint64_t metadata_size = readBigEndian(body.data() + 4, 4);
+  parts.message_id = static_cast<std::uint32_t>(readBigEndian(body.data() + 8, 4));
   if (parts.extended_header_size < kExtendedHeaderBytes) {
     return bad(fmt::format("extended header size {}: at least {}", parts.extended_header_size,
                            kExtendedHeaderBytes));
@@ -169,7 +169,7 @@ Expected<BodyParts> splitBody(std::string_view body) {
     return parts;
   }
   const char* header = body.data() + parts.extended_header_size + content_size;
-  const std::size_t count = readBig(header, metadata_header_size >= 2 ? 2 : 1);
+  const std::size_t count = readBigEndian(header, metadata_header_size >= 2 ? 2 : 1);
   if (metadata_header_size < 2 || metadata_header_size != 2 + kMetaDataEntryBytes * count) {
     return bad(fmt::format("metadata header size {} is not 2 + {} x {} entries",
                            metadata_header_size, kMetaDataEntryBytes, count));
@@ -179,9 +179,9 @@ Expected<BodyParts> splitBody(std::string_view body) {
   parts.metadata.reserve(count);
   for (std::size_t i = 0; i < count; ++i) {
     const char* e = header + 2 + kMetaDataEntryBytes * i;
-    const std::uint64_t key_size = readBig(e, 2);
-    const auto encoding = static_cast<std::uint16_t>(readBig(e + 2, 2));
-    const std::uint64_t value_size = readBig(e + 4, 4);
+    const std::uint64_t key_size = readBigEndian(e, 2);
+    const auto encoding = static_cast<std::uint16_t>(readBigEndian(e + 2, 2));
+    const std::uint64_t value_size = readBigEndian(e + 4, 4);
     if (used + key_size + value_size > metadata_size) {
       return bad(fmt::format("metadata entry {} ({} + {} bytes) runs past the metadata's {} bytes",
                              i + 1, key_size, value_size, metadata_size));
@@ -222,19 +222,19 @@ Expected<std::string> extendedHeader(std::uint32_t message_id,
         fmt::format("metadata of {} bytes; its size field holds 32 bits", metadata_size));
   }
   std::string out;
-  appendBig(out, kExtendedHeaderBytes, 2);
-  appendBig(out, 2 + kMetaDataEntryBytes * metadata.size(), 2);
-  appendBig(out, metadata_size, 4);
-  appendBig(out, message_id, 4);
+  appendBigEndian(out, kExtendedHeaderBytes, 2);
+  appendBigEndian(out, 2 + kMetaDataEntryBytes * metadata.size(), 2);
+  appendBigEndian(out, metadata_size, 4);
+  appendBigEndian(out, message_id, 4);
   return out;
 }
 
 void appendMetaData(std::string& out, const std::vector<MetaDataEntry>& metadata) {
-  appendBig(out, metadata.size(), 2);
+  appendBigEndian(out, metadata.size(), 2);
   for (const auto& e : metadata) {
-    appendBig(out, e.key.size(), 2);
-    appendBig(out, e.encoding, 2);
-    appendBig(out, e.value.size(), 4);
+    appendBigEndian(out, e.key.size(), 2);
+    appendBigEndian(out, e.encoding, 2);
+    appendBigEndian(out, e.value.size(), 4);
   }
   for (const auto& e : metadata) {
     out += e.key;

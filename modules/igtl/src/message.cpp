@@ -21,18 +21,6 @@ constexpr std::size_t kStatusFixed = 30;    // code, subcode, error name
 constexpr std::size_t kStringFixed = 4;     // encoding, length
 constexpr std::size_t kPointElement = 136;  // name, group, rgba, xyz, radius, owner
 
-std::uint64_t readBig(const char* p, int bytes) {
-  std::uint64_t v = 0;
-  for (int i = 0; i < bytes; ++i)
-    v = (v << 8) | static_cast<unsigned char>(p[i]);
-  return v;
-}
-
-void appendBig(std::string& out, std::uint64_t v, int bytes) {
-  for (int i = bytes - 1; i >= 0; --i)
-    out += static_cast<char>((v >> (8 * i)) & 0xff);
-}
-
 // What libOpenIGTLink packed, without its header: the content (our framing goes around it).
 std::string contentOf(::igtl::MessageBase* m) {
   m->Pack();
@@ -78,7 +66,7 @@ Expected<Message> decodeContent(Message out, std::string_view body,
   };
   if (out.type == "STRING") {
     if (body.size() < kStringFixed) return format("body shorter than 4 bytes");
-    const std::size_t length = readBig(body.data() + 2, 2);
+    const std::size_t length = readBigEndian(body.data() + 2, 2);
     if (length > body.size() - kStringFixed) {
       return format(fmt::format("string length {} exceeds its body ({} bytes)", length,
                                 body.size() - kStringFixed));
@@ -101,7 +89,7 @@ Expected<Message> decodeContent(Message out, std::string_view body,
     }
     const char* h = body.data();
     Image& image = out.image;
-    const auto version = readBig(h, 2);
+    const auto version = readBigEndian(h, 2);
     image.components = static_cast<std::uint8_t>(h[2]);
     image.scalar_type = static_cast<ScalarType>(static_cast<unsigned char>(h[3]));
     const int endian = static_cast<unsigned char>(h[4]);
@@ -121,9 +109,9 @@ Expected<Message> decodeContent(Message out, std::string_view body,
     image.ras = coordinates == 1;
     std::uint64_t voxels = 1;
     for (int a = 0; a < 3; ++a) {
-      image.size[a] = static_cast<int>(readBig(h + 6 + 2 * a, 2));
-      const auto offset = readBig(h + 60 + 2 * a, 2);
-      const auto extent = readBig(h + 66 + 2 * a, 2);
+      image.size[a] = static_cast<int>(readBigEndian(h + 6 + 2 * a, 2));
+      const auto offset = readBigEndian(h + 60 + 2 * a, 2);
+      const auto extent = readBigEndian(h + 66 + 2 * a, 2);
       if (image.size[a] == 0) return format("an image with no voxels along an axis");
       if (offset != 0 || extent != static_cast<std::uint64_t>(image.size[a])) {
         return format("a partial image (a sub-volume) is not taken: send the whole volume");
@@ -138,7 +126,7 @@ Expected<Message> decodeContent(Message out, std::string_view body,
     }
     float f[12];
     for (int i = 0; i < 12; ++i) {
-      const auto bits = static_cast<std::uint32_t>(readBig(h + 12 + 4 * i, 4));
+      const auto bits = static_cast<std::uint32_t>(readBigEndian(h + 12 + 4 * i, 4));
       std::memcpy(&f[i], &bits, 4);
     }
     Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
@@ -177,7 +165,8 @@ Expected<Message> decodeContent(Message out, std::string_view body,
       e.name.assign(body.data() + at, strnlen(body.data() + at, kMaxDeviceName));
       e.kind = static_cast<std::uint8_t>(body[at + 20]);
       for (int i = 0; i < 12; ++i) {
-        const auto bits = static_cast<std::uint32_t>(readBig(body.data() + at + 22 + 4 * i, 4));
+        const auto bits =
+            static_cast<std::uint32_t>(readBigEndian(body.data() + at + 22 + 4 * i, 4));
         float f;
         std::memcpy(&f, &bits, 4);
         e.matrix(i % 3, i / 3) = f;
@@ -190,13 +179,13 @@ Expected<Message> decodeContent(Message out, std::string_view body,
   } else if (out.type == "STT_TDATA") {
     // The least time between frames (the coordinate system's name after it is not used here).
     if (body.size() >= 4)
-      out.stream_interval_ms = static_cast<std::uint32_t>(readBig(body.data(), 4));
+      out.stream_interval_ms = static_cast<std::uint32_t>(readBigEndian(body.data(), 4));
   } else if (out.type == "COMMAND" || out.type == "RTS_COMMAND") {
     if (body.size() < kCommandHeaderBytes) {
       return format(fmt::format("body has {} bytes; a command's fixed part alone has {}",
                                 body.size(), kCommandHeaderBytes));
     }
-    const std::uint64_t length = readBig(body.data() + 134, 4);
+    const std::uint64_t length = readBigEndian(body.data() + 134, 4);
     if (length > body.size() - kCommandHeaderBytes) {
       return format(fmt::format("command length {} exceeds its body ({} bytes)", length,
                                 body.size() - kCommandHeaderBytes));
@@ -206,9 +195,9 @@ Expected<Message> decodeContent(Message out, std::string_view body,
       return format(fmt::format("the command name is not NUL-terminated within its {} bytes",
                                 kMaxCommandName + 1));
     }
-    out.command.id = static_cast<std::uint32_t>(readBig(body.data(), 4));
+    out.command.id = static_cast<std::uint32_t>(readBigEndian(body.data(), 4));
     out.command.name.assign(body.data() + 4, name_length);
-    out.command.encoding = static_cast<std::uint16_t>(readBig(body.data() + 132, 2));
+    out.command.encoding = static_cast<std::uint16_t>(readBigEndian(body.data() + 132, 2));
     out.command.text.assign(body.data() + kCommandHeaderBytes, length);
   } else if (out.type == "TRANSFORM") {
     if (body.size() != kTransformBody) {
@@ -440,7 +429,7 @@ Expected<std::string> contentBytes(const Message& in) {
   }
   if (in.type == "STT_TDATA") {  // the least interval, then a coordinate system's name (none)
     std::string out;
-    appendBig(out, in.stream_interval_ms, 4);
+    appendBigEndian(out, in.stream_interval_ms, 4);
     out.append(32, '\0');
     return out;
   }
@@ -469,7 +458,7 @@ Expected<std::string> contentBytes(const Message& in) {
           const auto f = static_cast<float>(e.matrix(r, c));
           std::uint32_t bits;
           std::memcpy(&bits, &f, 4);
-          appendBig(out, bits, 4);
+          appendBigEndian(out, bits, 4);
         }
       }
     }
@@ -485,12 +474,12 @@ Expected<std::string> contentBytes(const Message& in) {
     }
     std::string out;
     out.reserve(kCommandHeaderBytes + in.command.text.size());
-    appendBig(out, in.command.id, 4);
+    appendBigEndian(out, in.command.id, 4);
     std::string name = in.command.name;
     name.resize(kMaxCommandName + 1, '\0');
     out += name;
-    appendBig(out, in.command.encoding, 2);
-    appendBig(out, in.command.text.size(), 4);
+    appendBigEndian(out, in.command.encoding, 2);
+    appendBigEndian(out, in.command.text.size(), 4);
     out += in.command.text;
     return out;
   }
@@ -521,13 +510,13 @@ ignav::Status appendImage(const Message& in, std::string& out, WireSegment& voxe
   if (rescaled && image.scalar_type != ScalarType::kInt16) {
     return bad(fmt::format("IMAGE '{}': only int16 voxels are rescaled", in.device_name));
   }
-  appendBig(out, 1, 2);  // the image header's version
+  appendBigEndian(out, 1, 2);  // the image header's version
   out += static_cast<char>(image.components);
   out += static_cast<char>(rescaled ? ScalarType::kFloat32 : image.scalar_type);
   out += static_cast<char>(2);  // little-endian voxels
   out += static_cast<char>(image.ras ? 1 : 2);
   for (const int n : image.size)
-    appendBig(out, static_cast<std::uint64_t>(n), 2);
+    appendBigEndian(out, static_cast<std::uint64_t>(n), 2);
   // The axes (direction x spacing), then the centre of the volume.
   const Eigen::Vector3d half((image.size[0] - 1) / 2.0, (image.size[1] - 1) / 2.0,
                              (image.size[2] - 1) / 2.0);
@@ -536,7 +525,7 @@ ignav::Status appendImage(const Message& in, std::string& out, WireSegment& voxe
     const auto f = static_cast<float>(v);
     std::uint32_t bits;
     std::memcpy(&bits, &f, 4);
-    appendBig(out, bits, 4);
+    appendBigEndian(out, bits, 4);
   };
   for (int c = 0; c < 3; ++c)
     for (int r = 0; r < 3; ++r)
@@ -544,9 +533,9 @@ ignav::Status appendImage(const Message& in, std::string& out, WireSegment& voxe
   for (int r = 0; r < 3; ++r)
     appendFloat(centre[r]);
   for (int i = 0; i < 3; ++i)
-    appendBig(out, 0, 2);  // the sub-volume is the whole volume
+    appendBigEndian(out, 0, 2);  // the sub-volume is the whole volume
   for (const int n : image.size)
-    appendBig(out, static_cast<std::uint64_t>(n), 2);
+    appendBigEndian(out, static_cast<std::uint64_t>(n), 2);
   if (!rescaled) {
     voxel_part = {image.data, image.data_bytes};  // sent from where they lie
     return Ok{};

@@ -34,6 +34,10 @@ std::uint64_t crc64(std::string_view bytes, std::uint64_t crc = 0);
 // O(log length): a large part's CRC is computed once and kept (an image sent again).
 std::uint64_t crc64Combine(std::uint64_t crc_a, std::uint64_t crc_b, std::uint64_t length_b);
 
+// Big-endian numbers of `bytes` bytes (1..8), as every OpenIGTLink number is.
+std::uint64_t readBigEndian(const char* p, int bytes);
+void appendBigEndian(std::string& out, std::uint64_t value, int bytes);
+
 struct Header {
   std::uint16_t version = 1;
   std::string type;         // up to 12 characters
