@@ -16,22 +16,7 @@ phase() {  # phase NAME COMMAND...: runs it and keeps its time
 phase "setup (apt)" bash tools/setup.sh
 phase "formatting" bash tools/check_format.sh
 phase "build (RelWithDebInfo)" bash tools/build.sh
-if [ "${IGNAV_SANITIZE:-1}" != 0 ]; then
-  # The sanitizer tree compiles at the lowest priority while the tests run: they wait on DDS,
-  # sockets and browsers much of the time, and that idle CPU builds it (they pass beside two busy
-  # loops; this is gentler). Its errors, if any, show when sanitize.sh builds it again.
-  prebuild_log="$(mktemp)"
-  setsid bash -c 'cmake --preset fuzz >/dev/null && nice -n 19 cmake --build build-fuzz -j "$(nproc)"' \
-    >"$prebuild_log" 2>&1 &
-  prebuild=$!
-  trap 'kill -- "-$prebuild" 2>/dev/null || true' EXIT  # its own process group: ninja and all
-fi
 phase "tests" ctest --test-dir build -j "$(nproc)" --output-on-failure --timeout 600
-if [ -n "${prebuild:-}" ]; then
-  phase "sanitizer tree (the rest)" wait "$prebuild" || true
-  trap - EXIT
-  rm -f "$prebuild_log"
-fi
 if [ "${IGNAV_SANITIZE:-1}" != 0 ]; then
   phase "sanitizers and fuzzers" bash tools/sanitize.sh "${IGNAV_FUZZ_SECONDS:-30}"
 fi
