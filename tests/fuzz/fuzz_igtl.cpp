@@ -1,12 +1,12 @@
 // What an OpenIGTLink client can send: a byte stream (well-formed BRP messages with fuzzed
 // fields in header version 1 or 2 with fuzzed metadata, COMMANDs with fuzzed XML, version-2
 // frames whose extended header, metadata header and metadata sizes lie but whose CRC is right,
-// headers announcing enormous bodies, corrupted messages, raw garbage) split at fuzzed points,
-// through the Decoder and the BRP bridge, with the bridge's inputs through the real reducer as the
-// server runs them, from a registered planning session. Checked on every message: the decoder holds
-// no more than a body limit and a chunk; every STRING(CMD_<id>) is receipted first with ACK_<id>;
-// everything the bridge answers can be encoded; nothing moves except by an approval of the pending
-// plan (DESIGN.md safety invariants 1 and 5).
+// POLYDATA whose counts and sizes lie, headers announcing enormous bodies, corrupted messages, raw
+// garbage) split at fuzzed points, through the Decoder and the BRP bridge, with the bridge's inputs
+// through the real reducer as the server runs them, from a registered planning session. Checked on
+// every message: the decoder holds no more than a body limit and a chunk; every STRING(CMD_<id>) is
+// receipted first with ACK_<id>; everything the bridge answers can be encoded; nothing moves except
+// by an approval of the pending plan (DESIGN.md safety invariants 1 and 5).
 #include <fuzzer/FuzzedDataProvider.h>
 
 #include <cmath>
@@ -152,7 +152,8 @@ std::string fuzzedMessage(FuzzedDataProvider& in) {
 std::string fuzzedFraming(FuzzedDataProvider& in) {
   igtl::Header h;
   h.version = in.ConsumeBool() ? 2 : in.ConsumeIntegral<std::uint16_t>();
-  h.type = in.ConsumeBool() ? "STRING" : "COMMAND";
+  static const char* kTypes[] = {"STRING", "COMMAND", "POLYDATA"};
+  h.type = kTypes[in.ConsumeIntegralInRange<int>(0, 2)];
   h.device_name = "CMD_1";
   if (in.ConsumeIntegralInRange<int>(0, 5) == 0) {
     h.body_size = in.ConsumeBool() ? ~0ULL : in.ConsumeIntegral<std::uint64_t>();
@@ -169,7 +170,16 @@ std::string fuzzedFraming(FuzzedDataProvider& in) {
   body += be(in.ConsumeBool() ? 2 + 8 * count : in.ConsumeIntegral<std::uint16_t>(), 2);
   body += be(in.ConsumeIntegralInRange<std::uint32_t>(0, in.ConsumeBool() ? 64 : 0xffffffffu), 4);
   body += be(in.ConsumeIntegral<std::uint32_t>(), 4);
-  body += in.ConsumeRandomLengthString(60);  // content
+  if (h.type == "POLYDATA") {  // ten counts and sizes that may lie, then what they describe
+    for (int i = 0; i < 10; ++i) {
+      body += be(in.ConsumeBool() ? 4 * in.ConsumeIntegralInRange<std::uint32_t>(0, 8)
+                                  : in.ConsumeIntegral<std::uint32_t>(),
+                 4);
+    }
+    body += in.ConsumeRandomLengthString(240);
+  } else {
+    body += in.ConsumeRandomLengthString(60);  // content
+  }
   body += be(count, 2);
   for (std::size_t i = 0; i < count; ++i) {
     body += be(in.ConsumeIntegralInRange<std::uint16_t>(0, 16), 2) + be(3, 2) +

@@ -1,5 +1,7 @@
 #include "ignav/igtl/message.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <string>
 #include <utility>
@@ -57,6 +59,107 @@ Expected<typename M::Pointer> unpack(const Message& in, std::string_view content
 }
 
 // The content of `out` (type, device name and framing filled in) from its bytes.
+void appendFloat32(std::string& out, float f) {
+  std::uint32_t bits;
+  std::memcpy(&bits, &f, 4);
+  appendBigEndian(out, bits, 4);
+}
+
+float readFloat32(const char* at) {
+  const auto bits = static_cast<std::uint32_t>(readBigEndian(at, 4));
+  float f;
+  std::memcpy(&f, &bits, 4);
+  return f;
+}
+
+// POLYDATA's content: the ten counts and sizes, points, the four cell arrays, the attributes'
+// headers (type byte, components byte, count: libOpenIGTLink's order), their NUL-terminated
+// names padded to an even length, then their values.
+Expected<std::string> polyDataBytes(const Message& in) {
+  const PolyData& p = in.poly;
+  const auto refuse = [&](const std::string& what) {
+    return bad(fmt::format("POLYDATA '{}': {}", in.device_name, what));
+  };
+  if (p.points.size() % 3 != 0) return refuse("points must come as x, y, z");
+  const std::size_t points = p.points.size() / 3;
+  if (points > 0xffffffffULL) return refuse("more than 2^32 - 1 points");
+  for (const float v : p.points) {
+    if (!std::isfinite(v)) return refuse("a point has a non-finite coordinate");
+  }
+  const std::vector<std::uint32_t>* cells[] = {&p.vertices, &p.lines, &p.polygons, &p.strips};
+  const char* cell_names[] = {"vertices", "lines", "polygons", "triangle strips"};
+  std::size_t counts[4];
+  for (int c = 0; c < 4; ++c) {
+    auto n = cellCount(*cells[c], points);
+    if (!n)
+      return refuse(
+          fmt::format("its {} are no VTK cell array over {} points", cell_names[c], points));
+    counts[c] = *n;
+  }
+  for (const auto& a : p.attributes) {
+    const int kind = a.type & 0x0f;
+    if ((a.type & ~0x10) > 0x04 || a.components == 0) {
+      return refuse(fmt::format("attribute '{}': type 0x{:02x} with {} components", a.name, a.type,
+                                a.components));
+    }
+    const int expected = kind == 1 || kind == 2 ? 3 : kind == 3 ? 9 : kind == 4 ? 4 : 0;
+    if (expected != 0 && a.components != expected) {
+      return refuse(fmt::format("attribute '{}': {} components; its type has {}", a.name,
+                                a.components, expected));
+    }
+    if (a.name.size() > kMaxPolyAttributeName || a.name.find('\0') != std::string::npos) {
+      return refuse(fmt::format("attribute name of {} characters; at most {}, no NUL",
+                                a.name.size(), kMaxPolyAttributeName));
+    }
+    const std::size_t owners = a.perCell() ? counts[0] + counts[1] + counts[2] + counts[3] : points;
+    if (a.values.size() != owners * a.components) {
+      return refuse(fmt::format("attribute '{}' has {} values; {} {} x {} components need {}",
+                                a.name, a.values.size(), owners, a.perCell() ? "cells" : "points",
+                                a.components, owners * a.components));
+    }
+    for (const float v : a.values) {
+      if (!std::isfinite(v))
+        return refuse(fmt::format("attribute '{}' has a non-finite value", a.name));
+    }
+  }
+  std::string out;
+  std::size_t total = kPolyDataHeaderBytes + 4 * p.points.size();
+  for (const auto* c : cells)
+    total += 4 * c->size();
+  for (const auto& a : p.attributes)
+    total += 6 + a.name.size() + 1 + 4 * a.values.size();
+  out.reserve(total + 1);
+  appendBigEndian(out, points, 4);
+  for (int c = 0; c < 4; ++c) {
+    appendBigEndian(out, counts[c], 4);
+    appendBigEndian(out, 4 * cells[c]->size(), 4);
+  }
+  appendBigEndian(out, p.attributes.size(), 4);
+  for (const float v : p.points)
+    appendFloat32(out, v);
+  for (const auto* c : cells) {
+    for (const std::uint32_t v : *c)
+      appendBigEndian(out, v, 4);
+  }
+  std::size_t names = 0;
+  for (const auto& a : p.attributes) {
+    out += static_cast<char>(a.type);
+    out += static_cast<char>(a.components);
+    appendBigEndian(out, a.values.size() / a.components, 4);
+    names += a.name.size() + 1;
+  }
+  for (const auto& a : p.attributes) {
+    out += a.name;
+    out += '\0';
+  }
+  if (names % 2 == 1) out += '\0';
+  for (const auto& a : p.attributes) {
+    for (const float v : a.values)
+      appendFloat32(out, v);
+  }
+  return out;
+}
+
 // `owner` holds the bytes `body` views: an image's voxels are kept in it, not copied.
 Expected<Message> decodeContent(Message out, std::string_view body,
                                 const std::shared_ptr<const std::string>& owner = nullptr) {
@@ -125,10 +228,8 @@ Expected<Message> decodeContent(Message out, std::string_view body,
                                 image.size[2], image.components, bytes, expected));
     }
     float f[12];
-    for (int i = 0; i < 12; ++i) {
-      const auto bits = static_cast<std::uint32_t>(readBigEndian(h + 12 + 4 * i, 4));
-      std::memcpy(&f[i], &bits, 4);
-    }
+    for (int i = 0; i < 12; ++i)
+      f[i] = readFloat32(h + 12 + 4 * i);
     Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
     for (int c = 0; c < 3; ++c)
       for (int r = 0; r < 3; ++r)
@@ -164,13 +265,8 @@ Expected<Message> decodeContent(Message out, std::string_view body,
       TrackingElement e;
       e.name.assign(body.data() + at, strnlen(body.data() + at, kMaxDeviceName));
       e.kind = static_cast<std::uint8_t>(body[at + 20]);
-      for (int i = 0; i < 12; ++i) {
-        const auto bits =
-            static_cast<std::uint32_t>(readBigEndian(body.data() + at + 22 + 4 * i, 4));
-        float f;
-        std::memcpy(&f, &bits, 4);
-        e.matrix(i % 3, i / 3) = f;
-      }
+      for (int i = 0; i < 12; ++i)
+        e.matrix(i % 3, i / 3) = readFloat32(body.data() + at + 22 + 4 * i);
       if (!e.matrix.allFinite()) {
         return format(fmt::format("element '{}' has a non-finite matrix", e.name));
       }
@@ -233,6 +329,103 @@ Expected<Message> decodeContent(Message out, std::string_view body,
         return format(fmt::format("point {} has a non-finite coordinate", i + 1));
       }
       out.points.push_back(p);
+    }
+  } else if (out.type == "POLYDATA") {
+    if (body.size() < kPolyDataHeaderBytes) {
+      return format(fmt::format("body has {} bytes; its counts alone have {}", body.size(),
+                                kPolyDataHeaderBytes));
+    }
+    const char* h = body.data();
+    const std::uint64_t points = readBigEndian(h, 4);
+    std::uint64_t cell_counts[4], cell_bytes[4];
+    for (int c = 0; c < 4; ++c) {
+      cell_counts[c] = readBigEndian(h + 4 + 8 * c, 4);
+      cell_bytes[c] = readBigEndian(h + 8 + 8 * c, 4);
+    }
+    const std::uint64_t attributes = readBigEndian(h + 36, 4);
+    // Every size in 64 bits from 32-bit fields: no sum below can overflow.
+    std::uint64_t at = kPolyDataHeaderBytes + 12 * points;
+    for (int c = 0; c < 4; ++c) {
+      if (cell_bytes[c] % 4 != 0) return format("a cell array's size is no multiple of 4");
+      at += cell_bytes[c];
+    }
+    at += 6 * attributes;
+    if (at > body.size()) {
+      return format(
+          fmt::format("{} points, their cells and {} attribute headers need {} bytes; "
+                      "the body has {}",
+                      points, attributes, at, body.size()));
+    }
+    PolyData& p = out.poly;
+    std::size_t pos = kPolyDataHeaderBytes;
+    p.points.resize(3 * points);
+    for (auto& v : p.points) {
+      v = readFloat32(h + pos);
+      pos += 4;
+      if (!std::isfinite(v)) return format("a point has a non-finite coordinate");
+    }
+    std::vector<std::uint32_t>* cells[] = {&p.vertices, &p.lines, &p.polygons, &p.strips};
+    const char* cell_names[] = {"vertices", "lines", "polygons", "triangle strips"};
+    std::uint64_t all_cells = 0;
+    for (int c = 0; c < 4; ++c) {
+      cells[c]->resize(cell_bytes[c] / 4);
+      for (auto& v : *cells[c]) {
+        v = static_cast<std::uint32_t>(readBigEndian(h + pos, 4));
+        pos += 4;
+      }
+      const auto n = cellCount(*cells[c], points);
+      if (!n || *n != cell_counts[c]) {
+        return format(fmt::format("its {} are no cell array of {} cells over {} points",
+                                  cell_names[c], cell_counts[c], points));
+      }
+      all_cells += cell_counts[c];
+    }
+    p.attributes.resize(attributes);
+    std::uint64_t data_bytes = 0;
+    for (auto& a : p.attributes) {
+      a.type = static_cast<std::uint8_t>(h[pos]);
+      a.components = static_cast<std::uint8_t>(h[pos + 1]);
+      const std::uint64_t owners = readBigEndian(h + pos + 2, 4);
+      pos += 6;
+      if ((a.type & ~0x10) > 0x04 || a.components == 0 ||
+          owners != (a.perCell() ? all_cells : points)) {
+        return format(
+            fmt::format("an attribute of type 0x{:02x}, {} components, for {} of {} "
+                        "points and {} cells",
+                        a.type, a.components, owners, points, all_cells));
+      }
+      data_bytes += 4 * owners * a.components;
+    }
+    // Checked before anything is allocated for them (sizes a sender may have lied about).
+    if (at + data_bytes > body.size()) {
+      return format(fmt::format("its attributes' values need {} bytes; the body has {} left",
+                                data_bytes, body.size() - at));
+    }
+    for (auto& a : p.attributes)
+      a.values.resize((a.perCell() ? all_cells : points) * a.components);
+    std::size_t names = 0;
+    for (auto& a : p.attributes) {
+      const std::size_t length =
+          strnlen(h + pos, std::min<std::size_t>(body.size() - pos, kMaxPolyAttributeName + 1));
+      if (length > kMaxPolyAttributeName || pos + length >= body.size()) {
+        return format("an attribute name is not NUL-terminated within 256 bytes of its body");
+      }
+      a.name.assign(h + pos, length);
+      pos += length + 1;
+      names += length + 1;
+    }
+    if (names % 2 == 1) ++pos;
+    if (pos + data_bytes != body.size()) {
+      return format(fmt::format("{} bytes of attribute values; the body has {} after the names",
+                                data_bytes, body.size() - std::min<std::size_t>(pos, body.size())));
+    }
+    for (auto& a : p.attributes) {
+      for (auto& v : a.values) {
+        v = readFloat32(h + pos);
+        pos += 4;
+        if (!std::isfinite(v))
+          return format(fmt::format("attribute '{}' has a non-finite value", a.name));
+      }
     }
   } else if (out.type.rfind("GET_", 0) == 0 || out.type.rfind("STT_", 0) == 0 ||
              out.type.rfind("STP_", 0) == 0) {
@@ -360,6 +553,27 @@ Message imageMessage(std::string device, Image image) {
   return m;
 }
 
+Message polyDataMessage(std::string device, PolyData poly) {
+  Message m;
+  m.type = "POLYDATA";
+  m.device_name = std::move(device);
+  m.poly = std::move(poly);
+  return m;
+}
+
+std::optional<std::size_t> cellCount(const std::vector<std::uint32_t>& cells, std::size_t points) {
+  std::size_t count = 0;
+  for (std::size_t at = 0; at < cells.size(); ++count) {
+    const std::size_t n = cells[at];
+    if (n > cells.size() - at - 1) return std::nullopt;
+    for (std::size_t i = at + 1; i <= at + n; ++i) {
+      if (cells[i] >= points) return std::nullopt;
+    }
+    at += n + 1;
+  }
+  return count;
+}
+
 const std::string* metaDataValue(const Message& m, const std::string& key) {
   for (const auto& e : m.metadata) {
     if (e.key == key) return &e.value;
@@ -454,16 +668,13 @@ Expected<std::string> contentBytes(const Message& in) {
       out += static_cast<char>(e.kind);
       out += '\0';
       for (int c = 0; c < 4; ++c) {
-        for (int r = 0; r < 3; ++r) {
-          const auto f = static_cast<float>(e.matrix(r, c));
-          std::uint32_t bits;
-          std::memcpy(&bits, &f, 4);
-          appendBigEndian(out, bits, 4);
-        }
+        for (int r = 0; r < 3; ++r)
+          appendFloat32(out, static_cast<float>(e.matrix(r, c)));
       }
     }
     return out;
   }
+  if (in.type == "POLYDATA") return polyDataBytes(in);
   if (in.type == "COMMAND" || in.type == "RTS_COMMAND") {
     if (in.command.name.size() > kMaxCommandName) {
       return bad(fmt::format("{} '{}': command name of {} characters; at most {}", in.type,
@@ -521,12 +732,7 @@ ignav::Status appendImage(const Message& in, std::string& out, WireSegment& voxe
   const Eigen::Vector3d half((image.size[0] - 1) / 2.0, (image.size[1] - 1) / 2.0,
                              (image.size[2] - 1) / 2.0);
   const Eigen::Vector3d centre = m.topLeftCorner<3, 3>() * half + m.topRightCorner<3, 1>();
-  const auto appendFloat = [&](double v) {
-    const auto f = static_cast<float>(v);
-    std::uint32_t bits;
-    std::memcpy(&bits, &f, 4);
-    appendBigEndian(out, bits, 4);
-  };
+  const auto appendFloat = [&](double v) { appendFloat32(out, static_cast<float>(v)); };
   for (int c = 0; c < 3; ++c)
     for (int r = 0; r < 3; ++r)
       appendFloat(m(r, c));

@@ -88,6 +88,29 @@ struct Image {
   bool rescaled() const { return value_scale != 1.0 || value_offset != 0.0; }
 };
 
+// POLYDATA (protocol 3; VTK's vtkPolyData): points, cells as VTK writes them, and dataset
+// attributes. Its sizes are checked both ways (cells against the points, attributes against the
+// points or cells they belong to).
+struct PolyAttribute {
+  // 0x00..0x04: per point (scalars, vectors, normals, tensors, RGBA); 0x10..0x14: per cell.
+  std::uint8_t type = 0x10;
+  std::uint8_t components = 1;  // 3 for vectors and normals, 9 for tensors, 4 for RGBA
+  std::string name;             // at most 255 characters
+  std::vector<float> values;    // `components` per point or cell
+  bool perCell() const { return (type & 0x10) != 0; }
+};
+struct PolyData {
+  std::vector<float> points;  // x, y, z per point (mm)
+  // VTK's cell arrays: for each cell, its number of points n, then n point indices.
+  std::vector<std::uint32_t> vertices, lines, polygons, strips;
+  std::vector<PolyAttribute> attributes;
+};
+// The cells in a VTK cell array; nothing if it is malformed (a count past its end, an index past
+// `points`).
+std::optional<std::size_t> cellCount(const std::vector<std::uint32_t>& cells, std::size_t points);
+constexpr std::size_t kPolyDataHeaderBytes = 40;  // ten uint32
+constexpr std::size_t kMaxPolyAttributeName = 255;
+
 // TDATA's element: a tool's pose (a 6D instrument unless said otherwise).
 struct TrackingElement {
   std::string name;                                      // up to 20 characters
@@ -112,6 +135,7 @@ struct Message {
   Command command;                        // COMMAND, RTS_COMMAND
   Image image;                            // IMAGE
   std::vector<TrackingElement> tracking;  // TDATA
+  PolyData poly;                          // POLYDATA
   std::uint32_t stream_interval_ms = 0;   // STT_TDATA: the least time between two frames
 };
 
@@ -129,6 +153,8 @@ Message transformMessage(std::string device, const Eigen::Matrix4d& matrix);
 Message queryMessage(std::string type, std::string device);
 // IMAGE named `device`.
 Message imageMessage(std::string device, Image image);
+// POLYDATA named `device`.
+Message polyDataMessage(std::string device, PolyData poly);
 // TDATA of one tool named `device`, its pose `matrix`.
 Message trackingMessage(std::string device, const Eigen::Matrix4d& matrix);
 // COMMAND or RTS_COMMAND ("COMMAND" as device name, as OpenIGTLinkIO sends them).
