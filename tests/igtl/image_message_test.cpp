@@ -187,5 +187,48 @@ TEST(IgtlImage, ImagesThatCannotBeTakenAreRefusedByName) {
   EXPECT_FALSE(encode(imageMessage("CT", wrong)).ok());
 }
 
+// A scan larger than the running-CRC threshold, fed in odd-sized reads: read whole and equal when
+// intact; one voxel byte flipped under the same header is refused as a CRC mismatch, and the
+// message after it is read.
+TEST(IgtlImage, ALargeImageFedInPiecesIsCheckedAsItArrives) {
+  const Image image = int16Image({128, 96, 50});  // 1.2 MB of voxels
+  ASSERT_GT(image.data_bytes, kRunningCrcBytes);
+  Message m = imageMessage("ConfirmationCT", image);
+  m.header_version = 2;
+  m.metadata = {{"Scanner", kUsAscii, "test"}};
+  auto bytes = encode(m);
+  ASSERT_TRUE(bytes.ok()) << bytes.error().message;
+  auto after = encode(statusMessage("After", StatusCode::kOk));
+  ASSERT_TRUE(after.ok());
+  std::string damaged = *bytes;
+  damaged[damaged.size() / 2] ^= 0x10;
+  for (const bool intact : {true, false}) {
+    const std::string stream = (intact ? *bytes : damaged) + *after;
+    Decoder decoder(64 * 1024, 4u << 20);
+    std::vector<Expected<Message>> got;
+    for (std::size_t at = 0; at < stream.size(); at += 7919) {
+      decoder.feed(stream.data() + at, std::min<std::size_t>(7919, stream.size() - at));
+      while (auto next = decoder.next())
+        got.push_back(std::move(*next));
+    }
+    ASSERT_EQ(got.size(), 2u);
+    ASSERT_TRUE(got[1].ok());
+    EXPECT_EQ(got[1]->device_name, "After");
+    if (!intact) {
+      ASSERT_FALSE(got[0].ok());
+      EXPECT_NE(got[0].error().message.find("IMAGE message 'ConfirmationCT': CRC mismatch"),
+                std::string::npos)
+          << got[0].error().message;
+      continue;
+    }
+    ASSERT_TRUE(got[0].ok()) << got[0].error().message;
+    const Image& read = got[0]->image;
+    EXPECT_EQ(read.size, image.size);
+    ASSERT_EQ(read.data_bytes, image.data_bytes);
+    EXPECT_EQ(std::memcmp(read.data.get(), image.data.get(), image.data_bytes), 0);
+    ASSERT_NE(metaDataValue(*got[0], "Scanner"), nullptr);
+  }
+}
+
 }  // namespace
 }  // namespace ignav::igtl

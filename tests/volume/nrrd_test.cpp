@@ -326,6 +326,46 @@ TEST(Nrrd, WriteReadRoundTripRescaledValuesAsDouble) {
         ASSERT_NEAR(out->valueAt(i, j, k), in.valueAt(i, j, k), 1e-9);
 }
 
+// A scan's voxels as they came (uint16 above int16's range; float32 on a 0.5 grid) are read back
+// exactly, on the same oblique geometry; a short buffer or a skewed geometry is refused by name.
+TEST(Nrrd, VoxelsWrittenAsTheyCameReadBackExactly) {
+  const Geometry g = obliqueVolume().geometry;
+  const std::size_t n = g.voxelCount();
+  std::vector<std::uint16_t> wide(n);
+  std::vector<float> halves(n);
+  for (std::size_t v = 0; v < n; ++v) {
+    wide[v] = static_cast<std::uint16_t>(40000 + 7 * v);
+    halves[v] = -1000.0f + 0.5f * static_cast<float>(v);
+  }
+  const auto path = (scratchDir() / "as_received.nrrd").string();
+  ASSERT_TRUE(writeNrrdVoxels(g, VoxelType::kUInt16, reinterpret_cast<const char*>(wide.data()),
+                              2 * n, path)
+                  .ok());
+  auto out = readNrrd(path);
+  ASSERT_TRUE(out.ok()) << out.error().message;
+  EXPECT_EQ(out->geometry.dims, g.dims);
+  EXPECT_LT((out->geometry.ijkToLps() - g.ijkToLps()).cwiseAbs().maxCoeff(), 1e-12);
+  for (std::size_t v = 0; v < n; ++v)
+    ASSERT_EQ(out->voxels[v] * out->value_scale + out->value_offset, wide[v]) << v;
+  ASSERT_TRUE(writeNrrdVoxels(g, VoxelType::kFloat, reinterpret_cast<const char*>(halves.data()),
+                              4 * n, path)
+                  .ok());
+  out = readNrrd(path);
+  ASSERT_TRUE(out.ok()) << out.error().message;
+  for (std::size_t v = 0; v < n; ++v)
+    ASSERT_DOUBLE_EQ(out->voxels[v] * out->value_scale + out->value_offset, halves[v]) << v;
+
+  const auto short_buffer = writeNrrdVoxels(
+      g, VoxelType::kFloat, reinterpret_cast<const char*>(halves.data()), 4 * n - 4, path);
+  ASSERT_FALSE(short_buffer.ok());
+  EXPECT_NE(short_buffer.error().message.find("float"), std::string::npos);
+  Geometry skewed = g;
+  skewed.direction(0, 1) += 0.2;
+  EXPECT_FALSE(writeNrrdVoxels(skewed, VoxelType::kFloat,
+                               reinterpret_cast<const char*>(halves.data()), 4 * n, path)
+                   .ok());
+}
+
 TEST(Nrrd, WriteRejectsInconsistentVolume) {
   Volume in = obliqueVolume();
   in.voxels.pop_back();

@@ -867,6 +867,21 @@ void Decoder::feed(const char* bytes, std::size_t count) {
     }
   }
   buffer_.append(bytes, count);
+  advanceCrc();
+}
+
+void Decoder::advanceCrc() {
+  if (skip_ > 0 || buffer_.size() <= kHeaderBytes) return;
+  const Header h = readHeader(buffer_.data());
+  if ((h.version != 1 && h.version != 2) || h.body_size <= kRunningCrcBytes ||
+      h.body_size > limitFor(h.type)) {
+    return;
+  }
+  const std::uint64_t here = std::min<std::uint64_t>(h.body_size, buffer_.size() - kHeaderBytes);
+  if (here <= crc_bytes_) return;
+  crc_ =
+      crc64(std::string_view(buffer_).substr(kHeaderBytes + crc_bytes_, here - crc_bytes_), crc_);
+  crc_bytes_ = here;
 }
 
 std::optional<Expected<Message>> Decoder::next() {
@@ -879,6 +894,8 @@ std::optional<Expected<Message>> Decoder::next() {
     const std::uint64_t here = std::min<std::uint64_t>(body, buffer_.size() - kHeaderBytes);
     buffer_.erase(0, kHeaderBytes + here);
     skip_ = body - here;
+    forgetCrc();
+    advanceCrc();  // the next message's, if it is here
     return Expected<Message>(std::move(e));
   };
   if (header.version != 1 && header.version != 2) {
@@ -907,7 +924,10 @@ std::optional<Expected<Message>> Decoder::next() {
     buffer_.erase(0, kHeaderBytes + body);
   }
   const std::string_view body_bytes = std::string_view(*whole).substr(kHeaderBytes);
-  if (crc64(body_bytes) != header.crc) {
+  const std::uint64_t crc = crc64(body_bytes.substr(crc_bytes_), crc_);
+  forgetCrc();
+  advanceCrc();
+  if (crc != header.crc) {
     return Expected<Message>(makeError(ErrorCode::kFormat, name + ": CRC mismatch"));
   }
   Message out;

@@ -899,6 +899,41 @@ Status writeNrrd(const Volume& volume, const std::string& path, NrrdEncoding enc
       });
 }
 
+Status writeNrrdVoxels(const Geometry& g, VoxelType voxel_type, const char* voxels,
+                       std::size_t bytes, const std::string& path) {
+  if (auto s = g.validate(path); !s.ok()) {
+    return makeError(ErrorCode::kInvalidArgument, s.error().message);
+  }
+  // The same order as the readers' own type list.
+  static_assert(static_cast<int>(VoxelType::kUInt16) == static_cast<int>(ScalarType::kUInt16) &&
+                static_cast<int>(VoxelType::kDouble) == static_cast<int>(ScalarType::kDouble));
+  const auto type = static_cast<ScalarType>(static_cast<int>(voxel_type));
+  const std::size_t width = sizeOf(type);
+  const std::size_t n = g.voxelCount();
+  if (voxels == nullptr || bytes != n * width) {
+    return fail(ErrorCode::kInvalidArgument, path,
+                std::to_string(bytes) + " bytes of voxels; " + std::to_string(n) + " voxels of " +
+                    detail::toString(type) + " are " + std::to_string(n * width));
+  }
+  std::ostringstream h;
+  h << "NRRD0004\n"
+    << "# Complete NRRD file format specification at:\n"
+    << "# http://teem.sourceforge.net/nrrd/format.html\n"
+    << "type: " << detail::toString(type) << "\n"
+    << "dimension: 3\n"
+    << "space: left-posterior-superior\n"
+    << "sizes: " << g.dims[0] << " " << g.dims[1] << " " << g.dims[2] << "\n"
+    << spaceLines(g) << "\nkinds: domain domain domain\n"
+    << "endian: " << (hostIsBigEndian() ? "big" : "little") << "\n"
+    << "encoding: raw\n"
+    << "space origin: (" << fmt(g.origin_lps_mm.x()) << "," << fmt(g.origin_lps_mm.y()) << ","
+    << fmt(g.origin_lps_mm.z()) << ")\n\n";
+  return writeAttachedNrrd(path, h.str(), n, width, false,
+                           [&](std::size_t first, std::size_t count, std::uint8_t* out) {
+                             std::memcpy(out, voxels + first * width, count * width);
+                           });
+}
+
 Status writeNrrdLayers(const NrrdLayers& image, const std::string& path) {
   const Geometry& g = image.geometry;
   if (auto s = g.validate(path); !s.ok()) {

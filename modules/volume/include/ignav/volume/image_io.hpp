@@ -40,6 +40,13 @@ Expected<NrrdLayers> readNrrdLayers(const std::string& path);
 // more than one layer, with the key:=value pairs (keys without ':' or line breaks).
 Status writeNrrdLayers(const NrrdLayers& image, const std::string& path);
 
+// Voxels of any of the readers' types as they lie in memory (host byte order, i fastest), kept
+// exactly as they came: an attached raw NRRD in LPS, `geometry` validated first. For a scan
+// received over the network (OpenIGTLink IMAGE), saved so that it is read back like any file.
+enum class VoxelType { kInt8, kUInt8, kInt16, kUInt16, kInt32, kUInt32, kFloat, kDouble };
+Status writeNrrdVoxels(const Geometry& geometry, VoxelType type, const char* voxels,
+                       std::size_t bytes, const std::string& path);
+
 // By extension: .nrrd .nhdr -> readNrrd, .mha .mhd -> readMetaImage (case-insensitive).
 // Anything else (a DICOM folder or .dcm) is kUnsupported for now.
 Expected<Volume> readVolumeFile(const std::string& path, const ProgressCallback& progress = {});
