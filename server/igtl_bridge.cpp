@@ -10,23 +10,27 @@ namespace ignav::server {
 using workflow::Input;
 
 std::unique_ptr<IgtlBridge> IgtlBridge::start(const OpenIgtlinkOptions& g,
+                                              const std::filesystem::path& session_dir,
                                               std::function<void()> wake) {
   IgtlListenerOptions lo;
   lo.address = g.address;
   lo.port = g.port;
   lo.timeout_s = g.timeout_s;
   lo.tip_rate_hz = g.tip_rate_hz;
-  auto listener = std::make_unique<IgtlListener>(lo, std::move(wake));
+  lo.max_image_bytes = g.max_scan_mb << 20;
+  auto listener = std::make_unique<IgtlListener>(lo, wake);
   auto port = listener->start();
   if (!port) {
     spdlog::error("{}; the server runs without OpenIGTLink", port.error().message);
     return nullptr;
   }
-  return std::unique_ptr<IgtlBridge>(new IgtlBridge(g, std::move(listener), *port));
+  auto scans = std::make_unique<ScanWriter>(session_dir / "received", std::move(wake));
+  return std::unique_ptr<IgtlBridge>(
+      new IgtlBridge(g, std::move(listener), *port, std::move(scans)));
 }
 
 IgtlBridge::IgtlBridge(const OpenIgtlinkOptions& g, std::unique_ptr<IgtlListener> listener,
-                       int port)
+                       int port, std::unique_ptr<ScanWriter> scans)
     // Request ids never repeat across restarts (the core answers a repeated one from the journal).
     : bridge_(igtl::BrpOptions{g.allow_motion_approval,
                                igtl::parseRevision(g.protocol).value_or(igtl::Revision::kSlicer)},
@@ -34,6 +38,7 @@ IgtlBridge::IgtlBridge(const OpenIgtlinkOptions& g, std::unique_ptr<IgtlListener
       tip_period_(std::chrono::duration_cast<Clock::duration>(
           std::chrono::duration<double>(1.0 / g.tip_rate_hz))),
       port_(port),
+      scans_(std::move(scans)),
       listener_(std::move(listener)) {
   spdlog::info("OpenIGTLink (BRP workphase protocol, revision {}) listening on {}:{}", g.protocol,
                g.address, port_);
@@ -49,6 +54,19 @@ IgtlBridge::IgtlBridge(const OpenIgtlinkOptions& g, std::unique_ptr<IgtlListener
 void IgtlBridge::serve(const workflow::Session& session, const actuation::Steps& position,
                        const std::function<void(Input)>& run,
                        const std::function<void()>& clients_changed, std::size_t& handled) {
+  // The inputs of one message (or one kept scan) run before the next is looked at.
+  const auto runInputs = [&] {
+    while (!inputs_.empty()) {
+      Input in = std::move(inputs_.front());
+      inputs_.pop_front();
+      run(std::move(in));
+    }
+  };
+  for (const auto& written : scans_->take()) {
+    ++handled;
+    send(bridge_.onScanSaved(written.scan, written.path, written.error), session);
+    runInputs();
+  }
   for (auto& ev : listener_->take()) {
     ++handled;
     switch (ev.kind) {
@@ -77,12 +95,7 @@ void IgtlBridge::serve(const workflow::Session& session, const actuation::Steps&
         send(bridge_.onMessage(ev.client, ev.message, session, position), session);
         break;
     }
-    // The inputs of one message run before the next message is looked at.
-    while (!inputs_.empty()) {
-      Input in = std::move(inputs_.front());
-      inputs_.pop_front();
-      run(std::move(in));
-    }
+    runInputs();
   }
 }
 
@@ -130,6 +143,20 @@ void IgtlBridge::send(igtl::BrpOutput out, const workflow::Session& session) {
   }
   for (auto& in : out.inputs)
     inputs_.push_back(std::move(in));
+  for (auto& scan : out.scans) {
+    const std::uint64_t client = scan.client;
+    const std::string device = scan.device;
+    if (!scans_->write(std::move(scan))) {
+      igtl::Message busy = igtl::statusMessage(
+          device, igtl::StatusCode::kBusy,
+          fmt::format("{} scans are being written already: send it again in a moment",
+                      ScanWriter::kMaxWaiting),
+          "busy");
+      busy.timestamp_s = now_s;
+      bridge_.annotate(busy, session);
+      listener_->send(client, std::move(busy));
+    }
+  }
 }
 
 }  // namespace ignav::server

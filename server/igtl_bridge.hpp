@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -15,15 +16,18 @@
 #include "ignav/actuation/controller.hpp"
 #include "ignav/igtl/brp.hpp"
 #include "igtl_listener.hpp"
+#include "scan_writer.hpp"
 #include "server_options.hpp"
 
 namespace ignav::server {
 
 class IgtlBridge {
  public:
-  // Listens as `options` say; `wake` is called from the listener's thread when something came.
+  // Listens as `options` say; `wake` is called from the listener's thread when something came,
+  // and from the scan writer's when a received scan is kept (in `session_dir`/received).
   // Never fatal: null when it cannot listen (logged); the server then runs without it.
   static std::unique_ptr<IgtlBridge> start(const OpenIgtlinkOptions& options,
+                                           const std::filesystem::path& session_dir,
                                            std::function<void()> wake);
 
   int port() const { return port_; }
@@ -51,7 +55,8 @@ class IgtlBridge {
   bool reply(const workflow::Reply& reply, const workflow::Session& session);
 
  private:
-  IgtlBridge(const OpenIgtlinkOptions& options, std::unique_ptr<IgtlListener> listener, int port);
+  IgtlBridge(const OpenIgtlinkOptions& options, std::unique_ptr<IgtlListener> listener, int port,
+             std::unique_ptr<ScanWriter> scans);
   // Stamps each message with the server's clock and the session's metadata, then queues it.
   void send(igtl::BrpOutput out, const workflow::Session& session);
 
@@ -62,6 +67,7 @@ class IgtlBridge {
   Clock::duration tip_period_;
   actuation::Steps last_steps_;
   int port_ = 0;
+  std::unique_ptr<ScanWriter> scans_;       // writes what is waiting when the bridge goes
   std::unique_ptr<IgtlListener> listener_;  // last: its thread stops first
 };
 

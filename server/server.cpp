@@ -126,7 +126,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
   session_ =
       workflow::newSession(session_dir_.filename().string(), std::move(robot), o.robot_config);
   if (o.openigtlink.enabled) {
-    igtl_ = IgtlBridge::start(o.openigtlink, [this] { waitset_.trigger(); });
+    igtl_ = IgtlBridge::start(o.openigtlink, session_dir_, [this] { waitset_.trigger(); });
     if (igtl_) state_.setSafetyNotice(igtl_->safetyNotice());
   }
 }

@@ -128,6 +128,9 @@ std::optional<std::string> checkServerOptions(const ServerOptions& o) {
   if (!(g.tip_rate_hz >= 1.0) || g.tip_rate_hz > 1000.0) {
     return fmt::format("openigtlink.tip_rate_hz: {} Hz; must be within 1..1000", g.tip_rate_hz);
   }
+  if (g.max_scan_mb > 16384) {
+    return fmt::format("openigtlink.max_scan_mb: {} MiB; must be within 0..16384", g.max_scan_mb);
+  }
   if (!igtl::parseRevision(g.protocol)) {
     return fmt::format(
         "openigtlink.protocol: '{}' is not a BRP revision: slicer (the current 3D "
@@ -282,10 +285,12 @@ ServerOptions loadServerOptions(const std::string& path) {
           go.protocol = valueOf<std::string>(kv.second, path, "openigtlink." + key);
         } else if (key == "tip_rate_hz") {
           go.tip_rate_hz = valueOf<double>(kv.second, path, "openigtlink." + key);
+        } else if (key == "max_scan_mb") {
+          go.max_scan_mb = valueOf<std::uint64_t>(kv.second, path, "openigtlink." + key);
         } else {
           throw ConfigError(path + ": server.openigtlink." + key +
                             ": unknown key; expected enabled, address, port, timeout_s, "
-                            "allow_motion_approval, protocol, tip_rate_hz");
+                            "allow_motion_approval, protocol, tip_rate_hz, max_scan_mb");
         }
       }
     }

@@ -52,6 +52,9 @@ struct OpenIgtlinkOptions {
   // The needle tip told during motion this many times a second: TRANSFORM to every client, TDATA
   // to those that asked for it (STT_TDATA), each stamped with when the position was read.
   double tip_rate_hz = 20.0;
+  // The largest scan (IMAGE ConfirmationCT / IntermittentCT) a client may send, in MiB of body; a
+  // client holds at most one while it arrives. 0: none taken.
+  std::uint64_t max_scan_mb = 1024;
 };
 
 // The largest DDS domain id: RTPS's default port mapping (7400 + 250 x id + 11) stays a UDP port.

@@ -2,7 +2,7 @@
 // peer (v3_peer.hpp: written from the protocol's description, libOpenIGTLink's CRC). What the
 // upstream OpenIGTLink 3.1 client was cut off for (issue 44) — a STRING command, a CLB_ transform
 // and a COMMAND with version-2 headers and metadata — is answered in version 2, and every answer
-// is checked byte by byte: header, extended header, metadata, CRC. DDS domains 177-179.
+// is checked byte by byte: header, extended header, metadata, CRC. DDS domains 177-179, 186, 189.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -10,6 +10,7 @@
 
 #include "e2e/server_process.hpp"
 #include "ignav/volume/dicom.hpp"
+#include "ignav/volume/image_io.hpp"
 #include "v3_peer.hpp"
 
 namespace ignav::igtl3_test {
@@ -233,13 +234,6 @@ TEST(Igtl3E2E, AStreamThatIsNotOpenIGTLinkLearnsWhyBeforeItIsLetGo) {
   EXPECT_EQ(ack->version, 2);
 }
 
-float floatAt(const std::string& bytes, std::size_t at) {
-  const auto bits = static_cast<std::uint32_t>(fromBe(bytes, at, 4));
-  float f;
-  std::memcpy(&f, &bits, 4);
-  return f;
-}
-
 TEST(Igtl3E2E, ThePlanningCtReachesAProtocol3ClientAsTheSeriesWithItsGeometry) {
   ServerProcess server(179);
   auto op = server.client("operator");
@@ -297,6 +291,157 @@ TEST(Igtl3E2E, ThePlanningCtReachesAProtocol3ClientAsTheSeriesWithItsGeometry) {
   // Every voxel, as the series has it.
   ASSERT_EQ(c.size() - 72, ct.voxels.size() * 2);
   EXPECT_EQ(std::memcmp(c.data() + 72, ct.voxels.data(), ct.voxels.size() * 2), 0);
+}
+
+// A volume's IMAGE content as the peer writes it: int16 when its values are stored as they are,
+// else float32 physical values; its axes and centre in RAS.
+std::string imageOf(const volume::Volume& v) {
+  const Eigen::Matrix4d ijk_lps = v.geometry.ijkToLps();
+  const Eigen::Vector3d ras(-1, -1, 1);
+  double axes[3][3], centre[3];
+  const Eigen::Vector4d middle((v.geometry.dims[0] - 1) / 2.0, (v.geometry.dims[1] - 1) / 2.0,
+                               (v.geometry.dims[2] - 1) / 2.0, 1.0);
+  const Eigen::Vector4d c = ijk_lps * middle;
+  for (int r = 0; r < 3; ++r) {
+    for (int a = 0; a < 3; ++a)
+      axes[a][r] = ras[r] * ijk_lps(r, a);
+    centre[r] = ras[r] * c[r];
+  }
+  const bool as_stored = v.value_scale == 1.0 && v.value_offset == 0.0;
+  std::string voxels;
+  if (as_stored) {
+    voxels.assign(reinterpret_cast<const char*>(v.voxels.data()), 2 * v.voxels.size());
+  } else {
+    for (const std::int16_t stored : v.voxels) {
+      const auto f = static_cast<float>(stored * v.value_scale + v.value_offset);
+      voxels.append(reinterpret_cast<const char*>(&f), 4);
+    }
+  }
+  return imageContent(as_stored ? 4 : 10, 1, v.geometry.dims.data(), axes, centre, voxels);
+}
+
+// What a scanner bridge does: the confirmation CT sent as an IMAGE. The server keeps it in the
+// session folder as it came, measures it as load_confirmation measures a file (the same rows as
+// the DICOM series it was made from, measured over DDS), tells the sender when it is taken and
+// when it is measured, and sends it back on GET_IMAGE; images it cannot take are refused by name,
+// the session unchanged. DDS domain 189.
+TEST(Igtl3E2E, AConfirmationCtSentAsAnImageIsKeptMeasuredAndSentBack) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("ignav_igtl3_scan_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  ServerProcess server(189, {"--controller-speed", "40000"});
+  auto op = server.client("operator");
+  e2e::insertAll(*op, {{8, 12, -175}, {-6, 10, -182}});
+  const auto [status, text] =
+      e2e::runPlan("confirmation-phantom " + server.sessionDir().string() +
+                       " --robot " IGNAV_SOURCE_DIR "/configs/robots/torabi2014.yaml --out " +
+                       (dir / "scan").string() + " --noise-hu 8 --seed 3",
+                   true);
+  ASSERT_EQ(status, 0) << text;
+  auto series = volume::readDicomSeries({(dir / "scan").string()});
+  ASSERT_TRUE(series.ok()) << series.error().message;
+  const volume::Volume& scan = series->volume;
+
+  Peer peer(server.igtlPort());
+  ASSERT_TRUE(peer.next().has_value());  // the greeting
+  const auto answerTo = [&](const std::string& device) {
+    return peer.until([&](const Frame& f) { return f.type == "STATUS" && f.device == device; },
+                      nullptr, 60s);
+  };
+  // Refused by name, nothing kept or measured: a name that is no scan, two components, axes that
+  // are not perpendicular.
+  const int tiny[3] = {2, 2, 2};
+  const double axes[3][3] = {{-1, 0, 0}, {0, -1, 0}, {0, 0, 1}};
+  const double skewed[3][3] = {{-1, 0, 0}, {0.5, -1, 0}, {0, 0, 1}};
+  const double centre[3] = {0, 0, -180};
+  peer.send(frame(2, "IMAGE", "Banana", 0,
+                  body2(imageContent(4, 1, tiny, axes, centre, std::string(16, '\1')), 1, {})));
+  auto refused = answerTo("Banana");
+  ASSERT_TRUE(refused.has_value());
+  EXPECT_EQ(refused->statusCode(), 4);
+  EXPECT_EQ(refused->statusErrorName(), "unknown_image");
+  EXPECT_NE(refused->statusString().find("ConfirmationCT"), std::string::npos);
+  peer.send(frame(2, "IMAGE", "ConfirmationCT", 0,
+                  body2(imageContent(4, 2, tiny, axes, centre, std::string(32, '\1')), 2, {})));
+  refused = answerTo("ConfirmationCT");
+  ASSERT_TRUE(refused.has_value());
+  EXPECT_EQ(refused->statusErrorName(), "bad_image") << refused->statusString();
+  peer.send(frame(2, "IMAGE", "ConfirmationCT", 0,
+                  body2(imageContent(4, 1, tiny, skewed, centre, std::string(16, '\1')), 3, {})));
+  refused = answerTo("ConfirmationCT");
+  ASSERT_TRUE(refused.has_value());
+  EXPECT_EQ(refused->statusErrorName(), "bad_geometry") << refused->statusString();
+  // An intermittent CT with no insertion paused: kept, then refused by the core, in its words.
+  peer.send(frame(2, "IMAGE", "IntermittentCT", 0,
+                  body2(imageContent(4, 1, tiny, axes, centre, std::string(16, '\1')), 4, {})));
+  refused = answerTo("IntermittentCT");
+  ASSERT_TRUE(refused.has_value());
+  ASSERT_NO_FATAL_FAILURE(expectWellFramed(*refused));
+  EXPECT_NE(refused->statusCode(), 1) << refused->statusString();
+  EXPECT_FALSE(refused->statusString().empty());
+  EXPECT_EQ(op->state()["verification"]["status"], "none");
+
+  // The scan, as a scanner bridge sends it: taken, then measured.
+  peer.send(
+      frame(2, "IMAGE", "ConfirmationCT", 0, body2(imageOf(scan), 5, {{"Modality", 3, "CT"}})));
+  auto taken = answerTo("ConfirmationCT");
+  ASSERT_TRUE(taken.has_value());
+  ASSERT_NO_FATAL_FAILURE(expectWellFramed(*taken));
+  EXPECT_EQ(taken->statusCode(), 1) << taken->statusString();
+  EXPECT_EQ(taken->statusErrorName(), "measuring");
+  auto outcome = answerTo("ConfirmationCT");
+  ASSERT_TRUE(outcome.has_value());
+  ASSERT_NO_FATAL_FAILURE(expectWellFramed(*outcome));
+  EXPECT_EQ(outcome->statusCode(), 1) << outcome->statusString();
+  EXPECT_EQ(outcome->statusErrorName(), "measured") << outcome->statusString();
+
+  // Kept in the session folder, every voxel and the geometry as sent (float32 on the wire).
+  op->waitFor([](const json& s) { return s["verification"]["status"] == "measured"; }, 10s);
+  const json by_image = op->state()["verification"];
+  const std::string kept = by_image["source"];
+  EXPECT_EQ(std::filesystem::path(kept).parent_path(), server.sessionDir() / "received");
+  auto file = volume::readNrrd(kept);
+  ASSERT_TRUE(file.ok()) << file.error().message;
+  ASSERT_EQ(file->geometry.dims, scan.geometry.dims);
+  EXPECT_LT((file->geometry.ijkToLps() - scan.geometry.ijkToLps()).cwiseAbs().maxCoeff(), 1e-3);
+  for (std::size_t v = 0; v < scan.voxels.size(); ++v) {
+    ASSERT_EQ(file->voxels[v] * file->value_scale + file->value_offset,
+              scan.voxels[v] * scan.value_scale + scan.value_offset)
+        << v;
+  }
+
+  // Sent back as it was measured.
+  peer.send(frame(2, "GET_IMAGE", "ConfirmationCT", 0, body2("", 6, {})));
+  auto back = peer.until([](const Frame& f) { return f.type == "IMAGE"; }, nullptr, 60s);
+  ASSERT_TRUE(back.has_value());
+  ASSERT_NO_FATAL_FAILURE(expectWellFramed(*back));
+  EXPECT_EQ(back->device, "ConfirmationCT");
+  const std::string sent = imageOf(scan);
+  ASSERT_EQ(back->content.size(), sent.size());
+  EXPECT_EQ(back->content.compare(72, std::string::npos, sent, 72, std::string::npos), 0);
+  for (std::size_t at = 12; at < 60; at += 4)
+    EXPECT_NEAR(floatAt(back->content, at), floatAt(sent, at), 1e-3) << at;
+
+  // The same scan as its DICOM series, over DDS: the same rows.
+  const auto r = op->send("load_confirmation", {(dir / "scan").string(), {}, {}});
+  ASSERT_TRUE(r.accepted) << r.message;
+  op->waitFor(
+      [&](const json& s) {
+        return s["workflow"]["revision"].get<std::uint64_t>() > r.revision &&
+               s["verification"]["status"] != "measuring";
+      },
+      60s);
+  const json by_dds = op->state()["verification"];
+  ASSERT_EQ(by_dds["status"], "measured") << by_dds.dump();
+  ASSERT_EQ(by_dds["targets"].size(), 2u);
+  ASSERT_EQ(by_image["targets"].size(), 2u);
+  for (std::size_t t = 0; t < 2; ++t) {
+    EXPECT_EQ(by_image["targets"][t]["target_id"], by_dds["targets"][t]["target_id"]);
+    EXPECT_NEAR(by_image["targets"][t]["error_mm"].get<double>(),
+                by_dds["targets"][t]["error_mm"].get<double>(), 0.02)
+        << by_image["targets"][t].dump() << " " << by_dds["targets"][t].dump();
+  }
+  std::filesystem::remove_all(dir);
 }
 
 // The translation of a TDATA frame's first element (name at 0, type at 20, 12 floats from 22).

@@ -85,6 +85,37 @@ inline std::string commandContent(std::uint32_t id, const std::string& name,
                                   const std::string& text) {
   return be(id, 4) + padded(name, 128) + be(3, 2) + be(text.size(), 4) + text;
 }
+inline std::string beFloat(float f) {
+  std::uint32_t bits;
+  std::memcpy(&bits, &f, 4);
+  return be(bits, 4);
+}
+inline float floatAt(const std::string& bytes, std::size_t at) {
+  const auto bits = static_cast<std::uint32_t>(fromBe(bytes, at, 4));
+  float f;
+  std::memcpy(&f, &bits, 4);
+  return f;
+}
+// IMAGE: the 72-byte image header (its version 1; components; scalar type; endian 2, little;
+// coordinates 1, RAS; the size; the three axes times their spacing, column by column; the centre
+// of the volume; the sub-volume: offset 0, the whole size), then the voxels, little-endian.
+inline std::string imageContent(int scalar_type, int components, const int size[3],
+                                const double axes[3][3], const double centre[3],
+                                const std::string& voxels) {
+  std::string out = be(1, 2) + be(components, 1) + be(scalar_type, 1) + be(2, 1) + be(1, 1);
+  for (int a = 0; a < 3; ++a)
+    out += be(size[a], 2);
+  for (int a = 0; a < 3; ++a)
+    for (int r = 0; r < 3; ++r)
+      out += beFloat(static_cast<float>(axes[a][r]));
+  for (int r = 0; r < 3; ++r)
+    out += beFloat(static_cast<float>(centre[r]));
+  for (int a = 0; a < 3; ++a)
+    out += be(0, 2);
+  for (int a = 0; a < 3; ++a)
+    out += be(size[a], 2);
+  return out + voxels;
+}
 // TRANSFORM: the upper 3x4 of a matrix as float32, column by column (R11 R21 R31 R12 ... PZ).
 inline std::string transformContent(const float m[3][4]) {
   std::string out;

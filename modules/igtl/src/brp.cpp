@@ -175,6 +175,9 @@ void BrpBridge::onDisconnected(std::uint64_t client) {
   for (auto& [id, p] : pending_) {
     if (p.client == client) p.client = ~std::uint64_t{0};
   }
+  for (auto it = measuring_.begin(); it != measuring_.end();) {
+    it = it->second.client == client ? measuring_.erase(it) : std::next(it);
+  }
 }
 
 BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const workflow::Session& s,
@@ -209,6 +212,7 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
     return out;
   }
   if (m.type == "COMMAND") return onCommand(client, m, s);
+  if (m.type == "IMAGE") return onScan(client, m, s);
   if (m.type == "TRANSFORM") {
     const auto clb = idAfter(m.device_name, "CLB_");
     const auto tgt = idAfter(m.device_name, "TGT_");
@@ -223,13 +227,14 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
       auto in = input(InputKind::kSetRegistration);
       // Slicer's matrix maps RAS to the robot: p_robot = M p_ras = (M F) p_lps.
       in.matrix = m.matrix * rasFromLps();
-      pending_[in.request_id] = {client, Purpose::kCalibration, Workphase::kCalibration, {}, {},
-                                 {}};
+      pending_[in.request_id] = {
+          client, Purpose::kCalibration, Workphase::kCalibration, {}, {}, {}, {}, {}};
       out.inputs.push_back(std::move(in));
     } else {
       auto in = input(InputKind::kAddTarget);
       in.points.push_back(rasFromLps().topLeftCorner<3, 3>() * m.matrix.topRightCorner<3, 1>());
-      pending_[in.request_id] = {client, Purpose::kTarget, Workphase::kTargeting, {}, {}, {}};
+      pending_[in.request_id] = {client, Purpose::kTarget, Workphase::kTargeting, {}, {}, {}, {},
+                                 {}};
       out.inputs.push_back(std::move(in));
     }
     return out;
@@ -249,7 +254,8 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
     for (const auto& point : m.points) {
       auto in = input(InputKind::kAddTarget);
       in.points.push_back(rasFromLps().topLeftCorner<3, 3>() * point.position_mm);
-      pending_[in.request_id] = {client, Purpose::kTarget, Workphase::kTargeting, {}, {}, {}};
+      pending_[in.request_id] = {client, Purpose::kTarget, Workphase::kTargeting, {}, {}, {}, {},
+                                 {}};
       out.inputs.push_back(std::move(in));
     }
     return out;
@@ -296,6 +302,118 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
                      fmt::format("{} is not part of the BRP protocol here", m.type),
                      "unknown_message"));
   return out;
+}
+
+BrpOutput BrpBridge::onScan(std::uint64_t client, const Message& m,
+                            const workflow::Session&) const {
+  BrpOutput out;
+  const auto refuse = [&](StatusCode code, const std::string& why, const char* error_name) {
+    out.messages.push_back({client, statusMessage(m.device_name, code, why, error_name)});
+    return out;
+  };
+  const std::string name = fmt::format("IMAGE '{}'", m.device_name);
+  if (m.device_name != kConfirmationScan && m.device_name != kIntermittentScan) {
+    return refuse(StatusCode::kNotFound,
+                  fmt::format("{}: the images taken here are {} (measured as load_confirmation) "
+                              "and {} (as scan_needle)",
+                              name, kConfirmationScan, kIntermittentScan),
+                  "unknown_image");
+  }
+  const Image& image = m.image;
+  if (image.components != 1) {
+    return refuse(StatusCode::kConfigurationError,
+                  fmt::format("{}: {} components per voxel; a CT has one", name,
+                              static_cast<int>(image.components)),
+                  "bad_image");
+  }
+  ReceivedScan scan;
+  switch (image.scalar_type) {
+    case ScalarType::kInt8:
+      scan.type = volume::VoxelType::kInt8;
+      break;
+    case ScalarType::kUint8:
+      scan.type = volume::VoxelType::kUInt8;
+      break;
+    case ScalarType::kInt16:
+      scan.type = volume::VoxelType::kInt16;
+      break;
+    case ScalarType::kUint16:
+      scan.type = volume::VoxelType::kUInt16;
+      break;
+    case ScalarType::kInt32:
+      scan.type = volume::VoxelType::kInt32;
+      break;
+    case ScalarType::kUint32:
+      scan.type = volume::VoxelType::kUInt32;
+      break;
+    case ScalarType::kFloat32:
+      scan.type = volume::VoxelType::kFloat;
+      break;
+    case ScalarType::kFloat64:
+      scan.type = volume::VoxelType::kDouble;
+      break;
+  }
+  // IJK -> LPS; its columns are the axes times the spacing.
+  const Eigen::Matrix4d to_lps =
+      image.ras ? Eigen::Matrix4d(rasFromLps() * image.ijk_to_mm) : image.ijk_to_mm;
+  volume::Geometry& g = scan.geometry;
+  g.dims = image.size;
+  for (int a = 0; a < 3; ++a) {
+    g.spacing_mm[a] = to_lps.col(a).head<3>().norm();
+    g.direction.col(a) = to_lps.col(a).head<3>() / g.spacing_mm[a];
+  }
+  g.origin_lps_mm = to_lps.topRightCorner<3, 1>();
+  if (auto valid = g.validate(name); !valid.ok()) {
+    return refuse(StatusCode::kConfigurationError, valid.error().message, "bad_geometry");
+  }
+  scan.client = client;
+  scan.device = m.device_name;
+  scan.voxels = image.data;
+  scan.bytes = image.data_bytes;
+  out.scans.push_back(std::move(scan));
+  return out;
+}
+
+BrpOutput BrpBridge::onScanSaved(const ReceivedScan& scan, const std::string& path,
+                                 const std::string& error) {
+  BrpOutput out;
+  if (!error.empty()) {
+    out.messages.push_back(
+        {scan.client, statusMessage(scan.device, StatusCode::kResourceError,
+                                    "the scan could not be kept: " + error, "not_saved")});
+    return out;
+  }
+  auto in = input(scan.device == kConfirmationScan ? InputKind::kLoadConfirmation
+                                                   : InputKind::kScanNeedle);
+  in.path = path;
+  Pending p;
+  p.client = scan.client;
+  p.purpose = Purpose::kScan;
+  p.scan = scan.device;
+  p.scan_path = path;
+  pending_[in.request_id] = std::move(p);
+  out.inputs.push_back(std::move(in));
+  return out;
+}
+
+void BrpBridge::reportMeasurements(const workflow::Session& s, BrpOutput& out) {
+  const workflow::Confirmation& c = s.confirmation;
+  for (auto it = measuring_.begin(); it != measuring_.end();) {
+    if (c.measuring == it->first) {
+      ++it;
+      continue;
+    }
+    const std::string& path = it->second.path;
+    const bool measured = c.source == path && (c.status == "measured" || c.status == "unmatched");
+    const bool about_it = c.source == path || c.message.find(path) != std::string::npos;
+    out.messages.push_back(
+        {it->second.client,
+         statusMessage(kConfirmationScan,
+                       measured ? StatusCode::kOk : StatusCode::kConfigurationError,
+                       about_it ? c.message : path + ": a later scan was measured instead",
+                       measured ? c.status : "not_measured")});
+    it = measuring_.erase(it);
+  }
 }
 
 void BrpBridge::startWorkphase(Pending p, const workflow::Session& s, BrpOutput& out) {
@@ -567,12 +685,23 @@ BrpOutput BrpBridge::onReply(const workflow::Reply& reply, const workflow::Sessi
       auto in = input(InputKind::kRemoveTarget);
       in.ids.push_back(t->id);
       pending_[in.request_id] = {
-          p.client, Purpose::kTargetRemoval, Workphase::kTargeting, {}, t->message, {}};
+          p.client, Purpose::kTargetRemoval, Workphase::kTargeting, {}, t->message, {}, {}, {}};
       out.inputs.push_back(std::move(in));
       return out;
     }
     case Purpose::kTargetRemoval:
       send(statusMessage("TARGET", StatusCode::kConfigurationError, p.why, "unreachable"));
+      return out;
+    case Purpose::kScan:
+      if (!reply.accepted) {
+        send(statusMessage(p.scan, statusCodeFor(reply.error_code, s.phase, options_.revision),
+                           reply.message, errorNameFor(reply.error_code)));
+        return out;
+      }
+      if (p.scan == kConfirmationScan && reply.job != 0) {
+        measuring_[reply.job] = {p.client, p.scan_path};
+      }
+      send(statusMessage(p.scan, StatusCode::kOk, reply.message, "measuring"));
       return out;
     case Purpose::kOwnCommand: {
       const auto& [id, name] = *p.command;
@@ -589,6 +718,7 @@ BrpOutput BrpBridge::onReply(const workflow::Reply& reply, const workflow::Sessi
 
 BrpOutput BrpBridge::onState(const workflow::Session& s) {
   BrpOutput out;
+  reportMeasurements(s, out);  // asked for by the scan's sender, in either revision
   const Phase before = last_phase_;
   last_phase_ = s.phase;
   if (before == Phase::kMoving && s.phase != Phase::kMoving) {
@@ -658,10 +788,18 @@ void BrpBridge::annotate(Message& m, const workflow::Session& s) const {
 }
 
 Message imageFor(const std::string& name, const workflow::Session& s) {
-  if (name == "PlanningCT") {
-    const auto& volume = s.ct.volume;
+  if (name == "PlanningCT" || name == kConfirmationScan) {
+    const bool planning = name == "PlanningCT";
+    const auto& volume = planning ? s.ct.volume : s.confirmation.ct;
     if (!volume) {
-      return statusMessage(name, StatusCode::kNotReady, "no CT is loaded", "no_volume");
+      return statusMessage(name, StatusCode::kNotReady,
+                           planning ? "no CT is loaded"
+                           : s.confirmation.source.empty()
+                               ? "no confirmation CT has been measured"
+                               : "the confirmation CT " + s.confirmation.source +
+                                     " was measured before this server started: its voxels are "
+                                     "in that file",
+                           "no_volume");
     }
     Image image;
     image.size = volume->geometry.dims;
@@ -675,7 +813,7 @@ Message imageFor(const std::string& name, const workflow::Session& s) {
     image.value_offset = volume->value_offset;
     Message m = imageMessage(name, std::move(image));
     m.metadata.push_back({"ValueUnits", kUsAscii, "HU"});
-    m.metadata.push_back({"Source", kUsAscii, s.ct.source});
+    m.metadata.push_back({"Source", kUsAscii, planning ? s.ct.source : s.confirmation.source});
     return m;
   }
   if (name == "Dose") {
@@ -696,7 +834,7 @@ Message imageFor(const std::string& name, const workflow::Session& s) {
     m.metadata.push_back({"Dose", kUsAscii, dose->what});
     return m;
   }
-  return statusMessage(name, StatusCode::kNotFound, "images here: PlanningCT, Dose",
+  return statusMessage(name, StatusCode::kNotFound, "images here: PlanningCT, ConfirmationCT, Dose",
                        "unknown_image");
 }
 

@@ -87,6 +87,7 @@ Input measureConfirmation(const ConfirmationJob& job) {
     return in;
   }
   in.kind = InputKind::kConfirmationMeasured;
+  in.loaded.volume = markers.volume;
   in.points = found.points;
   in.summary = seeds->summary;
   if (!needles->needles.empty()) in.summary += "; " + needles->summary;

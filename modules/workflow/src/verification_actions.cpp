@@ -255,6 +255,7 @@ Refusal adoptConfirmation(Session& s, const Input& in, ActionOutput& out) {
   }
   Confirmation fresh;
   fresh.source = in.path;
+  fresh.ct = in.loaded.volume;
   fresh.markers_lps_mm = in.points;
   fresh.registration = std::move(reg).value();
   fresh.detection_summary = in.summary;

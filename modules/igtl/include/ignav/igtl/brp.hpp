@@ -17,6 +17,7 @@
 
 #include "ignav/igtl/command_xml.hpp"
 #include "ignav/igtl/message.hpp"
+#include "ignav/volume/image_io.hpp"
 #include "ignav/workflow/session.hpp"
 
 namespace ignav::igtl {
@@ -69,9 +70,25 @@ struct BrpOutgoing {
   Message message;
 };
 
+// An IMAGE a client sent to be measured (a scanner bridge's scan): "ConfirmationCT" becomes
+// load_confirmation, "IntermittentCT" scan_needle. The server keeps it in the session folder first
+// (off the event thread, its voxels exactly as they came), then tells onScanSaved.
+struct ReceivedScan {
+  std::uint64_t client = 0;
+  std::string device;
+  volume::Geometry geometry;  // LPS
+  volume::VoxelType type = volume::VoxelType::kInt16;
+  std::shared_ptr<const char> voxels;  // as received (host byte order), shared with the message
+  std::size_t bytes = 0;
+};
+// The IMAGE names a client may send, and what each becomes.
+inline constexpr const char* kConfirmationScan = "ConfirmationCT";
+inline constexpr const char* kIntermittentScan = "IntermittentCT";
+
 struct BrpOutput {
   std::vector<BrpOutgoing> messages;
   std::vector<workflow::Input> inputs;  // for the core, in order; the server stamps time, reading
+  std::vector<ReceivedScan> scans;      // to be saved, then onScanSaved
 };
 
 class BrpBridge {
@@ -86,6 +103,12 @@ class BrpBridge {
   // A message from a client. `live` is the motors' present position (for GET_TRANSFORM).
   BrpOutput onMessage(std::uint64_t client, const Message& m, const workflow::Session& s,
                       const actuation::Steps& live);
+  // A received scan was saved at `path` (a path the server reads), or could not be (`error`): it
+  // is measured as load_confirmation / scan_needle of that file would measure it, and the client
+  // told (STATUS named after the scan) when the core takes it and, for a confirmation CT, when the
+  // measurement ends.
+  BrpOutput onScanSaved(const ReceivedScan& scan, const std::string& path,
+                        const std::string& error);
   // The core's reply to one of our inputs (client id kBridgeClientId), with the session after it.
   BrpOutput onReply(const workflow::Reply& reply, const workflow::Session& s);
   // After every step: workphase changes, motion results, a new registration.
@@ -104,7 +127,8 @@ class BrpBridge {
  private:
   // kCommand: a workphase (STRING CMD_ or COMMAND); kOwnCommand: one of ignav's commands by its
   // name in the command table (COMMAND only).
-  enum class Purpose { kCommand, kCalibration, kTarget, kTargetRemoval, kOwnCommand };
+  // kScan: a received scan's load_confirmation or scan_needle.
+  enum class Purpose { kCommand, kCalibration, kTarget, kTargetRemoval, kOwnCommand, kScan };
   struct Pending {
     std::uint64_t client = 0;
     Purpose purpose = Purpose::kCommand;
@@ -113,7 +137,15 @@ class BrpBridge {
     std::string why;  // kTargetRemoval: the core's reason the target cannot be reached
     // A COMMAND's id and name: answered with RTS_COMMAND (a STRING CMD_ with STATUS).
     std::optional<std::pair<std::uint32_t, std::string>> command;
+    std::string scan, scan_path;  // kScan: the IMAGE's name, where it was kept
   };
+  // A received confirmation CT being measured: its client is told the outcome.
+  struct Measuring {
+    std::uint64_t client = 0;
+    std::string path;
+  };
+  void reportMeasurements(const workflow::Session& s, BrpOutput& out);
+  BrpOutput onScan(std::uint64_t client, const Message& m, const workflow::Session& s) const;
 
   workflow::Input input(workflow::InputKind kind);
   // The inputs a workphase asks for, dispatched (STRING CMD_ and COMMAND alike).
@@ -137,6 +169,7 @@ class BrpBridge {
   workflow::Phase last_phase_ = workflow::Phase::kStartup;
   bool halt_asked_ = false;  // a STOP / EMERGENCY of a client's interrupted the move
   std::optional<Eigen::Matrix4d> last_registration_;
+  std::map<std::uint64_t, Measuring> measuring_;  // by the load_confirmation's job
 };
 
 // The needle tip's pose in the image (RAS): translation = the tip at `steps`, rotation = the
@@ -148,9 +181,9 @@ std::optional<Eigen::Matrix4d> tipToImageRas(const workflow::Session& s,
 // robots): configuration error for bad values, not ready for everything else.
 StatusCode statusCodeFor(const std::string& error_code, workflow::Phase phase,
                          Revision revision = Revision::kSlicer);
-// GET_IMAGE's answer: "PlanningCT" (HU; float32 when the CT's stored values are rescaled) or
-// "Dose" (the latest computed, Gy, float32), in RAS with their geometry; a STATUS when there is
-// none. The voxels are shared with the session, not copied.
+// GET_IMAGE's answer: "PlanningCT" or "ConfirmationCT" (the measured one; HU, float32 when the
+// stored values are rescaled) or "Dose" (the latest computed, Gy, float32), in RAS with their
+// geometry; a STATUS when there is none. The voxels are shared with the session, not copied.
 Message imageFor(const std::string& name, const workflow::Session& s);
 
 // RTS_COMMAND answering COMMAND `id` named `name`: <Command Name=".." Status="SUCCESS|FAIL"

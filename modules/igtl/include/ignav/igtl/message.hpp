@@ -27,6 +27,7 @@ enum class StatusCode : std::uint16_t {
   kNotFound = 4,
   kBusy = 6,
   kConfigurationError = 10,
+  kResourceError = 11,  // e.g. a disk full
   kUnknownInstruction = 12,
   kNotReady = 13,
   kManualMode = 14,

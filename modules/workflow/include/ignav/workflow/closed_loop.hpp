@@ -79,6 +79,9 @@ struct Confirmation {
   std::string measuring_source;
   std::optional<Eigen::Matrix4d> measuring_matrix;  // the job's given registration, if any
   std::vector<Eigen::Vector3d> markers_lps_mm;      // on the confirmation CT, in the model's order
+  // The scan itself, as measured (for those who show it: OpenIGTLink's GET_IMAGE); none after a
+  // replay, which has its measurement but not its voxels.
+  std::shared_ptr<const volume::Volume> ct;
   std::optional<verification::ConfirmationRegistration> registration;
   std::string detection_summary;
   std::vector<FoundSeed> seeds;

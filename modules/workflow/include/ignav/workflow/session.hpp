@@ -131,7 +131,7 @@ struct Input {
   std::string path;
   std::vector<Eigen::Vector3d> points;
   std::vector<std::uint32_t> ids;
-  LoadedCt loaded;    // kVolumeLoaded
+  LoadedCt loaded;    // kVolumeLoaded; kConfirmationMeasured: the scan's volume (not journaled)
   std::string error;  // kVolumeLoadFailed, kFiducialDetectionFailed
   // kFiducialsDetected, kFiducialDetectionFailed: the detection they answer (the revision of the
   // auto_fiducials that asked for it); `path` is the CT it ran on, and `points` the matched
