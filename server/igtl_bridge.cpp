@@ -24,13 +24,13 @@ std::unique_ptr<IgtlBridge> IgtlBridge::start(const OpenIgtlinkOptions& g,
     spdlog::error("{}; the server runs without OpenIGTLink", port.error().message);
     return nullptr;
   }
-  auto scans = std::make_unique<ScanWriter>(session_dir / "received", std::move(wake));
+  auto scans = std::make_unique<ScanWriter>(session_dir / "received", wake);
   return std::unique_ptr<IgtlBridge>(
-      new IgtlBridge(g, std::move(listener), *port, std::move(scans)));
+      new IgtlBridge(g, std::move(listener), *port, std::move(scans), std::move(wake)));
 }
 
 IgtlBridge::IgtlBridge(const OpenIgtlinkOptions& g, std::unique_ptr<IgtlListener> listener,
-                       int port, std::unique_ptr<ScanWriter> scans)
+                       int port, std::unique_ptr<ScanWriter> scans, std::function<void()> wake)
     // Request ids never repeat across restarts (the core answers a repeated one from the journal).
     : bridge_(igtl::BrpOptions{g.allow_motion_approval,
                                igtl::parseRevision(g.protocol).value_or(igtl::Revision::kSlicer)},
@@ -40,6 +40,7 @@ IgtlBridge::IgtlBridge(const OpenIgtlinkOptions& g, std::unique_ptr<IgtlListener
       port_(port),
       scans_(std::move(scans)),
       listener_(std::move(listener)) {
+  surfaces_->wake = std::move(wake);
   spdlog::info("OpenIGTLink (BRP workphase protocol, revision {}) listening on {}:{}", g.protocol,
                g.address, port_);
   if (g.allow_motion_approval) {
@@ -49,6 +50,11 @@ IgtlBridge::IgtlBridge(const OpenIgtlinkOptions& g, std::unique_ptr<IgtlListener
         g.address, port_);
     spdlog::warn("!!! {} !!!", safety_notice_);
   }
+}
+
+IgtlBridge::~IgtlBridge() {
+  std::lock_guard<std::mutex> lock(surfaces_->mutex);
+  surfaces_->open = false;  // surfaces made after this wake nobody
 }
 
 void IgtlBridge::serve(const workflow::Session& session, const actuation::Steps& position,
@@ -62,6 +68,7 @@ void IgtlBridge::serve(const workflow::Session& session, const actuation::Steps&
       run(std::move(in));
     }
   };
+  sendSurfaces(session);
   for (const auto& written : scans_->take()) {
     ++handled;
     send(bridge_.onScanSaved(written.scan, written.path, written.error), session);
@@ -143,6 +150,23 @@ void IgtlBridge::send(igtl::BrpOutput out, const workflow::Session& session) {
   }
   for (auto& in : out.inputs)
     inputs_.push_back(std::move(in));
+  for (auto& request : out.surfaces) {
+    if (!surface_source_) {
+      igtl::BrpOutput none;
+      none.messages.push_back(
+          {request.client, igtl::statusMessage(request.device.empty() ? "Scene" : request.device,
+                                               igtl::StatusCode::kNotReady,
+                                               "this server makes no surfaces", "no_surfaces")});
+      send(std::move(none), session);
+      continue;
+    }
+    surface_source_([mailbox = surfaces_, request](auto made) {
+      std::lock_guard<std::mutex> lock(mailbox->mutex);
+      if (!mailbox->open) return;
+      mailbox->made.emplace_back(request, std::move(made));
+      mailbox->wake();
+    });
+  }
   for (auto& scan : out.scans) {
     const std::uint64_t client = scan.client;
     const std::string device = scan.device;
@@ -156,6 +180,41 @@ void IgtlBridge::send(igtl::BrpOutput out, const workflow::Session& session) {
       bridge_.annotate(busy, session);
       listener_->send(client, std::move(busy));
     }
+  }
+}
+
+void IgtlBridge::sendSurfaces(const workflow::Session& session) {
+  std::deque<std::pair<igtl::SurfaceRequest, Expected<std::vector<protocol::SceneSurface>>>> made;
+  {
+    std::lock_guard<std::mutex> lock(surfaces_->mutex);
+    made.swap(surfaces_->made);
+  }
+  for (auto& [request, surfaces] : made) {
+    igtl::BrpOutput out;
+    const auto tell = [&](igtl::Message m) {
+      out.messages.push_back({request.client, std::move(m)});
+    };
+    const bool all = request.device.empty() || request.device == "Scene";
+    if (!surfaces) {
+      tell(igtl::statusMessage(all ? "Scene" : request.device, igtl::StatusCode::kBusy,
+                               surfaces.error().message, "busy"));
+    } else {
+      std::string names;
+      for (const auto& surface : *surfaces) {
+        const std::string device = igtl::surfaceDeviceName(surface.name, surface.kind);
+        names += (names.empty() ? "" : ", ") + device;
+        if (!all && device != request.device) continue;
+        tell(igtl::surfaceMessage(device, surface.name, surface.kind, surface.colour_rgb,
+                                  surface.points_lps, surface.triangles));
+      }
+      if (!all && out.messages.empty()) {
+        tell(igtl::statusMessage(request.device, igtl::StatusCode::kNotFound,
+                                 fmt::format("surfaces here now: {}; and PlannedPaths",
+                                             names.empty() ? std::string("none") : names),
+                                 "unknown_surface"));
+      }
+    }
+    send(std::move(out), session);
   }
 }
 

@@ -9,12 +9,17 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "clock.hpp"
 #include "ignav/actuation/controller.hpp"
+#include "ignav/core/expected.hpp"
 #include "ignav/igtl/brp.hpp"
+#include "ignav/protocol/types.hpp"
 #include "igtl_listener.hpp"
 #include "scan_writer.hpp"
 #include "server_options.hpp"
@@ -53,14 +58,34 @@ class IgtlBridge {
                  const actuation::ControllerStatus& before, double measured_s);
   // The core's reply to one of the bridge's inputs, told to its client; false for anyone else's.
   bool reply(const workflow::Reply& reply, const workflow::Session& session);
+  // Where POLYDATA's surfaces come from: made off the event thread (the slices thread's scene),
+  // `done` called there. Without it, GET_POLYDATA has the planned paths only.
+  using SurfacesDone = std::function<void(Expected<std::vector<protocol::SceneSurface>>)>;
+  void setSurfaceSource(std::function<void(SurfacesDone)> source) {
+    surface_source_ = std::move(source);
+  }
+  ~IgtlBridge();
 
  private:
   IgtlBridge(const OpenIgtlinkOptions& options, std::unique_ptr<IgtlListener> listener, int port,
-             std::unique_ptr<ScanWriter> scans);
+             std::unique_ptr<ScanWriter> scans, std::function<void()> wake);
   // Stamps each message with the server's clock and the session's metadata, then queues it.
   void send(igtl::BrpOutput out, const workflow::Session& session);
 
+  // Surfaces made for a client, handed back from the slices thread: it outlives the bridge if it
+  // must (the slices thread may answer after the bridge has gone: then nothing is woken).
+  struct SurfaceMailbox {
+    std::mutex mutex;
+    bool open = true;
+    std::function<void()> wake;
+    std::deque<std::pair<igtl::SurfaceRequest, Expected<std::vector<protocol::SceneSurface>>>> made;
+  };
+  // Made surfaces as POLYDATA to whoever asked (those named, or all).
+  void sendSurfaces(const workflow::Session& session);
+
   igtl::BrpBridge bridge_;
+  std::function<void(SurfacesDone)> surface_source_;
+  std::shared_ptr<SurfaceMailbox> surfaces_ = std::make_shared<SurfaceMailbox>();
   std::deque<workflow::Input> inputs_;  // the bridge's inputs, run in order after its message
   std::string safety_notice_;
   Clock::time_point last_position_;

@@ -9,7 +9,6 @@
 #include <map>
 #include <mutex>
 #include <optional>
-#include <set>
 #include <thread>
 
 #include <fmt/format.h>
@@ -32,8 +31,10 @@ struct IgtlListener::Impl {
     std::size_t outbox_bytes = 0;  // of ordinary messages (bulk ones are counted by number)
     // Where in outbox.front() writing has got to: its segment, and bytes of that segment.
     std::size_t front_segment = 0, front_written = 0;
-    std::size_t bulk = 0;                    // images and surfaces being encoded for it or waiting
-    std::set<const igtl::Wire*> bulk_wires;  // which outbox entries are bulk
+    // Images and surfaces being encoded for it or waiting, in slots (bulkCost); which outbox
+    // entries are bulk, and their slots.
+    std::size_t bulk = 0;
+    std::map<const igtl::Wire*, std::size_t> bulk_wires;
     bool large_send_buffer = false;
     bool writing = false;
     // STT_TDATA asked for the tip: at least this long between two frames (STP_TDATA: none).
@@ -83,7 +84,10 @@ struct IgtlListener::Impl {
   asio::steady_timer tip_timer{io};
   Clock::time_point tip_deadline;
   static constexpr std::size_t kWriteChunkBytes = 1 << 20;
-  static constexpr std::size_t kMaxBulkPerClient = 2;
+  // Slots of bulk messages per client: two images (a CT each, up to a few hundred megabytes) or a
+  // scene's surfaces (a megabyte or so each), at once.
+  static constexpr std::size_t kMaxBulkSlots = 32;
+  static std::size_t bulkCost(const igtl::Message& m) { return m.type == "IMAGE" ? 16 : 1; }
 
   Impl(IgtlListenerOptions o, std::function<void()> w, std::atomic<std::size_t>& count)
       : options(std::move(o)), wake(std::move(w)), client_count(count) {}
@@ -268,10 +272,10 @@ struct IgtlListener::Impl {
   }
 
   void enqueue(const std::shared_ptr<Connection>& c, std::shared_ptr<const igtl::Wire> wire,
-               bool bulk = false) {
+               std::size_t bulk_slots = 0) {
     const std::size_t size = wire->size();
-    if (bulk) {
-      c->bulk_wires.insert(wire.get());
+    if (bulk_slots > 0) {
+      c->bulk_wires[wire.get()] = bulk_slots;
     } else if (c->outbox_bytes + size > options.max_outbox_bytes) {
       drop(c, fmt::format("not reading: {} bytes waiting to be sent", c->outbox_bytes));
       return;
@@ -316,8 +320,10 @@ struct IgtlListener::Impl {
                           ++c->front_segment;
                         }
                         if (c->front_segment == done->segments.size()) {
-                          if (c->bulk_wires.erase(done) > 0) {
-                            --c->bulk;
+                          if (const auto bulk = c->bulk_wires.find(done);
+                              bulk != c->bulk_wires.end()) {
+                            c->bulk -= bulk->second;
+                            c->bulk_wires.erase(bulk);
                           } else {
                             c->outbox_bytes -= done->size();
                           }
@@ -335,10 +341,10 @@ struct IgtlListener::Impl {
 
   // Images and surfaces are encoded (their voxels' CRC: ~0.1 s for a CT, then kept) on the
   // encoder thread, never here, where an EMERGENCY from a client is read. At most
-  // kMaxBulkPerClient per client.
+  // kMaxBulkSlots per client.
   bool sendBulk(const std::shared_ptr<Connection>& c, igtl::Message m) {
-    if (c->bulk >= kMaxBulkPerClient) return false;
-    ++c->bulk;
+    if (c->bulk + bulkCost(m) > kMaxBulkSlots) return false;
+    c->bulk += bulkCost(m);
     m.header_version = c->header_version;
     if (m.header_version >= 2) m.message_id = next_message_id++;
     {
@@ -382,14 +388,14 @@ struct IgtlListener::Impl {
       } else {
         spdlog::error("OpenIGTLink: not sent to client {}: {}", job.first, wire.error().message);
       }
-      asio::post(io, [this, client = job.first, shared] {
+      asio::post(io, [this, client = job.first, shared, slots = bulkCost(job.second)] {
         const auto it = connections.find(client);
         if (it == connections.end()) return;
         if (!shared) {
-          --it->second->bulk;
+          it->second->bulk -= slots;
           return;
         }
-        enqueue(it->second, shared, true);
+        enqueue(it->second, shared, slots);
       });
     }
   }

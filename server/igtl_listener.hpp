@@ -29,8 +29,8 @@ struct IgtlListenerOptions {
   std::size_t max_clients = 16;
   std::size_t max_outbox_bytes = 4 * 1024 * 1024;  // of ordinary messages waiting
   double tip_rate_hz = 20.0;  // the TDATA stream's rate (STT_TDATA asks for at most this)
-  // The largest IMAGE a client may send (0: as any other message). Until an IMAGE is taken as a
-  // confirmation CT (issue 44's next step) none is held beyond the ordinary limit.
+  // The largest IMAGE a client may send (0: as any other message): a scanner bridge's scan
+  // (openigtlink.max_scan_mb). A client holds at most one while it arrives.
   std::uint64_t max_image_bytes = 0;
 };
 
@@ -58,9 +58,9 @@ class IgtlListener {
   // client speaks (the highest it sent; version-2 messages get an id); unknown or gone clients
   // are ignored.
   void send(std::uint64_t client, igtl::Message message);
-  // IMAGE and POLYDATA are bulk: encoded on the listener's encoder thread, at most two at a
-  // time per client (a third is answered STATUS busy), written a megabyte at a time. Not for
-  // broadcast.
+  // IMAGE and POLYDATA are bulk: encoded on the listener's encoder thread, at most two images or
+  // a scene's surfaces (32) on their way per client (beyond: STATUS busy), written a megabyte at
+  // a time. Not for broadcast.
   void broadcast(igtl::Message message);
   static bool isBulk(const igtl::Message& message);
   // The needle tip now (RAS, its pose), read at `measured_s` (Unix s), the robot `moving` or not:

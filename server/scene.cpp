@@ -144,11 +144,17 @@ void SceneBuilder::volumePart(const SceneRequest& request, const workflow::Sessi
 }
 
 void SceneBuilder::surfacesPart(const workflow::Session& session, SceneReply& out) {
+  out.surfaces = surfaces(session);
+  out.ok = true;
+}
+
+std::vector<SceneSurface> SceneBuilder::surfaces(const workflow::Session& session) {
+  std::vector<SceneSurface> out;
   for (const auto* part :
        {&structureSurfaces(session), &feasibleSurface(session), &isodoseSurfaces(session)}) {
-    out.surfaces.insert(out.surfaces.end(), part->begin(), part->end());
+    out.insert(out.end(), part->begin(), part->end());
   }
-  out.ok = true;
+  return out;
 }
 
 const std::vector<SceneSurface>& SceneBuilder::structureSurfaces(const workflow::Session& s) {

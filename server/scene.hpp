@@ -28,6 +28,9 @@ class SceneBuilder {
   // bad input: the reply says what is wrong.
   protocol::SceneReply build(const protocol::SceneRequest& request,
                              const workflow::Session& session);
+  // The surfaces alone (structures, feasible volume, isodoses; LPS), the same kept meshes: what
+  // OpenIGTLink's POLYDATA carries.
+  std::vector<protocol::SceneSurface> surfaces(const workflow::Session& session);
 
  private:
   struct Averaged {  // the CT averaged over blocks of voxels

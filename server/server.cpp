@@ -127,7 +127,11 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
       workflow::newSession(session_dir_.filename().string(), std::move(robot), o.robot_config);
   if (o.openigtlink.enabled) {
     igtl_ = IgtlBridge::start(o.openigtlink, session_dir_, [this] { waitset_.trigger(); });
-    if (igtl_) state_.setSafetyNotice(igtl_->safetyNotice());
+    if (igtl_) {
+      state_.setSafetyNotice(igtl_->safetyNotice());
+      igtl_->setSurfaceSource(
+          [this](IgtlBridge::SurfacesDone done) { slices_.surfaces(snapshot(), std::move(done)); });
+    }
   }
 }
 

@@ -38,6 +38,14 @@ Slices::~Slices() {
                left.size());
 }
 
+void Slices::surfaces(Snapshot session, SurfacesDone done) {
+  Job job;
+  job.session = std::move(session);
+  job.client_id = "openigtlink";
+  job.surfaces_done = std::move(done);
+  enqueue(std::move(job));
+}
+
 void Slices::request(const SliceRequest& r, Snapshot session) {
   Job job;
   job.session = std::move(session);
@@ -90,7 +98,9 @@ void Slices::loop() {
     }
     // A slice that cannot be drawn or sent is said in the log; it never stops the server.
     try {
-      if (job.scene) {
+      if (job.surfaces_done) {
+        job.surfaces_done(scene_.surfaces(*job.session));
+      } else if (job.scene) {
         scene_replies_.write(scene_.build(*job.scene, *job.session));
       } else {
         Result result = render(job);
@@ -153,6 +163,10 @@ Slices::Result Slices::render(const Job& req) {
 }
 
 void Slices::refuse(const Job& job, const std::string& why) const {
+  if (job.surfaces_done) {
+    job.surfaces_done(makeError(ErrorCode::kIo, why, "busy"));
+    return;
+  }
   if (job.scene) {
     SceneReply r;
     r.client_id = job.client_id;

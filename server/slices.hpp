@@ -19,12 +19,14 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
 
+#include "ignav/core/expected.hpp"
 #include "ignav/protocol/types.hpp"
 #include "ignav/protocol/wire/messages.hpp"
 #include "ignav/volume/render.hpp"
@@ -48,6 +50,11 @@ class Slices {
   void request(const protocol::SliceRequest& request, Snapshot session);
   // Queues a part of the 3D view's scene, the same way.
   void request(const protocol::SceneRequest& request, Snapshot session);
+  // The scene's surfaces for another edge (OpenIGTLink's POLYDATA), the same kept meshes, queued
+  // the same way: `done` is called on the slices thread with them, or with why not (the queue is
+  // full, the server stops).
+  using SurfacesDone = std::function<void(Expected<std::vector<protocol::SceneSurface>>)>;
+  void surfaces(Snapshot session, SurfacesDone done);
 
  private:
   struct Job {
@@ -59,6 +66,7 @@ class Slices {
     double pixel_mm = 0.0, window = 0.0, level = 0.0;
     bool overlays = false, region_only = false;
     std::optional<protocol::SceneRequest> scene;  // set: a part of the scene, not a slice
+    SurfacesDone surfaces_done;                   // set: the scene's surfaces for another edge
   };
   struct Result {
     std::string client_id, message;

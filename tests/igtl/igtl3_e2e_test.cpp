@@ -2,7 +2,8 @@
 // peer (v3_peer.hpp: written from the protocol's description, libOpenIGTLink's CRC). What the
 // upstream OpenIGTLink 3.1 client was cut off for (issue 44) — a STRING command, a CLB_ transform
 // and a COMMAND with version-2 headers and metadata — is answered in version 2, and every answer
-// is checked byte by byte: header, extended header, metadata, CRC. DDS domains 177-179, 186, 189.
+// is checked byte by byte: header, extended header, metadata, CRC. DDS domains 177-179, 186, 189,
+// 190.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -442,6 +443,171 @@ TEST(Igtl3E2E, AConfirmationCtSentAsAnImageIsKeptMeasuredAndSentBack) {
         << by_image["targets"][t].dump() << " " << by_dds["targets"][t].dump();
   }
   std::filesystem::remove_all(dir);
+}
+
+// POLYDATA's content as the description lays it out: ten counts and sizes; the points; the
+// vertices, lines, polygons and strips as (n, indices...) arrays; per attribute its type, its
+// components and its count; the names, each NUL-terminated, padded to an even length; the values.
+struct PeerPolyData {
+  std::vector<float> points;
+  std::vector<std::uint32_t> cells[4];  // vertices, lines, polygons, strips
+  struct Attribute {
+    int type = 0, components = 0;
+    std::string name;
+    std::vector<float> values;
+  };
+  std::vector<Attribute> attributes;
+};
+
+PeerPolyData readPolyData(const std::string& c) {
+  PeerPolyData p;
+  const std::uint64_t points = fromBe(c, 0, 4);
+  std::size_t at = 40;
+  for (std::uint64_t i = 0; i < 3 * points; ++i, at += 4)
+    p.points.push_back(floatAt(c, at));
+  for (int k = 0; k < 4; ++k) {
+    for (std::uint64_t i = 0; i < fromBe(c, 8 + 8 * k, 4) / 4; ++i, at += 4)
+      p.cells[k].push_back(static_cast<std::uint32_t>(fromBe(c, at, 4)));
+  }
+  std::vector<std::uint64_t> counts;
+  for (std::uint64_t i = 0; i < fromBe(c, 36, 4); ++i, at += 6) {
+    PeerPolyData::Attribute a;
+    a.type = static_cast<int>(fromBe(c, at, 1));
+    a.components = static_cast<int>(fromBe(c, at + 1, 1));
+    counts.push_back(fromBe(c, at + 2, 4));
+    p.attributes.push_back(a);
+  }
+  std::size_t names = 0;
+  for (auto& a : p.attributes) {
+    a.name = std::string(c.c_str() + at);
+    at += a.name.size() + 1;
+    names += a.name.size() + 1;
+  }
+  at += names % 2;
+  for (std::size_t i = 0; i < p.attributes.size(); ++i) {
+    auto& a = p.attributes[i];
+    for (std::uint64_t v = 0; v < counts[i] * static_cast<std::uint64_t>(a.components);
+         ++v, at += 4)
+      a.values.push_back(floatAt(c, at));
+  }
+  EXPECT_EQ(at, c.size()) << "the parts add up to the content";
+  return p;
+}
+
+Eigen::Vector3d pointOf(const std::vector<float>& xyz, std::size_t i) {
+  return {xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]};
+}
+
+// A closed mesh's signed volume (divergence theorem): positive when it is wound outwards.
+double signedVolume(const std::vector<float>& xyz, const std::vector<std::uint32_t>& triangles,
+                    std::size_t step, std::size_t first) {
+  double six_v = 0.0;
+  for (std::size_t t = first; t + 2 < triangles.size(); t += step) {
+    six_v += pointOf(xyz, triangles[t])
+                 .dot(pointOf(xyz, triangles[t + 1]).cross(pointOf(xyz, triangles[t + 2])));
+  }
+  return six_v / 6.0;
+}
+
+// The 3D view's surfaces and the planned paths as POLYDATA: every surface the scene has over DDS,
+// turned into RAS point for point and still wound outwards (the same enclosed volume, positive);
+// each planned path a polyline ending at its target, its points naming the target. Asked before
+// there is anything: refused by name. DDS domain 190.
+TEST(Igtl3E2E, SurfacesAndPathsReachAProtocol3ClientAsPolyData) {
+  ServerProcess server(190);
+  auto op = server.client("operator");
+  Peer peer(server.igtlPort());
+  ASSERT_TRUE(peer.next().has_value());  // the greeting
+  std::uint32_t id = 0;
+  const auto ask = [&](const std::string& device) {
+    peer.send(frame(2, "GET_POLYDATA", device, 0, body2("", ++id, {})));
+  };
+  const auto answerTo = [&](const std::string& device) {
+    return peer.until([&](const Frame& f) { return f.device == device; }, nullptr, 60s);
+  };
+  ask("PlannedPaths");
+  auto refused = answerTo("PlannedPaths");
+  ASSERT_TRUE(refused.has_value());
+  EXPECT_EQ(refused->type, "STATUS");
+  EXPECT_EQ(refused->statusErrorName(), "not_registered");
+  ask("FeasibleVolume");
+  refused = answerTo("FeasibleVolume");
+  ASSERT_TRUE(refused.has_value());
+  EXPECT_EQ(refused->statusErrorName(), "unknown_surface") << refused->statusString();
+
+  e2e::registeredPhantom(*op);
+  ASSERT_TRUE(op->send("load_structures", {"phantom:", {}, {}}).accepted);
+  op->waitFor([](const json& s) { return e2e::stateText(s, "structures", "status") == "loaded"; },
+              60s);
+  const std::vector<Eigen::Vector3d> targets_lps = {e2e::lpsOf(op->state(), {8, 12, -175}),
+                                                    e2e::lpsOf(op->state(), {-6, 10, -182})};
+  std::vector<std::uint32_t> target_ids;
+  for (const auto& lps : targets_lps) {
+    const auto added = op->send("add_target", {"", {lps}, {}});
+    ASSERT_TRUE(added.accepted) << added.message;
+    target_ids.push_back(added.target_id);
+  }
+  const auto scene = op->scene("surfaces", 0, 0, 60s);
+  ASSERT_TRUE(scene.ok) << scene.message;
+  ASSERT_GE(scene.surfaces.size(), 2u);  // the structures and the feasible volume
+
+  ask("");  // everything
+  std::vector<Frame> polys;
+  ASSERT_TRUE(peer.until(
+      [&](const Frame& f) {
+        if (f.type == "POLYDATA") polys.push_back(f);
+        return polys.size() == scene.surfaces.size() + 1;
+      },
+      nullptr, 60s))
+      << polys.size() << " POLYDATA of " << scene.surfaces.size() + 1;
+  const Eigen::Vector3d ras(-1, -1, 1);
+  for (const auto& f : polys) {
+    ASSERT_NO_FATAL_FAILURE(expectWellFramed(f));
+    ASSERT_NE(f.metaValue("Units"), nullptr) << f.device;
+    EXPECT_EQ(*f.metaValue("Units"), "mm");
+    const PeerPolyData p = readPolyData(f.content);
+    if (f.device == "PlannedPaths") {
+      ASSERT_EQ(p.attributes.size(), 1u);
+      EXPECT_EQ(p.attributes[0].name, "TargetId");
+      EXPECT_EQ(p.attributes[0].type, 0);  // per point
+      std::size_t at = 0, path = 0;
+      for (; at < p.cells[1].size(); at += p.cells[1][at] + 1, ++path) {
+        ASSERT_LT(path, targets_lps.size());
+        const std::uint32_t n = p.cells[1][at];
+        ASSERT_GE(n, 2u);
+        const std::uint32_t last = p.cells[1][at + n];
+        const Eigen::Vector3d end = pointOf(p.points, last);
+        EXPECT_LT((end - ras.cwiseProduct(targets_lps[path])).norm(), 0.05)
+            << "path " << path << " ends at " << end.transpose();
+        for (std::uint32_t i = 1; i <= n; ++i)
+          EXPECT_EQ(p.attributes[0].values[p.cells[1][at + i]], target_ids[path]);
+      }
+      EXPECT_EQ(path, targets_lps.size());
+      continue;
+    }
+    ASSERT_NE(f.metaValue("Name"), nullptr) << f.device;
+    const protocol::SceneSurface* same = nullptr;
+    for (const auto& surface : scene.surfaces)
+      if (surface.name == *f.metaValue("Name")) same = &surface;
+    ASSERT_NE(same, nullptr) << *f.metaValue("Name");
+    EXPECT_EQ(f.device,
+              same->kind == "feasible" ? std::string("FeasibleVolume") : same->name.substr(0, 20));
+    ASSERT_EQ(p.points.size(), same->points_lps.size()) << f.device;
+    for (std::size_t i = 0; i < p.points.size(); ++i)
+      ASSERT_EQ(p.points[i], (i % 3 == 2 ? 1.0f : -1.0f) * same->points_lps[i]) << f.device;
+    ASSERT_EQ(p.cells[2].size(), same->triangles.size() / 3 * 4) << f.device;
+    const double lps_mm3 = signedVolume(same->points_lps, same->triangles, 3, 0);
+    const double ras_mm3 = signedVolume(p.points, p.cells[2], 4, 1);
+    EXPECT_GT(lps_mm3, 0.0) << f.device;
+    EXPECT_NEAR(ras_mm3, lps_mm3, 1e-6 * lps_mm3) << f.device << ": wound outwards in RAS";
+  }
+
+  ask("Banana");
+  refused = answerTo("Banana");
+  ASSERT_TRUE(refused.has_value());
+  EXPECT_EQ(refused->statusErrorName(), "unknown_surface");
+  EXPECT_NE(refused->statusString().find("FeasibleVolume"), std::string::npos)
+      << refused->statusString();
 }
 
 // The translation of a TDATA frame's first element (name at 0, type at 20, 12 floats from 22).

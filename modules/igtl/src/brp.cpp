@@ -6,6 +6,8 @@
 
 #include <fmt/format.h>
 
+#include "ignav/workflow/reducer.hpp"
+
 namespace ignav::igtl {
 namespace {
 
@@ -293,6 +295,13 @@ BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const wor
   }
   // The tip stream is the listener's to pace (server/igtl_listener.cpp): nothing to answer here.
   if (m.type == "STT_TDATA" || m.type == "STP_TDATA") return out;
+  if (m.type == "GET_POLYDATA") {
+    // The paths are the session's own (cheap); the surfaces are made on the slices thread.
+    const bool all = m.device_name.empty() || m.device_name == "Scene";
+    if (all || m.device_name == "PlannedPaths") send(plannedPaths(s));
+    if (m.device_name != "PlannedPaths") out.surfaces.push_back({client, m.device_name});
+    return out;
+  }
   if (m.type == "GET_IMAGE") {
     send(imageFor(m.device_name.empty() ? std::string("PlanningCT") : m.device_name, s));
     return out;
@@ -784,7 +793,10 @@ void BrpBridge::annotate(Message& m, const workflow::Session& s) const {
   };
   if (!s.robot_id.empty()) set("RobotId", s.robot_id);
   set("Workphase", toString(workphase(s)));
-  if (m.type == "TRANSFORM" || m.type == "POINT") set("Units", "mm");
+  if (m.type == "TRANSFORM" || m.type == "POINT" || m.type == "POLYDATA" || m.type == "TDATA" ||
+      m.type == "IMAGE") {
+    set("Units", "mm");
+  }
 }
 
 Message imageFor(const std::string& name, const workflow::Session& s) {
@@ -836,6 +848,79 @@ Message imageFor(const std::string& name, const workflow::Session& s) {
   }
   return statusMessage(name, StatusCode::kNotFound, "images here: PlanningCT, ConfirmationCT, Dose",
                        "unknown_image");
+}
+
+Message plannedPaths(const workflow::Session& s) {
+  const std::string device = "PlannedPaths";
+  if (!s.registration) {
+    return statusMessage(device, StatusCode::kNotReady, "not registered yet: no path is planned",
+                         "not_registered");
+  }
+  PolyData p;
+  PolyAttribute ids;
+  ids.type = 0x00;  // per point (see the header)
+  ids.name = "TargetId";
+  const Eigen::Matrix3d to_ras = rasFromLps().topLeftCorner<3, 3>();
+  std::vector<std::string> named;
+  for (const auto& t : s.targets) {
+    if (!t.registered || !t.solution.reachable()) continue;
+    const auto path = workflow::needlePathLps(s, t.commandedJoints());
+    if (path.size() < 2) continue;
+    const auto first = static_cast<std::uint32_t>(p.points.size() / 3);
+    p.lines.push_back(static_cast<std::uint32_t>(path.size()));
+    for (std::size_t i = 0; i < path.size(); ++i) {
+      const Eigen::Vector3d ras = to_ras * path[i];
+      for (int a = 0; a < 3; ++a)
+        p.points.push_back(static_cast<float>(ras[a]));
+      p.lines.push_back(first + static_cast<std::uint32_t>(i));
+      ids.values.push_back(static_cast<float>(t.id));
+    }
+    named.push_back(std::to_string(t.id));
+  }
+  p.attributes.push_back(std::move(ids));
+  Message m = polyDataMessage(device, std::move(p));
+  m.metadata.push_back({"Kind", kUsAscii, "paths"});
+  std::string list;
+  for (const auto& id : named)
+    list += (list.empty() ? "" : " ") + id;
+  m.metadata.push_back({"TargetIds", kUsAscii, list});
+  return m;
+}
+
+std::string surfaceDeviceName(const std::string& name, const std::string& kind) {
+  if (kind == "feasible") return "FeasibleVolume";
+  if (kind == "isodose") {
+    std::string digits;
+    for (const char c : name) {
+      if ((c >= '0' && c <= '9') || c == '.') digits += c;
+    }
+    return ("Isodose" + digits).substr(0, kMaxDeviceName);
+  }
+  return name.substr(0, kMaxDeviceName);
+}
+
+Message surfaceMessage(std::string device, const std::string& name, const std::string& kind,
+                       const std::array<double, 3>& colour_rgb,
+                       const std::vector<float>& points_lps,
+                       const std::vector<std::uint32_t>& triangles) {
+  PolyData p;
+  p.points = points_lps;
+  for (std::size_t i = 0; i + 2 < p.points.size(); i += 3) {  // LPS -> RAS: x and y negated
+    p.points[i] = -p.points[i];
+    p.points[i + 1] = -p.points[i + 1];
+  }
+  p.polygons.reserve(triangles.size() / 3 * 4);
+  for (std::size_t t = 0; t + 2 < triangles.size(); t += 3) {
+    // LPS -> RAS is a half turn about S (determinant +1), not a mirror: the winding stays outward.
+    p.polygons.insert(p.polygons.end(), {3, triangles[t], triangles[t + 1], triangles[t + 2]});
+  }
+  Message m = polyDataMessage(std::move(device), std::move(p));
+  m.metadata.push_back({"Name", kUsAscii, name});
+  m.metadata.push_back({"Kind", kUsAscii, kind});
+  m.metadata.push_back(
+      {"Colour", kUsAscii,
+       fmt::format("{:.4g} {:.4g} {:.4g}", colour_rgb[0], colour_rgb[1], colour_rgb[2])});
+  return m;
 }
 
 Message commandReply(std::uint32_t id, const std::string& name, bool success,

@@ -6,6 +6,7 @@
 // (docs/OPENIGTLINK.md).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <deque>
 #include <map>
@@ -85,10 +86,18 @@ struct ReceivedScan {
 inline constexpr const char* kConfirmationScan = "ConfirmationCT";
 inline constexpr const char* kIntermittentScan = "IntermittentCT";
 
+// GET_POLYDATA of a surface the server makes off the event thread (structures, the feasible
+// volume, isodoses): "" or "Scene" for all of them.
+struct SurfaceRequest {
+  std::uint64_t client = 0;
+  std::string device;
+};
+
 struct BrpOutput {
   std::vector<BrpOutgoing> messages;
   std::vector<workflow::Input> inputs;  // for the core, in order; the server stamps time, reading
   std::vector<ReceivedScan> scans;      // to be saved, then onScanSaved
+  std::vector<SurfaceRequest> surfaces;
 };
 
 class BrpBridge {
@@ -185,6 +194,21 @@ StatusCode statusCodeFor(const std::string& error_code, workflow::Phase phase,
 // stored values are rescaled) or "Dose" (the latest computed, Gy, float32), in RAS with their
 // geometry; a STATUS when there is none. The voxels are shared with the session, not copied.
 Message imageFor(const std::string& name, const workflow::Session& s);
+
+// GET_POLYDATA(PlannedPaths)'s answer: each planned target's needle path (needlePathLps of its
+// commanded joints: the cannula, then the stylet's arc) as a polyline in RAS, in target order, a
+// point scalar "TargetId" naming whose path each point is on (libOpenIGTLink misreads cell data);
+// empty when no target is planned; a STATUS when not registered.
+Message plannedPaths(const workflow::Session& s);
+// A closed surface as POLYDATA (points LPS -> RAS, a half turn about S that keeps the triangles
+// wound outwards), named `device`, its whole name, kind and colour as metadata.
+Message surfaceMessage(std::string device, const std::string& name, const std::string& kind,
+                       const std::array<double, 3>& colour_rgb,
+                       const std::vector<float>& points_lps,
+                       const std::vector<std::uint32_t>& triangles);
+// The POLYDATA device name of a scene surface: "FeasibleVolume", "Isodose100" (its percentage),
+// or the structure's name (cut to OpenIGTLink's 20 characters).
+std::string surfaceDeviceName(const std::string& name, const std::string& kind);
 
 // RTS_COMMAND answering COMMAND `id` named `name`: <Command Name=".." Status="SUCCESS|FAIL"
 // Code="ok|<reply code>" Message=".." /> (Slicer's OpenIGTLinkRemote reads Status and Message).
