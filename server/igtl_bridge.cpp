@@ -170,16 +170,23 @@ void IgtlBridge::send(igtl::BrpOutput out, const workflow::Session& session) {
   for (auto& scan : out.scans) {
     const std::uint64_t client = scan.client;
     const std::string device = scan.device;
-    if (!scans_->write(std::move(scan))) {
-      igtl::Message busy = igtl::statusMessage(
+    igtl::Message refused;
+    if (read_only_) {
+      refused = igtl::statusMessage(device, igtl::StatusCode::kNotReady,
+                                    "this server replays a recorded session and takes no scans",
+                                    "read_only");
+    } else if (!scans_->write(std::move(scan))) {
+      refused = igtl::statusMessage(
           device, igtl::StatusCode::kBusy,
           fmt::format("{} scans are being written already: send it again in a moment",
                       ScanWriter::kMaxWaiting),
           "busy");
-      busy.timestamp_s = now_s;
-      bridge_.annotate(busy, session);
-      listener_->send(client, std::move(busy));
+    } else {
+      continue;
     }
+    refused.timestamp_s = now_s;
+    bridge_.annotate(refused, session);
+    listener_->send(client, std::move(refused));
   }
 }
 

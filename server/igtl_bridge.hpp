@@ -65,6 +65,8 @@ class IgtlBridge {
     surface_source_ = std::move(source);
   }
   ~IgtlBridge();
+  // A replay: scans are refused before anything is written (the recorded folder stays as it was).
+  void setReadOnly() { read_only_ = true; }
 
  private:
   IgtlBridge(const OpenIgtlinkOptions& options, std::unique_ptr<IgtlListener> listener, int port,
@@ -92,6 +94,7 @@ class IgtlBridge {
   Clock::duration tip_period_;
   actuation::Steps last_steps_;
   int port_ = 0;
+  bool read_only_ = false;
   std::unique_ptr<ScanWriter> scans_;       // writes what is waiting when the bridge goes
   std::unique_ptr<IgtlListener> listener_;  // last: its thread stops first
 };

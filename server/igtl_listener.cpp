@@ -28,7 +28,7 @@ struct IgtlListener::Impl {
     igtl::Decoder decoder;
     std::array<char, 16 * 1024> read_buffer{};
     std::deque<std::shared_ptr<const igtl::Wire>> outbox;
-    std::size_t outbox_bytes = 0;  // of ordinary messages (bulk ones are counted by number)
+    std::size_t outbox_bytes = 0;  // of ordinary messages (bulk ones are counted in slots)
     // Where in outbox.front() writing has got to: its segment, and bytes of that segment.
     std::size_t front_segment = 0, front_written = 0;
     // Images and surfaces being encoded for it or waiting, in slots (bulkCost); which outbox

@@ -136,6 +136,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
 }
 
 int Server::replay(const std::atomic<bool>& stop, const std::vector<std::string>& lines) {
+  if (igtl_) igtl_->setReadOnly();
   if (auto conflict = checkRobotIdAtStart()) {
     spdlog::error("{}", *conflict);
     return 4;

@@ -263,7 +263,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         }
         const igtl::Message& m = next->value();
         sent.clear();
-        take(bridge.onMessage(1, m, session, session.position));
+        auto out = bridge.onMessage(1, m, session, session.position);
+        const auto scans = out.scans;
+        take(std::move(out));
+        // A scan taken: its geometry valid (the bridge checked it), kept or not, then measured.
+        for (const auto& scan : scans) {
+          if (!scan.geometry.validate("scan").ok() || !scan.voxels) std::abort();
+          take(bridge.onScanSaved(scan, in.ConsumeBool() ? "/nonexistent/scan.nrrd" : "",
+                                  in.ConsumeBool() ? "" : "disk full"));
+        }
         const bool command =
             m.type == "STRING" && m.device_name.rfind("CMD_", 0) == 0 && m.device_name.size() > 4;
         if (command && (sent.empty() || sent.front().message.device_name !=

@@ -5,7 +5,10 @@
 //     its CRC checked; median and worst of ROUNDS;
 //  2. TDATA: the phantom registered and a target approved over DDS, the tip streamed at 100 Hz
 //     (STT_TDATA) while the robot moves: the frames' inter-arrival times at the client, their
-//     deviation from 10 ms (median, p99, max), and how long after the reading each arrived.
+//     deviation from 10 ms (median, p99, max), and how long after the reading each arrived;
+//  3. IMAGE in: the same CT sent as ConfirmationCT (a scanner bridge's scan), timed until the
+//     server says it is kept and taken (and until its last byte was sent); another client's
+//     GET_STATUS round trips meanwhile.
 //   bench_igtl3 [--rounds 10] [--domain 93] [--size 512,512,300]
 #include <netinet/in.h>
 #include <netinet/tcp.h>
@@ -14,6 +17,7 @@
 #include <poll.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -57,6 +61,13 @@ class Peer {
   }
   ~Peer() { ::close(fd_); }
   Clock::time_point first_byte, last_byte;  // of the message being read
+  void sendRaw(const std::string& bytes) {
+    for (std::size_t sent = 0; sent < bytes.size();) {
+      const ssize_t n = ::send(fd_, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
+      if (n <= 0) throw std::runtime_error("send failed");
+      sent += static_cast<std::size_t>(n);
+    }
+  }
   void send(ignav::igtl::Message m) {
     m.header_version = 2;
     const auto bytes = ignav::igtl::encode(m);
@@ -269,6 +280,73 @@ int main(int argc, char** argv) {
         "ms, p99 %.2f ms\n",
         arrivals.size(), interval_ms.at(0.5), jitter_ms.at(0.5), jitter_ms.at(0.99),
         jitter_ms.at(1.0), late_ms.at(0.5), late_ms.at(0.99));
+
+    // 3. IMAGE in (last: the scans it writes leave the disk busy a while): the same CT sent as a
+    // scanner bridge sends a scan, timed from its first byte until the server answers that it is
+    // kept and taken (STATUS ConfirmationCT); meanwhile another client's GET_STATUS round trips,
+    // which the listener's thread answers between the scan's reads.
+    {
+      auto voxels = std::make_shared<std::vector<std::int16_t>>(static_cast<std::size_t>(size[0]) *
+                                                                size[1] * size[2]);
+      for (std::size_t n = 0; n < voxels->size(); ++n)
+        (*voxels)[n] = static_cast<std::int16_t>(40 + (n % 512) / 8);
+      ignav::igtl::Image image;
+      image.size = {size[0], size[1], size[2]};
+      image.ijk_to_mm.topLeftCorner<3, 3>() = Eigen::Vector3d(-0.7, -0.7, 1.0).asDiagonal();
+      image.ijk_to_mm.topRightCorner<3, 1>() = Eigen::Vector3d(179, 179, -300);
+      image.data =
+          std::shared_ptr<const char>(voxels, reinterpret_cast<const char*>(voxels->data()));
+      image.data_bytes = voxels->size() * 2;
+      ignav::igtl::Message scan = ignav::igtl::imageMessage("ConfirmationCT", image);
+      scan.header_version = 2;
+      const auto bytes = ignav::igtl::encode(scan);
+      if (!bytes) throw std::runtime_error(bytes.error().message);
+      Stats upload_ms, sent_ms, ping_ms;
+      int code = 0;
+      for (int r = 0; r < std::max(1, std::min(3, rounds)); ++r) {
+        Peer uploader(port), pinger(port);
+        pinger.send(ignav::igtl::queryMessage("GET_STATUS", "CURRENT_STATUS"));
+        if (!pinger.until("STATUS")) throw std::runtime_error("no STATUS");
+        std::atomic<bool> sent{false};
+        const auto t0 = Clock::now();
+        std::atomic<bool> failed{false};
+        std::thread upload([&] {
+          try {
+            uploader.sendRaw(*bytes);
+          } catch (const std::exception&) {
+            failed = true;
+          }
+          sent = true;
+        });
+        while (!sent) {
+          const auto p0 = Clock::now();
+          pinger.send(ignav::igtl::queryMessage("GET_STATUS", "CURRENT_STATUS"));
+          if (!pinger.until("STATUS")) throw std::runtime_error("no STATUS during the upload");
+          ping_ms.v.push_back(std::chrono::duration<double, std::milli>(Clock::now() - p0).count());
+          std::this_thread::sleep_for(5ms);
+        }
+        upload.join();
+        if (failed) throw std::runtime_error("the scan could not be sent");
+        sent_ms.v.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+        for (;;) {
+          auto got = uploader.until("STATUS");
+          if (!got) throw std::runtime_error("no answer to the scan");
+          if (got->first.device_name != "ConfirmationCT") continue;
+          upload_ms.v.push_back(
+              std::chrono::duration<double, std::milli>(got->second - t0).count());
+          code = got->first.status.code;
+          break;
+        }
+      }
+      std::printf(
+          "IMAGE in: %.1f MB sent as ConfirmationCT: last byte sent (about when the server "
+          "has read it) median %.1f ms; -> STATUS (code %d: kept, and taken or refused by the "
+          "core) median %.1f ms, max %.1f ms (%zu rounds); another client's GET_STATUS "
+          "meanwhile: median %.2f ms, p99 %.2f ms, max %.2f ms (%zu)\n",
+          static_cast<double>(bytes->size()) / 1e6, sent_ms.at(0.5), code, upload_ms.at(0.5),
+          upload_ms.at(1.0), upload_ms.v.size(), ping_ms.at(0.5), ping_ms.at(0.99), ping_ms.at(1.0),
+          ping_ms.v.size());
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_igtl3: %s (logs in %s)\n", e.what(), dir.c_str());
     status = 1;
