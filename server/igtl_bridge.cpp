@@ -9,6 +9,41 @@ namespace ignav::server {
 
 using workflow::Input;
 
+namespace {
+
+// GET_POLYDATA's answer from the scene's surfaces: those named (all for "" or "Scene"), or why
+// none.
+igtl::BrpOutput surfaceAnswer(const igtl::SurfaceRequest& request,
+                              const Expected<std::vector<protocol::SceneSurface>>& surfaces) {
+  igtl::BrpOutput out;
+  const auto tell = [&](igtl::Message m) {
+    out.messages.push_back({request.client, std::move(m)});
+  };
+  const bool all = request.device.empty() || request.device == "Scene";
+  if (!surfaces) {
+    tell(igtl::statusMessage(all ? "Scene" : request.device, igtl::StatusCode::kBusy,
+                             surfaces.error().message, "busy"));
+    return out;
+  }
+  std::string names;
+  for (const auto& surface : *surfaces) {
+    const std::string device = igtl::surfaceDeviceName(surface.name, surface.kind);
+    names += (names.empty() ? "" : ", ") + device;
+    if (!all && device != request.device) continue;
+    tell(igtl::surfaceMessage(device, surface.name, surface.kind, surface.colour_rgb,
+                              surface.points_lps, surface.triangles));
+  }
+  if (!all && out.messages.empty()) {
+    tell(igtl::statusMessage(request.device, igtl::StatusCode::kNotFound,
+                             fmt::format("surfaces here now: {}; and PlannedPaths",
+                                         names.empty() ? std::string("none") : names),
+                             "unknown_surface"));
+  }
+  return out;
+}
+
+}  // namespace
+
 std::unique_ptr<IgtlBridge> IgtlBridge::start(const OpenIgtlinkOptions& g,
                                               const std::filesystem::path& session_dir,
                                               std::function<void()> wake) {
@@ -161,9 +196,11 @@ void IgtlBridge::send(igtl::BrpOutput out, const workflow::Session& session) {
       continue;
     }
     surface_source_([mailbox = surfaces_, request](auto made) {
+      // On the slices thread: the meshes become messages there, not on the event thread.
+      igtl::BrpOutput answer = surfaceAnswer(request, made);
       std::lock_guard<std::mutex> lock(mailbox->mutex);
       if (!mailbox->open) return;
-      mailbox->made.emplace_back(request, std::move(made));
+      mailbox->made.push_back(std::move(answer));
       mailbox->wake();
     });
   }
@@ -191,38 +228,13 @@ void IgtlBridge::send(igtl::BrpOutput out, const workflow::Session& session) {
 }
 
 void IgtlBridge::sendSurfaces(const workflow::Session& session) {
-  std::deque<std::pair<igtl::SurfaceRequest, Expected<std::vector<protocol::SceneSurface>>>> made;
+  std::deque<igtl::BrpOutput> made;
   {
     std::lock_guard<std::mutex> lock(surfaces_->mutex);
     made.swap(surfaces_->made);
   }
-  for (auto& [request, surfaces] : made) {
-    igtl::BrpOutput out;
-    const auto tell = [&](igtl::Message m) {
-      out.messages.push_back({request.client, std::move(m)});
-    };
-    const bool all = request.device.empty() || request.device == "Scene";
-    if (!surfaces) {
-      tell(igtl::statusMessage(all ? "Scene" : request.device, igtl::StatusCode::kBusy,
-                               surfaces.error().message, "busy"));
-    } else {
-      std::string names;
-      for (const auto& surface : *surfaces) {
-        const std::string device = igtl::surfaceDeviceName(surface.name, surface.kind);
-        names += (names.empty() ? "" : ", ") + device;
-        if (!all && device != request.device) continue;
-        tell(igtl::surfaceMessage(device, surface.name, surface.kind, surface.colour_rgb,
-                                  surface.points_lps, surface.triangles));
-      }
-      if (!all && out.messages.empty()) {
-        tell(igtl::statusMessage(request.device, igtl::StatusCode::kNotFound,
-                                 fmt::format("surfaces here now: {}; and PlannedPaths",
-                                             names.empty() ? std::string("none") : names),
-                                 "unknown_surface"));
-      }
-    }
+  for (auto& out : made)
     send(std::move(out), session);
-  }
 }
 
 }  // namespace ignav::server

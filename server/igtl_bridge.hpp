@@ -80,9 +80,8 @@ class IgtlBridge {
     std::mutex mutex;
     bool open = true;
     std::function<void()> wake;
-    std::deque<std::pair<igtl::SurfaceRequest, Expected<std::vector<protocol::SceneSurface>>>> made;
+    std::deque<igtl::BrpOutput> made;  // POLYDATA (or why none), made on the slices thread
   };
-  // Made surfaces as POLYDATA to whoever asked (those named, or all).
   void sendSurfaces(const workflow::Session& session);
 
   igtl::BrpBridge bridge_;
