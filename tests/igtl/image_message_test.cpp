@@ -192,7 +192,7 @@ TEST(IgtlImage, ImagesThatCannotBeTakenAreRefusedByName) {
 // message after it is read.
 TEST(IgtlImage, ALargeImageFedInPiecesIsCheckedAsItArrives) {
   const Image image = int16Image({128, 96, 50});  // 1.2 MB of voxels
-  ASSERT_GT(image.data_bytes, kRunningCrcBytes);
+  ASSERT_GT(image.data_bytes, kLargeBodyBytes);
   Message m = imageMessage("ConfirmationCT", image);
   m.header_version = 2;
   m.metadata = {{"Scanner", kUsAscii, "test"}};

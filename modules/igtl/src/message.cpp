@@ -1,5 +1,7 @@
 #include "ignav/igtl/message.hpp"
 
+#include "ignav/volume/volume.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -162,7 +164,7 @@ Expected<std::string> polyDataBytes(const Message& in) {
 
 // `owner` holds the bytes `body` views: an image's voxels are kept in it, not copied.
 Expected<Message> decodeContent(Message out, std::string_view body,
-                                const std::shared_ptr<const std::string>& owner = nullptr) {
+                                const std::shared_ptr<const void>& owner = nullptr) {
   const std::string name = fmt::format("{} message '{}'", out.type, out.device_name);
   const auto format = [&](const std::string& what) {
     return makeError(ErrorCode::kFormat, name + ": " + what);
@@ -857,31 +859,44 @@ void Decoder::feed(const char* bytes, std::size_t count) {
     bytes += dropped;
     count -= dropped;
   }
-  // A large message within its limit: its whole length is reserved once, not grown into.
-  if (buffer_.size() < kHeaderBytes && buffer_.size() + count >= kHeaderBytes) {
-    std::string header(buffer_);
-    header.append(bytes, kHeaderBytes - buffer_.size());
-    const Header h = readHeader(header.data());
-    if (h.body_size <= limitFor(h.type) && h.body_size > (1u << 20)) {
-      buffer_.reserve(kHeaderBytes + h.body_size);
-    }
-  }
-  buffer_.append(bytes, count);
-  advanceCrc();
-}
-
-void Decoder::advanceCrc() {
-  if (skip_ > 0 || buffer_.size() <= kHeaderBytes) return;
-  const Header h = readHeader(buffer_.data());
-  if ((h.version != 1 && h.version != 2) || h.body_size <= kRunningCrcBytes ||
-      h.body_size > limitFor(h.type)) {
+  if (large_) {
+    takeIntoLargeBody(bytes, count);
+    buffer_.append(bytes, count);  // what follows the body
     return;
   }
-  const std::uint64_t here = std::min<std::uint64_t>(h.body_size, buffer_.size() - kHeaderBytes);
-  if (here <= crc_bytes_) return;
-  crc_ =
-      crc64(std::string_view(buffer_).substr(kHeaderBytes + crc_bytes_, here - crc_bytes_), crc_);
-  crc_bytes_ = here;
+  buffer_.append(bytes, count);
+  startLargeBody();
+}
+
+void Decoder::startLargeBody() {
+  if (large_ || skip_ > 0 || buffer_.size() < kHeaderBytes) return;
+  const Header h = readHeader(buffer_.data());
+  if ((h.version != 1 && h.version != 2) || h.body_size <= kLargeBodyBytes ||
+      h.body_size > limitFor(h.type)) {
+    return;  // an ordinary body, or one next() refuses
+  }
+  const auto size = static_cast<std::size_t>(h.body_size);
+  large_ = std::shared_ptr<char>(static_cast<char*>(volume::allocateVoxelMemory(size)),
+                                 [size](char* p) { volume::freeVoxelMemory(p, size); });
+  large_size_ = h.body_size;
+  large_got_ = 0;
+  crc_ = 0;
+  // What came with the header moves over; the buffer keeps the header and what follows the body.
+  const char* rest = buffer_.data() + kHeaderBytes;
+  std::size_t count = buffer_.size() - kHeaderBytes;
+  takeIntoLargeBody(rest, count);
+  buffer_.erase(kHeaderBytes, buffer_.size() - kHeaderBytes - count);
+}
+
+void Decoder::takeIntoLargeBody(const char*& bytes, std::size_t& count) {
+  const auto take =
+      static_cast<std::size_t>(std::min<std::uint64_t>(count, large_size_ - large_got_));
+  if (take == 0) return;
+  std::memcpy(large_.get() + large_got_, bytes, take);
+  crc_ = crc64(std::string_view(large_.get() + large_got_, take), crc_);
+  large_got_ += take;
+  bytes += take;
+  count -= take;
 }
 
 std::optional<Expected<Message>> Decoder::next() {
@@ -894,8 +909,7 @@ std::optional<Expected<Message>> Decoder::next() {
     const std::uint64_t here = std::min<std::uint64_t>(body, buffer_.size() - kHeaderBytes);
     buffer_.erase(0, kHeaderBytes + here);
     skip_ = body - here;
-    forgetCrc();
-    advanceCrc();  // the next message's, if it is here
+    startLargeBody();  // the next message's, if it is one and here
     return Expected<Message>(std::move(e));
   };
   if (header.version != 1 && header.version != 2) {
@@ -912,21 +926,28 @@ std::optional<Expected<Message>> Decoder::next() {
         makeError(ErrorCode::kInvalidArgument,
                   fmt::format("{}: body of {} bytes; at most {} accepted", name, body, limit)));
   }
-  if (buffer_.size() - kHeaderBytes < body) return std::nullopt;
-  // The message's bytes, kept whole (an image's voxels stay where they were read): the buffer
-  // itself when it holds this message alone, as a large one does.
-  std::shared_ptr<std::string> whole;
-  if (buffer_.size() == kHeaderBytes + body) {
-    whole = std::make_shared<std::string>(std::move(buffer_));
-    buffer_ = std::string();
+  // The body, kept whole (an image's voxels stay where they were read): a large one in its own
+  // memory, its CRC computed already; an ordinary one copied out of the buffer.
+  std::shared_ptr<const void> owner;
+  std::string_view body_bytes;
+  std::uint64_t crc = 0;
+  if (large_) {
+    if (large_got_ < large_size_) return std::nullopt;
+    body_bytes = std::string_view(large_.get(), large_size_);
+    owner = std::move(large_);
+    large_.reset();
+    large_got_ = large_size_ = 0;
+    crc = crc_;
+    buffer_.erase(0, kHeaderBytes);
   } else {
-    whole = std::make_shared<std::string>(buffer_, 0, kHeaderBytes + body);
+    if (buffer_.size() - kHeaderBytes < body) return std::nullopt;
+    auto copy = std::make_shared<std::string>(buffer_, kHeaderBytes, body);
     buffer_.erase(0, kHeaderBytes + body);
+    body_bytes = *copy;
+    owner = std::move(copy);
+    crc = crc64(body_bytes);
   }
-  const std::string_view body_bytes = std::string_view(*whole).substr(kHeaderBytes);
-  const std::uint64_t crc = crc64(body_bytes.substr(crc_bytes_), crc_);
-  forgetCrc();
-  advanceCrc();
+  startLargeBody();  // the next message's, if it is one and here
   if (crc != header.crc) {
     return Expected<Message>(makeError(ErrorCode::kFormat, name + ": CRC mismatch"));
   }
@@ -936,7 +957,7 @@ std::optional<Expected<Message>> Decoder::next() {
   out.header_version = header.version;
   out.timestamp_s = header.timestamp == 0 ? 0.0 : secondsOf(header.timestamp);
   if (header.version == 1) {
-    return Expected<Message>(decodeContent(std::move(out), body_bytes, whole));
+    return Expected<Message>(decodeContent(std::move(out), body_bytes, owner));
   }
   auto parts = splitBody(body_bytes);
   if (!parts) {
@@ -944,7 +965,7 @@ std::optional<Expected<Message>> Decoder::next() {
   }
   out.message_id = parts->message_id;
   out.metadata = std::move(parts->metadata);
-  return Expected<Message>(decodeContent(std::move(out), parts->content, whole));
+  return Expected<Message>(decodeContent(std::move(out), parts->content, owner));
 }
 
 }  // namespace ignav::igtl
