@@ -1,7 +1,5 @@
 #include "ignav/igtl/message.hpp"
 
-#include "ignav/volume/volume.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -15,6 +13,8 @@
 #include <igtlStringMessage.h>
 #include <igtlTransformMessage.h>
 #include <Eigen/LU>
+
+#include "ignav/volume/volume.hpp"
 
 namespace ignav::igtl {
 namespace {
@@ -60,7 +60,7 @@ Expected<typename M::Pointer> unpack(const Message& in, std::string_view content
   return m;
 }
 
-// The content of `out` (type, device name and framing filled in) from its bytes.
+// float32 on the wire: big-endian, as every OpenIGTLink number.
 void appendFloat32(std::string& out, float f) {
   std::uint32_t bits;
   std::memcpy(&bits, &f, 4);
@@ -77,6 +77,11 @@ float readFloat32(const char* at) {
 // POLYDATA's content: the ten counts and sizes, points, the four cell arrays, the attributes'
 // headers (type byte, components byte, count: libOpenIGTLink's order), their NUL-terminated
 // names padded to an even length, then their values.
+// One of OpenIGTLink's attribute types (0x00..0x04 per point, 0x10..0x14 per cell).
+bool knownAttributeType(const PolyAttribute& a) {
+  return (a.type & ~0x10) <= 0x04 && a.components > 0;
+}
+
 Expected<std::string> polyDataBytes(const Message& in) {
   const PolyData& p = in.poly;
   const auto refuse = [&](const std::string& what) {
@@ -100,7 +105,7 @@ Expected<std::string> polyDataBytes(const Message& in) {
   }
   for (const auto& a : p.attributes) {
     const int kind = a.type & 0x0f;
-    if ((a.type & ~0x10) > 0x04 || a.components == 0) {
+    if (!knownAttributeType(a)) {
       return refuse(fmt::format("attribute '{}': type 0x{:02x} with {} components", a.name, a.type,
                                 a.components));
     }
@@ -162,6 +167,7 @@ Expected<std::string> polyDataBytes(const Message& in) {
   return out;
 }
 
+// The content of `out` (type, device name and framing filled in) from its bytes.
 // `owner` holds the bytes `body` views: an image's voxels are kept in it, not copied.
 Expected<Message> decodeContent(Message out, std::string_view body,
                                 const std::shared_ptr<const void>& owner = nullptr) {
@@ -389,8 +395,7 @@ Expected<Message> decodeContent(Message out, std::string_view body,
       a.components = static_cast<std::uint8_t>(h[pos + 1]);
       const std::uint64_t owners = readBigEndian(h + pos + 2, 4);
       pos += 6;
-      if ((a.type & ~0x10) > 0x04 || a.components == 0 ||
-          owners != (a.perCell() ? all_cells : points)) {
+      if (!knownAttributeType(a) || owners != (a.perCell() ? all_cells : points)) {
         return format(
             fmt::format("an attribute of type 0x{:02x}, {} components, for {} of {} "
                         "points and {} cells",
