@@ -22,6 +22,7 @@
 #include "ignav/protocol/types.hpp"
 #include "igtl_listener.hpp"
 #include "scan_writer.hpp"
+#include "scene.hpp"
 #include "server_options.hpp"
 
 namespace ignav::server {
@@ -60,7 +61,6 @@ class IgtlBridge {
   bool reply(const workflow::Reply& reply, const workflow::Session& session);
   // Where POLYDATA's surfaces come from: made off the event thread (the slices thread's scene),
   // `done` called there. Without it, GET_POLYDATA has the planned paths only.
-  using SurfacesDone = std::function<void(Expected<std::vector<protocol::SceneSurface>>)>;
   void setSurfaceSource(std::function<void(SurfacesDone)> source) {
     surface_source_ = std::move(source);
   }

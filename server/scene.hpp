@@ -9,14 +9,20 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "ignav/core/expected.hpp"
 #include "ignav/protocol/types.hpp"
 #include "ignav/workflow/session.hpp"
 
 namespace ignav::server {
+
+// Where the scene's surfaces go when another edge asked for them (OpenIGTLink's POLYDATA): called
+// on the slices thread with them, or with why not.
+using SurfacesDone = std::function<void(Expected<std::vector<protocol::SceneSurface>>)>;
 
 class SceneBuilder {
  public:

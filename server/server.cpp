@@ -130,7 +130,7 @@ Server::Server(const ServerOptions& o, std::shared_ptr<const config::Robot> robo
     if (igtl_) {
       state_.setSafetyNotice(igtl_->safetyNotice());
       igtl_->setSurfaceSource(
-          [this](IgtlBridge::SurfacesDone done) { slices_.surfaces(snapshot(), std::move(done)); });
+          [this](SurfacesDone done) { slices_.surfaces(snapshot(), std::move(done)); });
     }
   }
 }

@@ -53,7 +53,6 @@ class Slices {
   // The scene's surfaces for another edge (OpenIGTLink's POLYDATA), the same kept meshes, queued
   // the same way: `done` is called on the slices thread with them, or with why not (the queue is
   // full, the server stops).
-  using SurfacesDone = std::function<void(Expected<std::vector<protocol::SceneSurface>>)>;
   void surfaces(Snapshot session, SurfacesDone done);
 
  private:

@@ -182,139 +182,10 @@ void BrpBridge::onDisconnected(std::uint64_t client) {
   }
 }
 
-BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const workflow::Session& s,
-                               const actuation::Steps& live) {
-  BrpOutput out;
-  const auto send = [&](Message msg) { out.messages.push_back({client, std::move(msg)}); };
-  if (m.type == "STRING") {
-    const auto id = idAfter(m.device_name, "CMD_");
-    if (!id) {
-      send(statusMessage(m.device_name, StatusCode::kUnknownInstruction,
-                         "a command is STRING(CMD_<id>, <workphase>)", "unknown_device"));
-      return out;
-    }
-    // The receipt first, whatever becomes of the command.
-    send(stringMessage(ackName(*id), m.text));
-    const auto phase = parseWorkphase(m.text);
-    if (brp2013() && phase) {
-      // Then the workphase asked for, before anything is tried: the result says how it went.
-      send(statusMessage("CURRENT_STATUS", StatusCode::kOk, "", toString(*phase)));
-    }
-    if (!phase) {
-      if (!brp2013()) send(currentStatus(s));
-      send(statusMessage(m.text.substr(0, kMaxDeviceName), StatusCode::kUnknownInstruction,
-                         fmt::format("'{}' is not a workphase", m.text.substr(0, 64)),
-                         "unknown_workphase"));
-      return out;
-    }
-    Pending p;
-    p.client = client;
-    p.phase = *phase;
-    startWorkphase(std::move(p), s, out);
-    return out;
-  }
-  if (m.type == "COMMAND") return onCommand(client, m, s);
-  if (m.type == "IMAGE") return onScan(client, m, s);
-  if (m.type == "TRANSFORM") {
-    const auto clb = idAfter(m.device_name, "CLB_");
-    const auto tgt = idAfter(m.device_name, "TGT_");
-    if (!clb && !tgt) {
-      send(statusMessage(m.device_name, StatusCode::kUnknownInstruction,
-                         "a transform is CLB_<id> (registration) or TGT_<id> (target)",
-                         "unknown_device"));
-      return out;
-    }
-    send(transformMessage(ackName(clb ? *clb : *tgt), m.matrix));  // the echo, as received
-    if (clb) {
-      auto in = input(InputKind::kSetRegistration);
-      // Slicer's matrix maps RAS to the robot: p_robot = M p_ras = (M F) p_lps.
-      in.matrix = m.matrix * rasFromLps();
-      pending_[in.request_id] = {
-          client, Purpose::kCalibration, Workphase::kCalibration, {}, {}, {}, {}, {}};
-      out.inputs.push_back(std::move(in));
-    } else {
-      auto in = input(InputKind::kAddTarget);
-      in.points.push_back(rasFromLps().topLeftCorner<3, 3>() * m.matrix.topRightCorner<3, 1>());
-      pending_[in.request_id] = {client, Purpose::kTarget, Workphase::kTargeting, {}, {}, {}, {},
-                                 {}};
-      out.inputs.push_back(std::move(in));
-    }
-    return out;
-  }
-  if (m.type == "POINT") {
-    // Slicer's markups: each point a target, echoed as received.
-    Message echo = m;
-    echo.device_name = ackName(m.device_name);
-    send(std::move(echo));
-    if (m.points.size() > workflow::kMaxTargets) {
-      send(statusMessage("TARGET", StatusCode::kConfigurationError,
-                         fmt::format("{} points in one message; at most {}", m.points.size(),
-                                     workflow::kMaxTargets),
-                         "oversized"));
-      return out;
-    }
-    for (const auto& point : m.points) {
-      auto in = input(InputKind::kAddTarget);
-      in.points.push_back(rasFromLps().topLeftCorner<3, 3>() * point.position_mm);
-      pending_[in.request_id] = {client, Purpose::kTarget, Workphase::kTargeting, {}, {}, {}, {},
-                                 {}};
-      out.inputs.push_back(std::move(in));
-    }
-    return out;
-  }
-  if (m.type == "GET_STATUS") {
-    // brp2013: the reference robots answer with a STATUS named after the workphase.
-    send(brp2013() ? statusMessage(toString(workphase(s)), StatusCode::kOk) : currentStatus(s));
-    return out;
-  }
-  if (m.type == "GET_TRANS") {  // GET_TRANSFORM (type names are 12 characters at most)
-    if (m.device_name == "ImageToRobot") {
-      if (s.registration) {
-        send(transformMessage("ImageToRobot", s.registration->imageToRobot() * rasFromLps()));
-      } else {
-        send(statusMessage("ImageToRobot", StatusCode::kNotReady, "not registered yet",
-                           "not_registered"));
-      }
-      return out;
-    }
-    if (m.device_name == "CURRENT_POSITION" || m.device_name == "NeedleTipToImage" ||
-        m.device_name.empty()) {
-      const std::string name = m.device_name.empty() ? "CURRENT_POSITION" : m.device_name;
-      if (auto pose = tipToImageRas(s, live)) {
-        send(transformMessage(name, *pose));
-      } else {
-        send(statusMessage(name, StatusCode::kNotReady,
-                           "not registered yet: the tip has no image position", "not_registered"));
-      }
-      return out;
-    }
-    send(statusMessage(m.device_name, StatusCode::kNotFound,
-                       "transforms here: CURRENT_POSITION, NeedleTipToImage, ImageToRobot",
-                       "unknown_transform"));
-    return out;
-  }
-  // The tip stream is the listener's to pace (server/igtl_listener.cpp): nothing to answer here.
-  if (m.type == "STT_TDATA" || m.type == "STP_TDATA") return out;
-  if (m.type == "GET_POLYDATA") {
-    // The paths are the session's own (cheap); the surfaces are made on the slices thread.
-    const bool all = m.device_name.empty() || m.device_name == "Scene";
-    if (all || m.device_name == "PlannedPaths") send(plannedPaths(s));
-    if (m.device_name != "PlannedPaths") out.surfaces.push_back({client, m.device_name});
-    return out;
-  }
-  if (m.type == "GET_IMAGE") {
-    send(imageFor(m.device_name.empty() ? std::string("PlanningCT") : m.device_name, s));
-    return out;
-  }
-  // Stream controls and other queries: nothing of ours streams on request.
-  send(statusMessage(m.device_name, StatusCode::kUnknownInstruction,
-                     fmt::format("{} is not part of the BRP protocol here", m.type),
-                     "unknown_message"));
-  return out;
-}
+namespace {
 
-BrpOutput BrpBridge::onScan(std::uint64_t client, const Message& m,
-                            const workflow::Session&) const {
+// An IMAGE sent to be measured: a scan to keep (its geometry checked), or why not.
+BrpOutput scanFrom(std::uint64_t client, const Message& m) {
   BrpOutput out;
   const auto refuse = [&](StatusCode code, const std::string& why, const char* error_name) {
     out.messages.push_back({client, statusMessage(m.device_name, code, why, error_name)});
@@ -381,6 +252,146 @@ BrpOutput BrpBridge::onScan(std::uint64_t client, const Message& m,
   scan.bytes = image.data_bytes;
   out.scans.push_back(std::move(scan));
   return out;
+}
+
+}  // namespace
+
+BrpOutput BrpBridge::onMessage(std::uint64_t client, const Message& m, const workflow::Session& s,
+                               const actuation::Steps& live) {
+  BrpOutput out;
+  const auto send = [&](Message msg) { out.messages.push_back({client, std::move(msg)}); };
+  if (m.type == "STRING") {
+    const auto id = idAfter(m.device_name, "CMD_");
+    if (!id) {
+      send(statusMessage(m.device_name, StatusCode::kUnknownInstruction,
+                         "a command is STRING(CMD_<id>, <workphase>)", "unknown_device"));
+      return out;
+    }
+    // The receipt first, whatever becomes of the command.
+    send(stringMessage(ackName(*id), m.text));
+    const auto phase = parseWorkphase(m.text);
+    if (brp2013() && phase) {
+      // Then the workphase asked for, before anything is tried: the result says how it went.
+      send(statusMessage("CURRENT_STATUS", StatusCode::kOk, "", toString(*phase)));
+    }
+    if (!phase) {
+      if (!brp2013()) send(currentStatus(s));
+      send(statusMessage(m.text.substr(0, kMaxDeviceName), StatusCode::kUnknownInstruction,
+                         fmt::format("'{}' is not a workphase", m.text.substr(0, 64)),
+                         "unknown_workphase"));
+      return out;
+    }
+    Pending p;
+    p.client = client;
+    p.phase = *phase;
+    startWorkphase(std::move(p), s, out);
+    return out;
+  }
+  if (m.type == "COMMAND") return onCommand(client, m, s);
+  if (m.type == "IMAGE") return scanFrom(client, m);
+  if (m.type == "TRANSFORM") {
+    const auto clb = idAfter(m.device_name, "CLB_");
+    const auto tgt = idAfter(m.device_name, "TGT_");
+    if (!clb && !tgt) {
+      send(statusMessage(m.device_name, StatusCode::kUnknownInstruction,
+                         "a transform is CLB_<id> (registration) or TGT_<id> (target)",
+                         "unknown_device"));
+      return out;
+    }
+    send(transformMessage(ackName(clb ? *clb : *tgt), m.matrix));  // the echo, as received
+    if (clb) {
+      auto in = input(InputKind::kSetRegistration);
+      // Slicer's matrix maps RAS to the robot: p_robot = M p_ras = (M F) p_lps.
+      in.matrix = m.matrix * rasFromLps();
+      pending_[in.request_id] = pending(client, Purpose::kCalibration, Workphase::kCalibration);
+      out.inputs.push_back(std::move(in));
+    } else {
+      auto in = input(InputKind::kAddTarget);
+      in.points.push_back(rasFromLps().topLeftCorner<3, 3>() * m.matrix.topRightCorner<3, 1>());
+      pending_[in.request_id] = pending(client, Purpose::kTarget, Workphase::kTargeting);
+      out.inputs.push_back(std::move(in));
+    }
+    return out;
+  }
+  if (m.type == "POINT") {
+    // Slicer's markups: each point a target, echoed as received.
+    Message echo = m;
+    echo.device_name = ackName(m.device_name);
+    send(std::move(echo));
+    if (m.points.size() > workflow::kMaxTargets) {
+      send(statusMessage("TARGET", StatusCode::kConfigurationError,
+                         fmt::format("{} points in one message; at most {}", m.points.size(),
+                                     workflow::kMaxTargets),
+                         "oversized"));
+      return out;
+    }
+    for (const auto& point : m.points) {
+      auto in = input(InputKind::kAddTarget);
+      in.points.push_back(rasFromLps().topLeftCorner<3, 3>() * point.position_mm);
+      pending_[in.request_id] = pending(client, Purpose::kTarget, Workphase::kTargeting);
+      out.inputs.push_back(std::move(in));
+    }
+    return out;
+  }
+  if (m.type == "GET_STATUS") {
+    // brp2013: the reference robots answer with a STATUS named after the workphase.
+    send(brp2013() ? statusMessage(toString(workphase(s)), StatusCode::kOk) : currentStatus(s));
+    return out;
+  }
+  if (m.type == "GET_TRANS") {  // GET_TRANSFORM (type names are 12 characters at most)
+    if (m.device_name == "ImageToRobot") {
+      if (s.registration) {
+        send(transformMessage("ImageToRobot", s.registration->imageToRobot() * rasFromLps()));
+      } else {
+        send(statusMessage("ImageToRobot", StatusCode::kNotReady, "not registered yet",
+                           "not_registered"));
+      }
+      return out;
+    }
+    if (m.device_name == "CURRENT_POSITION" || m.device_name == "NeedleTipToImage" ||
+        m.device_name.empty()) {
+      const std::string name = m.device_name.empty() ? "CURRENT_POSITION" : m.device_name;
+      if (auto pose = tipToImageRas(s, live)) {
+        send(transformMessage(name, *pose));
+      } else {
+        send(statusMessage(name, StatusCode::kNotReady,
+                           "not registered yet: the tip has no image position", "not_registered"));
+      }
+      return out;
+    }
+    send(statusMessage(m.device_name, StatusCode::kNotFound,
+                       "transforms here: CURRENT_POSITION, NeedleTipToImage, ImageToRobot",
+                       "unknown_transform"));
+    return out;
+  }
+  // The tip stream is the listener's to pace (server/igtl_listener.cpp): nothing to answer here.
+  if (m.type == "STT_TDATA" || m.type == "STP_TDATA") return out;
+  if (m.type == "GET_POLYDATA") {
+    // The paths are the session's own (cheap); the surfaces are made on the slices thread.
+    const bool all = m.device_name.empty() || m.device_name == "Scene";
+    if (all || m.device_name == "PlannedPaths") send(plannedPaths(s));
+    if (m.device_name != "PlannedPaths") out.surfaces.push_back({client, m.device_name});
+    return out;
+  }
+  if (m.type == "GET_IMAGE") {
+    send(imageFor(m.device_name.empty() ? std::string("PlanningCT") : m.device_name, s));
+    return out;
+  }
+  // Stream controls and other queries: nothing of ours streams on request.
+  send(statusMessage(m.device_name, StatusCode::kUnknownInstruction,
+                     fmt::format("{} is not part of the BRP protocol here", m.type),
+                     "unknown_message"));
+  return out;
+}
+
+BrpBridge::Pending BrpBridge::pending(std::uint64_t client, Purpose purpose, Workphase phase,
+                                      std::string why) {
+  Pending p;
+  p.client = client;
+  p.purpose = purpose;
+  p.phase = phase;
+  p.why = std::move(why);
+  return p;
 }
 
 BrpOutput BrpBridge::onScanSaved(const ReceivedScan& scan, const std::string& path,
@@ -693,8 +704,8 @@ BrpOutput BrpBridge::onReply(const workflow::Reply& reply, const workflow::Sessi
       // The core judged it out of reach: it leaves the plan, and the reason goes back.
       auto in = input(InputKind::kRemoveTarget);
       in.ids.push_back(t->id);
-      pending_[in.request_id] = {
-          p.client, Purpose::kTargetRemoval, Workphase::kTargeting, {}, t->message, {}, {}, {}};
+      pending_[in.request_id] =
+          pending(p.client, Purpose::kTargetRemoval, Workphase::kTargeting, t->message);
       out.inputs.push_back(std::move(in));
       return out;
     }

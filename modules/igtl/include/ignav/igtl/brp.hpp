@@ -154,7 +154,8 @@ class BrpBridge {
     std::string path;
   };
   void reportMeasurements(const workflow::Session& s, BrpOutput& out);
-  BrpOutput onScan(std::uint64_t client, const Message& m, const workflow::Session& s) const;
+  static Pending pending(std::uint64_t client, Purpose purpose, Workphase phase,
+                         std::string why = {});
 
   workflow::Input input(workflow::InputKind kind);
   // The inputs a workphase asks for, dispatched (STRING CMD_ and COMMAND alike).
